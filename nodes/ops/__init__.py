@@ -1,0 +1,1 @@
+"""Math of the effects: plain functions on arrays, OpenCL kernels next to numpy references."""

@@ -1,0 +1,355 @@
+"""The node contract: a node is one class that declares its ports and params.
+
+    from pixgraph.node import node, param, port
+    from pixgraph import types as T
+
+    @node("pixgraph.GaussianBlur", version=1)
+    class GaussianBlur:
+        '''Gaussian blur of an image on the OpenCL device.'''
+        class Inputs:
+            image: T.Image = port(doc="image to blur")
+        class Params:
+            sigma: float = param(2.0, min=0.0, max=100.0, unit="px", doc="standard deviation")
+        class Outputs:
+            image: T.Image = port(doc="blurred image")
+        impl_version = "1"          # bump when the numbers it produces change
+
+        def compute(self, ctx, inputs, params):
+            return {"image": blur(ctx.device, inputs.image, params.sigma)}
+
+``compute`` receives ``inputs`` and ``params`` as read-only attribute namespaces
+(``inputs.image``, ``params.sigma``; an absent optional input is ``None``) and
+returns a dict with one value per output name. ``ctx`` gives the OpenCL device,
+progress and cancellation (see ``pixgraph.engine.NodeContext``).
+
+Param value types: ``float``, ``int``, ``bool``, ``str`` (optionally with
+``choices``), ``list[float]`` (fixed ``length`` optional) and ``Path`` (a file;
+its *content* is part of the cache key, so editing the file reruns the node).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import pathlib
+import typing
+from types import MappingProxyType
+from typing import Any, Callable
+
+from . import types as T
+
+_MISSING = object()
+
+PARAM_KINDS = ("float", "int", "bool", "str", "floats", "path")
+
+
+class ParamError(ValueError):
+    """A param value that does not fit its declaration. ``param`` names it."""
+
+    def __init__(self, param: str, message: str):
+        super().__init__(f"param {param!r}: {message}")
+        self.param = param
+        self.message = message
+
+
+@dataclasses.dataclass(frozen=True)
+class ParamSpec:
+    """Declaration of one param: kind, default, range or choices, unit and doc."""
+
+    name: str
+    kind: str
+    default: Any
+    min: float | None = None
+    max: float | None = None
+    choices: tuple[str, ...] | None = None
+    length: int | None = None
+    unit: str = ""
+    doc: str = ""
+    #: False for params that cannot change the result (e.g. a progress interval)
+    cache: bool = True
+
+    def coerce(self, value: Any) -> Any:
+        """Check ``value`` against this declaration and return it in canonical form.
+
+        Raises ``ParamError`` naming the param on a wrong type, a value out of
+        range, or a choice that is not offered.
+        """
+        k = self.kind
+        if k == "bool":
+            if not isinstance(value, bool):
+                raise ParamError(self.name, f"expected true or false, got {value!r}")
+            return value
+        if k == "int":
+            if isinstance(value, bool) or not isinstance(value, int):
+                if isinstance(value, float) and value.is_integer():
+                    value = int(value)
+                else:
+                    raise ParamError(self.name, f"expected an integer, got {value!r}")
+            self._check_range(value)
+            return int(value)
+        if k == "float":
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ParamError(self.name, f"expected a number, got {value!r}")
+            value = float(value)
+            if not math.isfinite(value):
+                raise ParamError(self.name, f"expected a finite number, got {value!r}")
+            self._check_range(value)
+            return value
+        if k == "str":
+            if not isinstance(value, str):
+                raise ParamError(self.name, f"expected a string, got {value!r}")
+            if self.choices is not None and value not in self.choices:
+                raise ParamError(self.name, f"{value!r} is not one of {', '.join(self.choices)}")
+            return value
+        if k == "floats":
+            if not isinstance(value, (list, tuple)):
+                raise ParamError(self.name, f"expected a list of numbers, got {value!r}")
+            if self.length is not None and len(value) != self.length:
+                raise ParamError(self.name, f"expected {self.length} numbers, got {len(value)}")
+            out = []
+            for v in value:
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                    raise ParamError(self.name, f"expected finite numbers, got {v!r}")
+                self._check_range(float(v))
+                out.append(float(v))
+            return tuple(out)
+        if k == "path":
+            if not isinstance(value, (str, pathlib.PurePath)) or str(value) == "":
+                raise ParamError(self.name, f"expected a file path, got {value!r}")
+            return str(value)
+        raise AssertionError(k)
+
+    def _check_range(self, value: float) -> None:
+        if self.min is not None and value < self.min:
+            raise ParamError(self.name, f"{value} is below the minimum {self.min}")
+        if self.max is not None and value > self.max:
+            raise ParamError(self.name, f"{value} is above the maximum {self.max}")
+
+    def json_schema(self) -> dict:
+        """JSON Schema fragment for this param's value."""
+        k = self.kind
+        s: dict[str, Any]
+        if k == "bool":
+            s = {"type": "boolean"}
+        elif k == "int":
+            s = {"type": "integer"}
+        elif k == "float":
+            s = {"type": "number"}
+        elif k == "str":
+            s = {"type": "string"}
+            if self.choices is not None:
+                s["enum"] = list(self.choices)
+        elif k == "floats":
+            s = {"type": "array", "items": {"type": "number"}}
+            if self.length is not None:
+                s["minItems"] = s["maxItems"] = self.length
+        else:
+            s = {"type": "string", "minLength": 1}
+        if k in ("int", "float"):
+            if self.min is not None:
+                s["minimum"] = self.min
+            if self.max is not None:
+                s["maximum"] = self.max
+        if k == "floats":
+            if self.min is not None:
+                s["items"]["minimum"] = self.min
+            if self.max is not None:
+                s["items"]["maximum"] = self.max
+        desc = self.doc + (f" [{self.unit}]" if self.unit else "")
+        if desc:
+            s["description"] = desc
+        s["default"] = list(self.default) if isinstance(self.default, tuple) else self.default
+        return s
+
+
+@dataclasses.dataclass(frozen=True)
+class PortSpec:
+    """Declaration of one input or output port."""
+
+    name: str
+    type: type[T.PortType]
+    optional: bool = False
+    doc: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class _ParamDecl:
+    default: Any
+    min: float | None
+    max: float | None
+    choices: tuple[str, ...] | None
+    length: int | None
+    unit: str
+    doc: str
+    cache: bool
+
+
+@dataclasses.dataclass(frozen=True)
+class _PortDecl:
+    optional: bool
+    doc: str
+
+
+def param(default: Any = _MISSING, *, min: float | None = None, max: float | None = None,
+          choices: typing.Sequence[str] | None = None, length: int | None = None,
+          unit: str = "", doc: str = "", cache: bool = True) -> Any:
+    """Declare a param inside a node's ``Params`` class; the annotation gives its kind."""
+    if default is _MISSING:
+        raise TypeError("param() needs a default")
+    return _ParamDecl(default, min, max, tuple(choices) if choices is not None else None,
+                      length, unit, doc, cache)
+
+
+def port(*, optional: bool = False, doc: str = "") -> Any:
+    """Declare an input or output inside a node's ``Inputs``/``Outputs`` class."""
+    return _PortDecl(optional, doc)
+
+
+def _param_kind(annotation: Any, owner: str, name: str) -> str:
+    if annotation in (float, "float"):
+        return "float"
+    if annotation in (int, "int"):
+        return "int"
+    if annotation in (bool, "bool"):
+        return "bool"
+    if annotation in (str, "str"):
+        return "str"
+    if annotation in (pathlib.Path, "Path", "pathlib.Path"):
+        return "path"
+    if typing.get_origin(annotation) in (list, tuple) or annotation in ("list[float]", "tuple[float, ...]"):
+        return "floats"
+    raise TypeError(f"{owner}: param {name!r} has unsupported type {annotation!r}")
+
+
+def _annotations(cls: type | None) -> dict[str, Any]:
+    if cls is None:
+        return {}
+    # resolve string annotations (from __future__ import annotations) in the
+    # module of the node, so `mask: T.Mask` works either way
+    import sys
+    module = sys.modules.get(cls.__module__)
+    globalns = dict(vars(module)) if module else {}
+    globalns.setdefault("T", T)
+    globalns.setdefault("Path", pathlib.Path)
+    try:
+        return typing.get_type_hints(cls, globalns=globalns)
+    except Exception:
+        return dict(getattr(cls, "__annotations__", {}))
+
+
+@dataclasses.dataclass(frozen=True)
+class NodeSpec:
+    """Everything the engine knows about a node type, read from its declaration."""
+
+    type_id: str
+    version: int
+    impl_version: str
+    doc: str
+    inputs: tuple[PortSpec, ...]
+    outputs: tuple[PortSpec, ...]
+    params: tuple[ParamSpec, ...]
+    cls: type
+    #: where the class came from, for error messages ("module:Class")
+    source: str
+
+    @property
+    def summary(self) -> str:
+        return self.doc.strip().splitlines()[0] if self.doc.strip() else ""
+
+    def input(self, name: str) -> PortSpec | None:
+        return next((p for p in self.inputs if p.name == name), None)
+
+    def output(self, name: str) -> PortSpec | None:
+        return next((p for p in self.outputs if p.name == name), None)
+
+    def param(self, name: str) -> ParamSpec | None:
+        return next((p for p in self.params if p.name == name), None)
+
+    def coerce_params(self, values: typing.Mapping[str, Any]) -> dict[str, Any]:
+        """Defaults filled in, every value checked and canonical. Raises ParamError."""
+        out = {}
+        for name in values:
+            if self.param(name) is None:
+                known = ", ".join(p.name for p in self.params) or "none"
+                raise ParamError(name, f"unknown param (known: {known})")
+        for p in self.params:
+            out[p.name] = p.coerce(values[p.name]) if p.name in values else p.coerce(p.default)
+        return out
+
+
+def _read_spec(cls: type, type_id: str, version: int) -> NodeSpec:
+    owner = f"{cls.__module__}:{cls.__qualname__}"
+    inputs, outputs, params = [], [], []
+    for name, ann in _annotations(getattr(cls, "Inputs", None)).items():
+        decl = getattr(cls.Inputs, name, _PortDecl(False, ""))
+        if not (isinstance(ann, type) and issubclass(ann, T.PortType)):
+            raise TypeError(f"{owner}: input {name!r} must be annotated with a port type")
+        inputs.append(PortSpec(name, ann, decl.optional, decl.doc))
+    for name, ann in _annotations(getattr(cls, "Outputs", None)).items():
+        decl = getattr(cls.Outputs, name, _PortDecl(False, ""))
+        if not (isinstance(ann, type) and issubclass(ann, T.PortType)):
+            raise TypeError(f"{owner}: output {name!r} must be annotated with a port type")
+        outputs.append(PortSpec(name, ann, False, decl.doc))
+    for name, ann in _annotations(getattr(cls, "Params", None)).items():
+        decl = getattr(cls.Params, name, None)
+        if not isinstance(decl, _ParamDecl):
+            raise TypeError(f"{owner}: param {name!r} must be declared with param(...)")
+        spec = ParamSpec(name, _param_kind(ann, owner, name), decl.default, decl.min, decl.max,
+                         decl.choices, decl.length, decl.unit, decl.doc, decl.cache)
+        spec.coerce(spec.default)  # a bad default is the node author's bug: fail at import
+        params.append(spec)
+    if not outputs:
+        raise TypeError(f"{owner}: a node needs at least one output")
+    if not callable(getattr(cls, "compute", None)):
+        raise TypeError(f"{owner}: a node needs a compute(ctx, inputs, params) method")
+    return NodeSpec(type_id, version, str(getattr(cls, "impl_version", "1")), cls.__doc__ or "",
+                    tuple(inputs), tuple(outputs), tuple(params), cls, owner)
+
+
+def node(type_id: str, *, version: int = 1) -> Callable[[type], type]:
+    """Class decorator that reads the declaration into ``cls.spec`` (a ``NodeSpec``).
+
+    ``type_id`` is namespaced: ``"<namespace>.<Name>"`` (built-ins use ``pixgraph``).
+    ``version`` is the interface version: bump it when ports or params change meaning.
+    """
+    if "." not in type_id or type_id.startswith(".") or type_id.endswith("."):
+        raise ValueError(f"node type id {type_id!r} must be namespaced, like 'mypack.MyNode'")
+
+    def wrap(cls: type) -> type:
+        cls.spec = _read_spec(cls, type_id, version)
+        return cls
+
+    return wrap
+
+
+def is_node_class(obj: Any) -> bool:
+    return isinstance(obj, type) and isinstance(getattr(obj, "spec", None), NodeSpec)
+
+
+class Namespace(typing.Mapping[str, Any]):
+    """Read-only attribute and mapping access to a node's inputs or params."""
+
+    __slots__ = ("_d",)
+
+    def __init__(self, values: typing.Mapping[str, Any]):
+        object.__setattr__(self, "_d", MappingProxyType(dict(values)))
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return self._d[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __setattr__(self, name, value):
+        raise AttributeError("read-only")
+
+    def __getitem__(self, k):
+        return self._d[k]
+
+    def __iter__(self):
+        return iter(self._d)
+
+    def __len__(self):
+        return len(self._d)
+
+    def __repr__(self):
+        return f"Namespace({dict(self._d)!r})"
