@@ -1,0 +1,21 @@
+"""Shared fixtures. The OpenCL device is opened once per test session."""
+import pytest
+
+from pixgraph.device import Device
+
+
+@pytest.fixture(scope="session")
+def device():
+    """The default OpenCL device (PIXGRAPH_DEVICE overrides), shared by all tests."""
+    return Device.open()
+
+
+@pytest.fixture(scope="session", params=["pip", "debian"])
+def each_pocl(request):
+    """Each installed PoCL platform in turn (skipped when that one is absent)."""
+    from pixgraph.device import list_devices
+    want_debian = request.param == "debian"
+    for d in list_devices():
+        if d.kind == "CPU" and ("debian" in d.platform_version.lower()) == want_debian:
+            return Device.open(d.spec)
+    pytest.skip(f"no {request.param} PoCL platform installed")
