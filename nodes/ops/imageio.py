@@ -1,0 +1,239 @@
+"""Image file I/O: every image the package reads or writes goes through here.
+
+Inside pixgraph an image is float32 ``(H, W, C)`` (or ``(H, W)``), **linear light,
+alpha premultiplied** when ``C`` is 4 (or 2: grey + alpha). Files differ:
+
+- PNG / JPEG / 8- and 16-bit TIFF hold sRGB-encoded colour with *straight*
+  (unassociated) alpha;
+- OpenEXR holds linear, premultiplied float colour with named channels.
+
+OpenImageIO premultiplies RGBA PNGs (and TIFFs with unassociated alpha) on read
+unless told not to; we always pass ``oiio:UnassociatedAlpha = 1`` so that we get
+the file's numbers untouched, and do the conversion here, explicitly:
+decode sRGB on straight colour, then premultiply (encoding sRGB of a premultiplied
+colour would darken every soft edge).
+"""
+from __future__ import annotations
+
+import os
+import pathlib
+
+import numpy as np
+
+#: file extensions whose colour is linear float (everything else is sRGB-encoded)
+LINEAR_EXTENSIONS = (".exr", ".hdr")
+
+
+def srgb_to_linear(x: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1 sRGB decode of values in [0, 1] to linear light (float32)."""
+    x = np.asarray(x, dtype=np.float32)
+    return np.where(x <= 0.04045, x / 12.92, ((np.maximum(x, 0.04045) + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(x: np.ndarray) -> np.ndarray:
+    """sRGB encode of linear light to display values (float32; [0, 1] in, [0, 1] out)."""
+    x = np.asarray(x, dtype=np.float32)
+    return np.where(x <= 0.0031308, x * 12.92,
+                    1.055 * np.power(np.maximum(x, 0.0031308), 1.0 / 2.4) - 0.055).astype(np.float32)
+
+
+def _oiio():
+    import OpenImageIO as oiio
+
+    return oiio
+
+
+def _is_linear_file(path: str | os.PathLike) -> bool:
+    return pathlib.Path(path).suffix.lower() in LINEAR_EXTENSIONS
+
+
+def _alpha_channel(nchannels: int) -> int | None:
+    """Index of the alpha channel for the layouts we accept: grey+A (2) or RGBA (4)."""
+    return {2: 1, 4: 3}.get(nchannels)
+
+
+def read_image(path: str | os.PathLike, colorspace: str = "auto",
+               alpha: str = "auto") -> tuple[np.ndarray, np.ndarray]:
+    """Read an image file into pixgraph's convention.
+
+    colorspace: ``"srgb"``, ``"linear"`` or ``"auto"`` (EXR/HDR linear, others sRGB):
+        how the file's colour is encoded.
+    alpha: ``"straight"``, ``"premultiplied"`` or ``"auto"`` (EXR/HDR premultiplied,
+        others straight): what the *file* holds.
+
+    Returns ``(image, alpha)``: ``image`` float32 ``(H, W, C)``, linear light,
+    premultiplied (C as in the file: 1, 2, 3 or 4); ``alpha`` float32 ``(H, W)``
+    in [0, 1], all ones when the file has no alpha channel.
+    """
+    if colorspace not in ("srgb", "linear", "auto"):
+        raise ValueError(f"colorspace must be srgb, linear or auto, got {colorspace!r}")
+    if alpha not in ("straight", "premultiplied", "auto"):
+        raise ValueError(f"alpha must be straight, premultiplied or auto, got {alpha!r}")
+    oiio = _oiio()
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    inp = oiio.ImageInput.open(str(path), config)
+    if inp is None:
+        raise OSError(f"cannot read image {path}: {oiio.geterror()}")
+    try:
+        data = inp.read_image("float")
+        if data is None:
+            raise OSError(f"cannot read image {path}: {inp.geterror()}")
+    finally:
+        inp.close()
+    data = np.asarray(data, dtype=np.float32)
+    if data.ndim == 2:
+        data = data[:, :, None]
+    data = np.ascontiguousarray(data)
+    if colorspace == "auto":
+        colorspace = "linear" if _is_linear_file(path) else "srgb"
+    if alpha == "auto":
+        alpha = "premultiplied" if _is_linear_file(path) else "straight"
+    ai = _alpha_channel(data.shape[2])
+    if ai is None:
+        a = np.ones(data.shape[:2], np.float32)
+        colour = data
+    else:
+        a = np.clip(data[:, :, ai], 0.0, 1.0)
+        colour = np.delete(data, ai, axis=2)
+    if colorspace == "srgb":
+        if alpha == "premultiplied" and ai is not None:
+            # decode needs straight colour: unpremultiply, decode, premultiply again
+            colour = _unpremultiply(colour, a)
+        colour = srgb_to_linear(np.clip(colour, 0.0, 1.0))
+        if ai is not None:
+            colour = colour * a[:, :, None]
+    elif alpha == "straight" and ai is not None:
+        colour = colour * a[:, :, None]
+    if ai is None:
+        image = colour
+    else:
+        image = np.concatenate([colour, a[:, :, None]], axis=2)
+    return np.ascontiguousarray(image, dtype=np.float32), a.astype(np.float32)
+
+
+def _unpremultiply(colour: np.ndarray, a: np.ndarray) -> np.ndarray:
+    safe = np.where(a > 0.0, a, 1.0)[:, :, None]
+    return np.where(a[:, :, None] > 0.0, colour / safe, 0.0).astype(np.float32)
+
+
+def _as_hwc(array: np.ndarray) -> np.ndarray:
+    array = np.asarray(array, dtype=np.float32)
+    if array.ndim == 2:
+        array = array[:, :, None]
+    if array.ndim != 3 or not 1 <= array.shape[2] <= 4:
+        raise ValueError(f"expected an (H, W) or (H, W, C<=4) image, got shape {array.shape}")
+    return array
+
+
+def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | None = None) -> str:
+    """Write a linear, premultiplied float32 image to ``path``; the extension picks the format.
+
+    - ``.png``, ``.tif``/``.tiff``: sRGB-encoded, straight alpha, ``bit_depth`` 8
+      (default) or 16.
+    - ``.jpg``/``.jpeg``: sRGB-encoded 8 bit; JPEG has no alpha, so colour is
+      written over black (the premultiplied colour) and alpha is dropped.
+    - ``.exr``: linear, premultiplied, ``bit_depth`` 16 (half) or 32 (float,
+      default), channels ``R,G,B[,A]`` (``Y`` / ``Y,A`` for grey).
+
+    The file is written to a temporary name next to it and renamed, so a reader
+    never sees a half-written image. Returns the path written, as a string.
+    """
+    oiio = _oiio()
+    path = str(path)
+    ext = pathlib.Path(path).suffix.lower()
+    img = _as_hwc(array)
+    h, w, c = img.shape
+    ai = _alpha_channel(c)
+    names = {1: ["Y"], 2: ["Y", "A"], 3: ["R", "G", "B"], 4: ["R", "G", "B", "A"]}[c]
+    if ext == ".exr":
+        bit_depth = 32 if bit_depth is None else bit_depth
+        if bit_depth not in (16, 32):
+            raise ValueError(f"EXR bit_depth must be 16 or 32, got {bit_depth}")
+        fmt = oiio.HALF if bit_depth == 16 else oiio.FLOAT
+        spec = oiio.ImageSpec(w, h, c, fmt)
+        spec.channelnames = tuple(names)
+        if ai is not None:
+            spec.alpha_channel = ai
+        pixels = img
+    elif ext in (".png", ".tif", ".tiff", ".jpg", ".jpeg"):
+        jpeg = ext in (".jpg", ".jpeg")
+        bit_depth = 8 if bit_depth is None else bit_depth
+        if bit_depth not in (8, 16) or (jpeg and bit_depth != 8):
+            raise ValueError(f"{ext} bit_depth must be 8{'' if jpeg else ' or 16'}, got {bit_depth}")
+        if jpeg and ai is not None:
+            img = np.delete(img, ai, axis=2)
+            c, ai = img.shape[2], None
+            names = names[:c] if c == 3 else ["Y"]
+        if ai is not None:
+            a = np.clip(img[:, :, ai], 0.0, 1.0)
+            colour = linear_to_srgb(np.clip(_unpremultiply(np.delete(img, ai, axis=2), a), 0.0, 1.0))
+            pixels = np.insert(colour, ai, a, axis=2)
+        else:
+            pixels = linear_to_srgb(np.clip(img, 0.0, 1.0))
+        fmt = oiio.UINT8 if bit_depth == 8 else oiio.UINT16
+        spec = oiio.ImageSpec(w, h, c, fmt)
+        spec.channelnames = tuple(names)
+        if ai is not None:
+            spec.alpha_channel = ai
+            # our pixels are already straight: stop OIIO from un-associating again
+            spec.attribute("oiio:UnassociatedAlpha", 1)
+        spec.attribute("oiio:ColorSpace", "sRGB")
+    else:
+        raise ValueError(f"unsupported image extension {ext!r} for {path} (png, tif, jpg, exr)")
+    _write_atomic(oiio, path, spec, np.ascontiguousarray(pixels, dtype=np.float32))
+    return path
+
+
+def _write_atomic(oiio, path: str, spec, pixels: np.ndarray) -> None:
+    folder, name = os.path.split(os.path.abspath(path))
+    stem, ext = os.path.splitext(name)
+    tmp = os.path.join(folder, f".{stem}.tmp-{os.getpid()}{ext}")
+    out = oiio.ImageOutput.create(tmp)
+    if out is None:
+        raise OSError(f"cannot write image {path}: {oiio.geterror()}")
+    try:
+        if not out.open(tmp, spec):
+            raise OSError(f"cannot write image {path}: {out.geterror()}")
+        if not out.write_image(pixels):
+            raise OSError(f"cannot write image {path}: {out.geterror()}")
+    finally:
+        out.close()
+    os.replace(tmp, path)
+
+
+def write_exr_channels(path: str | os.PathLike, channels: dict[str, np.ndarray], bit_depth: int = 32) -> str:
+    """Write named float ``(H, W)`` channels (e.g. SSN++ buffers) to one EXR, in dict order."""
+    oiio = _oiio()
+    if not channels:
+        raise ValueError("write_exr_channels needs at least one channel")
+    arrays = [np.asarray(v, dtype=np.float32) for v in channels.values()]
+    shape = arrays[0].shape
+    for name, arr in zip(channels, arrays):
+        if arr.ndim != 2 or arr.shape != shape:
+            raise ValueError(f"channel {name!r} has shape {arr.shape}, expected {shape} (H, W)")
+    if bit_depth not in (16, 32):
+        raise ValueError(f"EXR bit_depth must be 16 or 32, got {bit_depth}")
+    spec = oiio.ImageSpec(shape[1], shape[0], len(arrays), oiio.HALF if bit_depth == 16 else oiio.FLOAT)
+    spec.channelnames = tuple(channels)
+    _write_atomic(oiio, str(path), spec, np.ascontiguousarray(np.stack(arrays, axis=2)))
+    return str(path)
+
+
+def read_exr_channels(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Every channel of an EXR (or any image) as ``{name: float32 (H, W)}``, in file order."""
+    oiio = _oiio()
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise OSError(f"cannot read image {path}: {oiio.geterror()}")
+    try:
+        names = list(inp.spec().channelnames)
+        data = inp.read_image("float")
+        if data is None:
+            raise OSError(f"cannot read image {path}: {inp.geterror()}")
+    finally:
+        inp.close()
+    data = np.asarray(data, dtype=np.float32)
+    if data.ndim == 2:
+        data = data[:, :, None]
+    return {n: np.ascontiguousarray(data[:, :, i]) for i, n in enumerate(names)}
