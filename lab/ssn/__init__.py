@@ -1,0 +1,1 @@
+"""SSN++ training, data preparation and evaluation."""

@@ -1,0 +1,209 @@
+"""SSN++: the neural soft-shadow renderer (PixHt-Lab Sec. 3.2).
+
+A small U-Net (3x3 conv blocks with GroupNorm and GELU, skip connections, as
+SSG's backbone) that maps the buffer channels of ``ops.buffers`` to a soft shadow
+darkness map (1 = full shadow).
+
+The light's softness really conditions the network (the authors' released
+backbone never reads it): every conv block is modulated by FiLM, a per-channel
+scale and shift predicted from the softness, so one set of weights renders a
+small and a large light differently.
+
+Softness is the disk light's angular radius ``radius / distance`` (dimensionless,
+about 0.015 .. 0.5): it is what decides the penumbra width for a given
+occluder-receiver distance, independently of the camera.
+
+Channel sets (the paper's Table 2 ablation):
+    ssg     cutout_height, hard_shadow
+    sparse  + sparse_hard_shadow_0..3
+    reldist + relative_distance
+    ssnpp   + bg_gradient_x, bg_gradient_y   (the full SSN++)
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import pathlib
+
+import numpy as np
+import torch
+from torch import nn
+import torch.nn.functional as F
+
+VARIANTS: dict[str, tuple[str, ...]] = {
+    "ssg": ("cutout_height", "hard_shadow"),
+    "sparse": ("cutout_height", "hard_shadow", "sparse_hard_shadow_0", "sparse_hard_shadow_1",
+               "sparse_hard_shadow_2", "sparse_hard_shadow_3"),
+}
+VARIANTS["reldist"] = VARIANTS["sparse"] + ("relative_distance",)
+VARIANTS["ssnpp"] = VARIANTS["reldist"] + ("bg_gradient_x", "bg_gradient_y")
+
+#: resolution the network runs at (pixels); inputs are resized to it and back
+RESOLUTION = 256
+
+# Buffer channels in pixel units are brought to O(1) before entering the
+# network. Pixel heights and distances are divided by the image size, so the
+# same scene at another resolution gives the same input (heights scale with s).
+_SCALE_BY_SIZE = {"cutout_height", "relative_distance"}
+
+
+@dataclasses.dataclass(frozen=True)
+class SSNConfig:
+    """Architecture of one SSN++ model.
+
+    variant: which buffer channels it reads (a key of ``VARIANTS``).
+    base: channels of the first level; level k has ``base * 2**k``.
+    levels: number of down-sampling steps.
+    """
+
+    variant: str = "ssnpp"
+    base: int = 16
+    levels: int = 4
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        return VARIANTS[self.variant]
+
+
+class FiLMBlock(nn.Module):
+    """conv3x3 -> GroupNorm -> FiLM(softness) -> GELU, twice."""
+
+    def __init__(self, cin: int, cout: int, cond: int):
+        super().__init__()
+        self.conv1 = nn.Conv2d(cin, cout, 3, padding=1)
+        self.norm1 = nn.GroupNorm(min(8, cout // 4) or 1, cout)
+        self.conv2 = nn.Conv2d(cout, cout, 3, padding=1)
+        self.norm2 = nn.GroupNorm(min(8, cout // 4) or 1, cout)
+        self.film = nn.Linear(cond, 4 * cout)
+        # start as identity modulation so training begins from a plain U-Net
+        nn.init.zeros_(self.film.weight)
+        nn.init.zeros_(self.film.bias)
+
+    def forward(self, x, c):
+        g1, b1, g2, b2 = self.film(c)[:, :, None, None].chunk(4, dim=1)
+        x = F.gelu(self.norm1(self.conv1(x)) * (1 + g1) + b1)
+        return F.gelu(self.norm2(self.conv2(x)) * (1 + g2) + b2)
+
+
+class SSN(nn.Module):
+    """U-Net from buffer channels (B, C, H, W) and softness (B,) to darkness (B, 1, H, W) in [0, 1].
+
+    H and W must be divisible by ``2**levels``.
+    """
+
+    def __init__(self, config: SSNConfig = SSNConfig()):
+        super().__init__()
+        self.config = config
+        cin = len(config.channels)
+        cond = 32
+        # softness enters through a small MLP on (s, log s): the penumbra
+        # width is roughly proportional to s, but lights span 1.5 decades.
+        self.cond = nn.Sequential(nn.Linear(2, cond), nn.GELU(), nn.Linear(cond, cond), nn.GELU())
+        widths = [config.base * 2 ** k for k in range(config.levels + 1)]
+        self.down = nn.ModuleList()
+        prev = cin
+        for w in widths:
+            self.down.append(FiLMBlock(prev, w, cond))
+            prev = w
+        self.up = nn.ModuleList()
+        for w in reversed(widths[:-1]):
+            self.up.append(FiLMBlock(prev + w, w, cond))
+            prev = w
+        self.head = nn.Conv2d(prev, 1, 1)
+
+    def forward(self, x: torch.Tensor, softness: torch.Tensor) -> torch.Tensor:
+        s = softness.reshape(-1, 1).to(x.dtype)
+        c = self.cond(torch.cat([s * 10.0, torch.log(s.clamp_min(1e-3))], dim=1))
+        skips = []
+        for i, block in enumerate(self.down):
+            if i > 0:
+                x = F.max_pool2d(x, 2)
+            x = block(x, c)
+            skips.append(x)
+        skips.pop()
+        for block in self.up:
+            x = F.interpolate(x, scale_factor=2, mode="bilinear", align_corners=False)
+            x = block(torch.cat([x, skips.pop()], dim=1), c)
+        return torch.sigmoid(self.head(x))
+
+
+def count_params(model: nn.Module) -> int:
+    return sum(p.numel() for p in model.parameters())
+
+
+def count_flops(model: SSN, size: int = RESOLUTION) -> int:
+    """Multiply-adds x 2 of the convolutions and linears for one (size x size) sample."""
+    flops = 0
+    hooks = []
+
+    def conv_hook(m, inp, out):
+        nonlocal flops
+        k = m.kernel_size[0] * m.kernel_size[1] * (m.in_channels // m.groups)
+        flops += 2 * k * out.numel()
+
+    def lin_hook(m, inp, out):
+        nonlocal flops
+        flops += 2 * m.in_features * out.numel()
+
+    for m in model.modules():
+        if isinstance(m, nn.Conv2d):
+            hooks.append(m.register_forward_hook(conv_hook))
+        elif isinstance(m, nn.Linear):
+            hooks.append(m.register_forward_hook(lin_hook))
+    with torch.no_grad():
+        model(torch.zeros(1, len(model.config.channels), size, size), torch.tensor([0.1]))
+    for h in hooks:
+        h.remove()
+    return flops
+
+
+def stack_channels(buffers: dict[str, np.ndarray], channels: tuple[str, ...]) -> np.ndarray:
+    """Buffer channels (each float (H, W), pixel units) -> network input float32 (C, H, W).
+
+    Pixel-height-like channels are divided by the image height so that a
+    resized scene gives the same input; shadows are already in [0, 1]; the
+    background gradient is dimensionless.
+    """
+    H = next(iter(buffers.values())).shape[0]
+    out = []
+    for name in channels:
+        x = np.nan_to_num(np.asarray(buffers[name], dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+        if name in _SCALE_BY_SIZE:
+            x = x / float(H)
+        out.append(x)
+    return np.stack(out)
+
+
+def save_model(model: SSN, path: str | pathlib.Path, meta: dict) -> None:
+    """Weights (float16 to keep the shipped file small) and their config + provenance."""
+    path = pathlib.Path(path)
+    state = {k: v.half() if v.is_floating_point() else v for k, v in model.state_dict().items()}
+    torch.save({"config": dataclasses.asdict(model.config), "state": state, "meta": meta}, path)
+    path.with_suffix(".json").write_text(json.dumps(
+        {"config": dataclasses.asdict(model.config), **meta}, indent=2, sort_keys=True) + "\n")
+
+
+def load_model(path: str | pathlib.Path) -> SSN:
+    blob = torch.load(path, map_location="cpu", weights_only=True)
+    model = SSN(SSNConfig(**blob["config"]))
+    model.load_state_dict({k: v.float() for k, v in blob["state"].items()})
+    model.eval()
+    return model
+
+
+def predict(model: SSN, buffers: dict[str, np.ndarray], softness: float) -> np.ndarray:
+    """Soft-shadow darkness (H, W) float32 in [0, 1] for one sample at any resolution.
+
+    The buffers are resized to ``RESOLUTION`` (pixel-unit channels are
+    normalised by ``stack_channels``), run through the network, and the result
+    is resized back.
+    """
+    x = torch.from_numpy(stack_channels(buffers, model.config.channels))[None]
+    H, W = x.shape[-2:]
+    if (H, W) != (RESOLUTION, RESOLUTION):
+        x = F.interpolate(x, size=(RESOLUTION, RESOLUTION), mode="bilinear", align_corners=False)
+    with torch.inference_mode():
+        y = model(x, torch.tensor([float(softness)]))
+    if (H, W) != (RESOLUTION, RESOLUTION):
+        y = F.interpolate(y, size=(H, W), mode="bilinear", align_corners=False)
+    return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
