@@ -10,15 +10,27 @@ import importlib
 import pkgutil
 
 
-def nodes() -> list[type]:
-    """Every node class defined in this package's modules (the entry point)."""
+def nodes(report=None) -> list[type]:
+    """Every node class defined in this package's modules (the entry point).
+
+    ``report(module_name, exception)``, when given (the registry passes it), is
+    called for a module that fails to import, and the other modules still load;
+    without it the first failure raises.
+    """
     from pixgraph.node import is_node_class
 
     found = []
     for info in sorted(pkgutil.iter_modules(__path__), key=lambda i: i.name):
         if info.ispkg or info.name.startswith("_"):
             continue
-        mod = importlib.import_module(f"{__name__}.{info.name}")
+        name = f"{__name__}.{info.name}"
+        try:
+            mod = importlib.import_module(name)
+        except Exception as exc:
+            if report is None:
+                raise
+            report(name, exc)
+            continue
         found.extend(obj for obj in vars(mod).values()
                      if is_node_class(obj) and obj.__module__ == mod.__name__)
     return found

@@ -66,6 +66,14 @@ class ParamSpec:
     doc: str = ""
     #: False for params that cannot change the result (e.g. a progress interval)
     cache: bool = True
+    #: for kind "path": True when the node *writes* this file (it need not exist,
+    #: and its path, not its content, is part of the cache key)
+    writes: bool = False
+
+    @property
+    def required(self) -> bool:
+        """A param with no default (``param(None)`` on a path) must be set in the graph."""
+        return self.default is None
 
     def coerce(self, value: Any) -> Any:
         """Check ``value`` against this declaration and return it in canonical form.
@@ -74,6 +82,8 @@ class ParamSpec:
         range, or a choice that is not offered.
         """
         k = self.kind
+        if value is None and self.required:
+            raise ParamError(self.name, "is required and was not set")
         if k == "bool":
             if not isinstance(value, bool):
                 raise ParamError(self.name, f"expected true or false, got {value!r}")
@@ -157,7 +167,8 @@ class ParamSpec:
         desc = self.doc + (f" [{self.unit}]" if self.unit else "")
         if desc:
             s["description"] = desc
-        s["default"] = list(self.default) if isinstance(self.default, tuple) else self.default
+        if not self.required:
+            s["default"] = list(self.default) if isinstance(self.default, tuple) else self.default
         return s
 
 
@@ -181,6 +192,7 @@ class _ParamDecl:
     unit: str
     doc: str
     cache: bool
+    writes: bool
 
 
 @dataclasses.dataclass(frozen=True)
@@ -191,12 +203,16 @@ class _PortDecl:
 
 def param(default: Any = _MISSING, *, min: float | None = None, max: float | None = None,
           choices: typing.Sequence[str] | None = None, length: int | None = None,
-          unit: str = "", doc: str = "", cache: bool = True) -> Any:
-    """Declare a param inside a node's ``Params`` class; the annotation gives its kind."""
+          unit: str = "", doc: str = "", cache: bool = True, writes: bool = False) -> Any:
+    """Declare a param inside a node's ``Params`` class; the annotation gives its kind.
+
+    A ``Path`` param may have default ``None``: it is then required in every graph.
+    ``writes=True`` marks a path the node writes (an output file).
+    """
     if default is _MISSING:
         raise TypeError("param() needs a default")
     return _ParamDecl(default, min, max, tuple(choices) if choices is not None else None,
-                      length, unit, doc, cache)
+                      length, unit, doc, cache, writes)
 
 
 def port(*, optional: bool = False, doc: str = "") -> Any:
@@ -250,6 +266,8 @@ class NodeSpec:
     cls: type
     #: where the class came from, for error messages ("module:Class")
     source: str
+    #: True for sinks that write files: they run whenever requested, never from cache
+    side_effects: bool = False
 
     @property
     def summary(self) -> str:
@@ -272,7 +290,7 @@ class NodeSpec:
                 known = ", ".join(p.name for p in self.params) or "none"
                 raise ParamError(name, f"unknown param (known: {known})")
         for p in self.params:
-            out[p.name] = p.coerce(values[p.name]) if p.name in values else p.coerce(p.default)
+            out[p.name] = p.coerce(values[p.name] if p.name in values else p.default)
         return out
 
 
@@ -294,15 +312,19 @@ def _read_spec(cls: type, type_id: str, version: int) -> NodeSpec:
         if not isinstance(decl, _ParamDecl):
             raise TypeError(f"{owner}: param {name!r} must be declared with param(...)")
         spec = ParamSpec(name, _param_kind(ann, owner, name), decl.default, decl.min, decl.max,
-                         decl.choices, decl.length, decl.unit, decl.doc, decl.cache)
-        spec.coerce(spec.default)  # a bad default is the node author's bug: fail at import
+                         decl.choices, decl.length, decl.unit, decl.doc, decl.cache, decl.writes)
+        if spec.required and spec.kind != "path":
+            raise TypeError(f"{owner}: param {name!r}: only a Path param may be required (default None)")
+        if not spec.required:
+            spec.coerce(spec.default)  # a bad default is the node author's bug: fail at import
         params.append(spec)
     if not outputs:
         raise TypeError(f"{owner}: a node needs at least one output")
     if not callable(getattr(cls, "compute", None)):
         raise TypeError(f"{owner}: a node needs a compute(ctx, inputs, params) method")
     return NodeSpec(type_id, version, str(getattr(cls, "impl_version", "1")), cls.__doc__ or "",
-                    tuple(inputs), tuple(outputs), tuple(params), cls, owner)
+                    tuple(inputs), tuple(outputs), tuple(params), cls, owner,
+                    bool(getattr(cls, "side_effects", False)))
 
 
 def node(type_id: str, *, version: int = 1) -> Callable[[type], type]:
