@@ -1,0 +1,200 @@
+/* march.h -- OpenCL helpers shared by every pixel-height tracer (shadow,
+ * reflection, refraction). Numpy mirror: march.py (same names without the
+ * "ph_" prefix). Include with  #include "march.h"  (load_kernel_source inlines it).
+ *
+ * Conventions (design.md §2): u right, v down, in pixels; pixel [i, j] has its
+ * centre at (u, v) = (j + 0.5, i + 0.5). A point of pixel-height space is
+ * (u, v, h), h in pixels; the foot of (u, v, h) is (u, v + h). 3D lines stay lines
+ * in (u, v, h), so a ray is  p(t) = o + t * d  and its height is linear in t.
+ *
+ * A march samples a ray at one pixel per step along its image major axis:
+ *     p_k = o + k * step,  step = d / max(|d.u|, |d.v|),  k integer,
+ * so that a receiver at a pixel centre visits the pixel centres of the major
+ * axis exactly (step.u or step.v is exactly +-1).
+ *
+ * Nothing here depends on -cl-fast-relaxed-math: there are no NaN or inf tests;
+ * callers replace non-finite data by sentinels on the host (PH_NO_SURFACE).
+ */
+#ifndef PIXGRAPH_MARCH_H
+#define PIXGRAPH_MARCH_H
+
+/* Height value (pixels) that marks "no occluding surface here" in a surface
+ * height buffer (outside the cutout mask, or a non-finite input height). Any
+ * height <= PH_NO_SURFACE_TEST is treated as absent. A sentinel instead of NaN
+ * because NaN tests are unreliable under -cl-fast-relaxed-math. */
+#define PH_NO_SURFACE (-1.0e30f)
+#define PH_NO_SURFACE_TEST (-1.0e29f)
+
+/* A ray whose image direction is shorter than this (pixels) has no image
+ * extent: the receiver sits on the light's image point. Marches refuse it. */
+#define PH_MIN_IMAGE_LENGTH 1.0e-4f
+
+/* A ray point is "behind" a surface only when it is lower than the surface by
+ * more than this (pixels). Rays that run along their own surface (coplanar)
+ * then count as in front consistently, which avoids self-shadow acne from
+ * float rounding. */
+#define PH_BEHIND_EPS 1.0e-3f
+
+/* Upper bound for k when the ray has no far end (t_max infinite); any clip to a
+ * finite box brings it down to at most max(W, H) + 2. */
+#define PH_K_UNBOUNDED 1000000000
+
+/* One march: origin o (u, v, h), per-step increment step (u, v, h), and the
+ * inclusive integer range [k_lo, k_hi] of samples still to visit. Empty when
+ * k_lo > k_hi. */
+typedef struct {
+    float u, v, h;
+    float su, sv, sh;
+    int k_lo, k_hi;
+    int major_u; /* 1: steps along u (step.u = +-1); 0: along v (step.v = +-1) */
+} ph_march;
+
+/* Liang-Barsky for one axis: narrow [*t0, *t1] to the parameters t where
+ * o + t * d lies in the closed slab [lo, hi]. Returns 0 when the interval becomes
+ * empty (also for d == 0 with o outside the slab), 1 otherwise. lo may be
+ * -huge and hi +huge (finite) for a one-sided slab. */
+inline int ph_clip_slab(float o, float d, float lo, float hi, float *t0, float *t1)
+{
+    if (d == 0.0f) {
+        return (o >= lo && o <= hi) && (*t0 <= *t1);
+    }
+    float inv = 1.0f / d;
+    float ta = (lo - o) * inv;
+    float tb = (hi - o) * inv;
+    if (ta > tb) { float tmp = ta; ta = tb; tb = tmp; }
+    *t0 = fmax(*t0, ta);
+    *t1 = fmin(*t1, tb);
+    return *t0 <= *t1;
+}
+
+/* Clip the image ray (ou, ov) + t (du, dv) to the closed rectangle
+ * rect = (u0, v0, u1, v1) in pixels: narrows [*t0, *t1], returns 0 when empty.
+ * For the image use (0, 0, W, H); for a cutout whose mask pixels span rows
+ * i0..i1 and columns j0..j1 use (j0, i0, j1 + 1, i1 + 1) (pixel edges). */
+inline int ph_clip_rect(float ou, float ov, float du, float dv, float4 rect,
+                        float *t0, float *t1)
+{
+    return ph_clip_slab(ou, du, rect.x, rect.z, t0, t1)
+        && ph_clip_slab(ov, dv, rect.y, rect.w, t0, t1);
+}
+
+/* Set up a DDA march of the ray (ou, ov, oh) + t (du, dv, dh), 0 < t <= t_max
+ * (t_max may be INFINITY; pass it as a huge float to stay fast-math safe).
+ * Samples k = 1 .. floor(t_max * major): k = 0 is the origin's own pixel and is
+ * skipped (a receiver never occludes itself at its own position).
+ * Returns 0 (and an empty march) when the image direction is shorter than
+ * PH_MIN_IMAGE_LENGTH: the ray runs along the view ray of its own pixel. */
+inline int ph_march_setup(float ou, float ov, float oh, float du, float dv, float dh,
+                          float t_max, ph_march *m)
+{
+    float adu = fabs(du), adv = fabs(dv);
+    float major = fmax(adu, adv);
+    m->u = ou; m->v = ov; m->h = oh;
+    m->major_u = adu >= adv;
+    m->k_lo = 1;
+    m->k_hi = 0;
+    if (!(major >= PH_MIN_IMAGE_LENGTH)) {
+        m->su = 0.0f; m->sv = 0.0f; m->sh = 0.0f;
+        return 0;
+    }
+    float inv = 1.0f / major;
+    /* exact +-1 on the major axis: x / |x| is exact in IEEE arithmetic */
+    m->su = du * inv;
+    m->sv = dv * inv;
+    m->sh = dh * inv;
+    float kmax = t_max * major;
+    m->k_hi = kmax >= (float)PH_K_UNBOUNDED ? PH_K_UNBOUNDED : (int)floor(kmax);
+    return m->k_hi >= m->k_lo;
+}
+
+/* Clip a march's sample range to the 3D box rect x [h_lo, h_hi] in (u, v, h)
+ * space, keeping one extra sample on each side: a side flip between two
+ * consecutive samples can straddle the box (and it absorbs rounding at the
+ * edges). Returns 0 when no sample remains. Use rect = the cutout's bounding
+ * rectangle (pixel edges, see ph_clip_rect) and [h_lo, h_hi] = the range of
+ * ray heights that can hit the cutout, e.g. [min fg - thickness, max fg]. */
+inline int ph_march_clip_box(ph_march *m, float4 rect, float h_lo, float h_hi)
+{
+    float t0 = (float)m->k_lo - 1.0f, t1 = (float)m->k_hi + 1.0f;
+    if (!ph_clip_rect(m->u, m->v, m->su, m->sv, rect, &t0, &t1)
+        || !ph_clip_slab(m->h, m->sh, h_lo, h_hi, &t0, &t1)) {
+        m->k_hi = m->k_lo - 1;
+        return 0;
+    }
+    int a = (int)ceil(t0) - 1;
+    int b = (int)floor(t1) + 1;
+    if (a > m->k_lo) m->k_lo = a;
+    if (b < m->k_hi) m->k_hi = b;
+    return m->k_lo <= m->k_hi;
+}
+
+/* Image position (pixels) of sample k. */
+inline float ph_sample_u(const ph_march *m, int k) { return m->u + (float)k * m->su; }
+inline float ph_sample_v(const ph_march *m, int k) { return m->v + (float)k * m->sv; }
+
+/* Ray height (pixels) at sample k: linear in k because (u, v, h) keeps lines. */
+inline float ph_ray_height(const ph_march *m, int k) { return m->h + (float)k * m->sh; }
+
+/* Linear interpolation of the ray height between a receiver height rh (t = 0)
+ * and a light height lh (t = 1); t < 0 or t > 1 extrapolates (lights behind the
+ * camera march to t < 0). */
+inline float ph_lerp_height(float rh, float lh, float t) { return rh + t * (lh - rh); }
+
+/* Height of a surface (pixels) at image point (u, v) of a march sample, from a
+ * row-major (H, W) height buffer that holds PH_NO_SURFACE where there is none.
+ * The pixel containing (u, v) decides presence (returns PH_NO_SURFACE when it is
+ * outside the image or has no surface). Along the minor axis the height is
+ * interpolated linearly between the two nearest pixel centres when both carry
+ * a surface, so planar surfaces are reproduced exactly (no acne on tilted
+ * marches); otherwise the containing pixel's height is used. */
+inline float ph_surface_height(__global const float *surf, int W, int H,
+                               float u, float v, int major_u)
+{
+    int j = (int)floor(u), i = (int)floor(v);
+    if (j < 0 || j >= W || i < 0 || i >= H) return PH_NO_SURFACE;
+    float s = surf[i * W + j];
+    if (s <= PH_NO_SURFACE_TEST) return PH_NO_SURFACE;
+    if (major_u) {
+        float y = v - 0.5f;
+        int i0 = (int)floor(y);
+        float f = y - (float)i0;
+        if (i0 < 0 || i0 + 1 >= H) return s;
+        float a = surf[i0 * W + j], b = surf[(i0 + 1) * W + j];
+        if (a <= PH_NO_SURFACE_TEST || b <= PH_NO_SURFACE_TEST) return s;
+        return a + f * (b - a);
+    } else {
+        float x = u - 0.5f;
+        int j0 = (int)floor(x);
+        float f = x - (float)j0;
+        if (j0 < 0 || j0 + 1 >= W) return s;
+        float a = surf[i * W + j0], b = surf[i * W + j0 + 1];
+        if (a <= PH_NO_SURFACE_TEST || b <= PH_NO_SURFACE_TEST) return s;
+        return a + f * (b - a);
+    }
+}
+
+/* Side of a ray point relative to a surface at the same image point:
+ *  1  behind (ray lower than the surface by more than PH_BEHIND_EPS: its foot
+ *     lies farther from the camera than the surface's),
+ * -1  in front of or on the surface,
+ *  0  no surface there (surf_h <= PH_NO_SURFACE_TEST). */
+inline int ph_side(float ray_h, float surf_h)
+{
+    if (surf_h <= PH_NO_SURFACE_TEST) return 0;
+    return (ray_h < surf_h - PH_BEHIND_EPS) ? 1 : -1;
+}
+
+/* Occlusion test against a pixel-height surface with thickness (pixels).
+ * side = ph_side(ray_h, surf_h) of this sample, prev_side = that of the previous
+ * sample (k - 1; 0 when it had no surface or this is the first sample).
+ * Occluded when the ray passes behind the surface by at most `thickness`, or
+ * when it changed side between two consecutive surface samples (it crossed the
+ * surface between them: steep surfaces or large height steps). */
+inline int ph_occludes(float ray_h, float surf_h, float thickness, int side, int prev_side)
+{
+    if (side == 0) return 0;
+    if (side == 1 && surf_h - ray_h <= thickness) return 1;
+    return prev_side != 0 && prev_side != side;
+}
+
+#endif /* PIXGRAPH_MARCH_H */

@@ -1,0 +1,212 @@
+"""Numpy reference of ``march.h``: the pieces shared by every pixel-height tracer.
+
+Each function mirrors the OpenCL helper of the same name (``ph_`` prefix dropped)
+and works elementwise on numpy arrays (one element per ray), in float32 like
+the kernels, so references and kernels agree except on rounding ties.
+
+Conventions (design.md §2): u right, v down, pixels, pixel ``[i, j]`` centred at
+``(j + 0.5, i + 0.5)``; a point of pixel-height space is ``(u, v, h)``, its foot is
+``(u, v + h)``. A march samples the ray ``o + t d`` at
+``p_k = o + k * step``, ``step = d / max(|d_u|, |d_v|)``: one pixel per step along
+the image major axis, ``k = 1, 2, ...`` (``k = 0``, the origin's own pixel, is
+skipped).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+F32 = np.float32
+
+#: Height (pixels) marking "no occluding surface" in a surface buffer; anything
+#: <= NO_SURFACE_TEST counts as absent (mirrors PH_NO_SURFACE; a sentinel, not NaN,
+#: because NaN tests break under -cl-fast-relaxed-math).
+NO_SURFACE = F32(-1.0e30)
+NO_SURFACE_TEST = F32(-1.0e29)
+#: Rays whose image direction is shorter than this (pixels) are refused: the
+#: receiver sits on the light's image point.
+MIN_IMAGE_LENGTH = F32(1.0e-4)
+#: A ray point is behind a surface only when lower by more than this (pixels).
+BEHIND_EPS = F32(1.0e-3)
+#: k bound of a ray without a far end (before clipping to a finite box).
+K_UNBOUNDED = 1_000_000_000
+
+
+def surface_buffer(mask, height) -> np.ndarray:
+    """The occluder buffer the tracers read: ``height`` (pixels) where
+    ``mask > 0.5`` and the height is finite, NO_SURFACE elsewhere. float32 (H, W)."""
+    mask = np.asarray(mask)
+    height = np.asarray(height, dtype=np.float32)
+    ok = (mask > 0.5) & np.isfinite(height)
+    return np.where(ok, height, NO_SURFACE).astype(np.float32)
+
+
+def clip_slab(o, d, lo, hi, t0, t1):
+    """Liang-Barsky for one axis: narrow ``[t0, t1]`` to where ``o + t d`` lies in
+    the closed slab ``[lo, hi]``. Returns ``(t0, t1, ok)``; ``ok`` False when empty
+    (also for ``d == 0`` with ``o`` outside the slab)."""
+    o, d, lo, hi, t0, t1 = (np.asarray(x, dtype=np.float32) for x in (o, d, lo, hi, t0, t1))
+    zero = d == 0
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        inv = F32(1.0) / np.where(zero, F32(1.0), d)
+        ta = (lo - o) * inv
+        tb = (hi - o) * inv
+    a = np.minimum(ta, tb)
+    b = np.maximum(ta, tb)
+    n0 = np.where(zero, t0, np.maximum(t0, a))
+    n1 = np.where(zero, t1, np.minimum(t1, b))
+    ok = np.where(zero, (o >= lo) & (o <= hi) & (t0 <= t1), n0 <= n1)
+    return n0, n1, ok
+
+
+def clip_rect(ou, ov, du, dv, rect, t0, t1):
+    """Clip the image ray ``(ou, ov) + t (du, dv)`` to the closed rectangle
+    ``rect = (u0, v0, u1, v1)`` (pixels). Returns ``(t0, t1, ok)``. For a cutout
+    spanning rows i0..i1 and columns j0..j1 use ``(j0, i0, j1 + 1, i1 + 1)``."""
+    t0, t1, ok1 = clip_slab(ou, du, rect[0], rect[2], t0, t1)
+    t0, t1, ok2 = clip_slab(ov, dv, rect[1], rect[3], t0, t1)
+    return t0, t1, ok1 & ok2
+
+
+@dataclasses.dataclass
+class March:
+    """Rays sampled one pixel per major-axis step (arrays, one element per ray).
+
+    Sample k is at ``(u + k su, v + k sv)`` with height ``h + k sh`` (pixels);
+    samples ``k_lo .. k_hi`` (inclusive) remain; ``major_u`` is True where the
+    march steps along u.
+    """
+    u: np.ndarray
+    v: np.ndarray
+    h: np.ndarray
+    su: np.ndarray
+    sv: np.ndarray
+    sh: np.ndarray
+    k_lo: np.ndarray
+    k_hi: np.ndarray
+    major_u: np.ndarray
+
+    def sample_u(self, k):
+        return (self.u + np.asarray(k, np.float32) * self.su).astype(np.float32)
+
+    def sample_v(self, k):
+        return (self.v + np.asarray(k, np.float32) * self.sv).astype(np.float32)
+
+    def ray_height(self, k):
+        """Ray height (pixels) at sample k: linear in k."""
+        return (self.h + np.asarray(k, np.float32) * self.sh).astype(np.float32)
+
+
+def march_setup(ou, ov, oh, du, dv, dh, t_max) -> tuple[March, np.ndarray]:
+    """DDA set-up of rays ``o + t d``, ``0 < t <= t_max`` (``inf`` allowed).
+
+    Samples ``k = 1 .. floor(t_max * major)``. Returns ``(march, ok)``; ``ok`` False
+    where the image direction is shorter than MIN_IMAGE_LENGTH (receiver on the
+    light's image point) or no sample exists."""
+    ou, ov, oh, du, dv, dh = (np.asarray(x, dtype=np.float32) for x in (ou, ov, oh, du, dv, dh))
+    shape = np.broadcast(ou, ov, oh, du, dv, dh, t_max).shape
+    ou, ov, oh, du, dv, dh = (np.broadcast_to(x, shape) for x in (ou, ov, oh, du, dv, dh))
+    t_max = np.broadcast_to(np.asarray(t_max, dtype=np.float32), shape)
+    adu, adv = np.abs(du), np.abs(dv)
+    major = np.maximum(adu, adv)
+    good = major >= MIN_IMAGE_LENGTH
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        inv = F32(1.0) / np.where(good, major, F32(1.0))
+        su = np.where(good, du * inv, F32(0)).astype(np.float32)
+        sv = np.where(good, dv * inv, F32(0)).astype(np.float32)
+        sh = np.where(good, dh * inv, F32(0)).astype(np.float32)
+        kmax = (t_max * major).astype(np.float32)
+    big = ~(kmax < F32(K_UNBOUNDED))
+    k_hi = np.where(big, K_UNBOUNDED, np.floor(np.where(big, 0, kmax))).astype(np.int64)
+    k_hi = np.where(good, k_hi, 0)
+    k_lo = np.ones(shape, np.int64)
+    m = March(ou.copy(), ov.copy(), oh.copy(), su, sv, sh, k_lo, k_hi, adu >= adv)
+    return m, good & (k_hi >= k_lo)
+
+
+def march_clip_box(m: March, rect, h_lo, h_hi) -> np.ndarray:
+    """Clip the sample range to the box ``rect x [h_lo, h_hi]`` in (u, v, h), keeping
+    one extra sample on each side (a side flip can straddle the box). Updates
+    ``m.k_lo``/``m.k_hi`` in place; returns ``ok`` (some sample left)."""
+    t0 = (m.k_lo - 1).astype(np.float32)
+    t1 = (m.k_hi + 1).astype(np.float32)
+    t0, t1, ok = clip_rect(m.u, m.v, m.su, m.sv, rect, t0, t1)
+    t0, t1, ok2 = clip_slab(m.h, m.sh, h_lo, h_hi, t0, t1)
+    ok &= ok2
+    with np.errstate(invalid="ignore"):
+        a = np.where(ok, np.ceil(t0), 0).astype(np.int64) - 1
+        b = np.where(ok, np.floor(t1), 0).astype(np.int64) + 1
+    m.k_lo = np.where(ok, np.maximum(m.k_lo, a), m.k_lo)
+    m.k_hi = np.where(ok, np.minimum(m.k_hi, b), m.k_lo - 1)
+    return m.k_lo <= m.k_hi
+
+
+def lerp_height(rh, lh, t):
+    """Ray height between receiver height rh (t = 0) and light height lh (t = 1),
+    extrapolated outside [0, 1] (pixels)."""
+    rh, lh, t = (np.asarray(x, dtype=np.float32) for x in (rh, lh, t))
+    return (rh + t * (lh - rh)).astype(np.float32)
+
+
+def surface_height(surf: np.ndarray, u, v, major_u) -> np.ndarray:
+    """Surface height (pixels) at image points (u, v) of march samples.
+
+    ``surf`` is a float32 (H, W) buffer from :func:`surface_buffer`. The pixel
+    containing (u, v) decides presence (NO_SURFACE outside the image or where it
+    has none); along the minor axis the height is interpolated linearly between
+    the two nearest pixel centres when both have a surface, else the containing
+    pixel's height is used."""
+    H, W = surf.shape
+    u = np.asarray(u, np.float32)
+    v = np.asarray(v, np.float32)
+    major_u = np.asarray(major_u, bool)
+    j = np.floor(u).astype(np.int64)
+    i = np.floor(v).astype(np.int64)
+    inside = (j >= 0) & (j < W) & (i >= 0) & (i < H)
+    jc, ic = np.clip(j, 0, W - 1), np.clip(i, 0, H - 1)
+    s = surf[ic, jc]
+    present = inside & (s > NO_SURFACE_TEST)
+    # minor-axis neighbours
+    y = (v - F32(0.5)).astype(np.float32)
+    x = (u - F32(0.5)).astype(np.float32)
+    i0 = np.floor(y).astype(np.int64)
+    j0 = np.floor(x).astype(np.int64)
+    fy = (y - i0.astype(np.float32)).astype(np.float32)
+    fx = (x - j0.astype(np.float32)).astype(np.float32)
+    # u-major: rows i0, i0 + 1 in column j
+    oku = (i0 >= 0) & (i0 + 1 < H)
+    a_u = surf[np.clip(i0, 0, H - 1), jc]
+    b_u = surf[np.clip(i0 + 1, 0, H - 1), jc]
+    oku &= (a_u > NO_SURFACE_TEST) & (b_u > NO_SURFACE_TEST)
+    # v-major: columns j0, j0 + 1 in row i
+    okv = (j0 >= 0) & (j0 + 1 < W)
+    a_v = surf[ic, np.clip(j0, 0, W - 1)]
+    b_v = surf[ic, np.clip(j0 + 1, 0, W - 1)]
+    okv &= (a_v > NO_SURFACE_TEST) & (b_v > NO_SURFACE_TEST)
+    with np.errstate(invalid="ignore", over="ignore"):
+        interp_u = (a_u + fy * (b_u - a_u)).astype(np.float32)
+        interp_v = (a_v + fx * (b_v - a_v)).astype(np.float32)
+    val = np.where(major_u, np.where(oku, interp_u, s), np.where(okv, interp_v, s))
+    return np.where(present, val, NO_SURFACE).astype(np.float32)
+
+
+def side(ray_h, surf_h) -> np.ndarray:
+    """1 behind (ray lower than the surface by more than BEHIND_EPS), -1 in front
+    or on it, 0 no surface. int8 array."""
+    ray_h = np.asarray(ray_h, np.float32)
+    surf_h = np.asarray(surf_h, np.float32)
+    present = surf_h > NO_SURFACE_TEST
+    behind = ray_h < surf_h - BEHIND_EPS
+    return np.where(present, np.where(behind, 1, -1), 0).astype(np.int8)
+
+
+def occludes(ray_h, surf_h, thickness, side_now, prev_side) -> np.ndarray:
+    """Occluded where the ray is behind the surface by at most ``thickness``
+    (pixels), or changed side between two consecutive surface samples."""
+    ray_h = np.asarray(ray_h, np.float32)
+    surf_h = np.asarray(surf_h, np.float32)
+    with np.errstate(invalid="ignore", over="ignore"):
+        within = (side_now == 1) & ((surf_h - ray_h) <= F32(thickness))
+    flip = (side_now != 0) & (prev_side != 0) & (prev_side != side_now)
+    return within | flip
