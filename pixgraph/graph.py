@@ -1,0 +1,317 @@
+"""The graph value, its builder, and structural validation.
+
+A ``Graph`` is immutable: nodes and outputs are read-only mappings, and every edit
+goes through a ``GraphBuilder`` that produces a new, validated graph::
+
+    b = GraphBuilder(registry)
+    b.add("pixgraph.LoadImage", "load", path="cutout.png")
+    b.add("pixgraph.GaussianBlur", "blur", sigma=3)
+    b.connect("load.image", "blur.image")
+    b.set("blur", sigma=4)
+    b.output("final", "blur.image")
+    g = b.build()                     # raises GraphError on the first problem
+
+Connections are written ``"node.output"`` and point *into* an input:
+``connect(src="load.image", dst="blur.image")``. Params are stored as the user
+set them (after coercion); defaults are filled in by the engine, so a saved file
+only lists what differs from the node's declaration.
+
+Every validation error is a ``GraphError`` naming the node and the port or param,
+and, for a graph read from a file, the file and line.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import re
+from types import MappingProxyType
+from typing import Any, Mapping
+
+from .node import NodeSpec, ParamError
+from .registry import Registry, UnknownNodeType
+
+NODE_ID = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
+
+
+class GraphError(ValueError):
+    """A graph that cannot run: names the node and field, and the file and line.
+
+    ``field`` is a dotted path inside the node: ``"params.sigma"``,
+    ``"inputs.image"``, ``"type"``, or for graph outputs ``"outputs.final"``.
+    ``str()`` is one line: ``"g.yaml:12: node 'blur': param 'sigma': ..."``.
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
+                 node: str | None = None, field: str | None = None):
+        super().__init__(message)
+        self.message = message
+        self.file = file
+        self.line = line
+        self.node = node
+        self.field = field
+
+    def __str__(self) -> str:
+        parts = []
+        if self.file:
+            parts.append(f"{self.file}:{self.line}" if self.line else self.file)
+        if self.node:
+            parts.append(f"node {self.node!r}")
+        if self.field:
+            head, _, rest = self.field.partition(".")
+            label = {"params": "param", "inputs": "input", "outputs": "output"}.get(head)
+            parts.append(f"{label} {rest!r}" if label and rest else self.field)
+        parts.append(self.message)
+        return ": ".join(parts).replace("\n", " ")
+
+
+@dataclasses.dataclass(frozen=True)
+class Ref:
+    """One output of one node, written ``"node.output"``."""
+
+    node: str
+    output: str
+
+    @classmethod
+    def parse(cls, text: Any) -> "Ref":
+        if isinstance(text, Ref):
+            return text
+        if not isinstance(text, str) or text.count(".") != 1 or text.startswith(".") or text.endswith("."):
+            raise ValueError(f"expected 'node.output', got {text!r}")
+        node, output = text.split(".")
+        return cls(node, output)
+
+    def __str__(self) -> str:
+        return f"{self.node}.{self.output}"
+
+
+def _frozen(d: Mapping) -> Mapping:
+    return MappingProxyType(dict(d))
+
+
+@dataclasses.dataclass(frozen=True)
+class NodeInstance:
+    """A node in a graph: its id, type, the params set on it and its input connections."""
+
+    id: str
+    type: str
+    params: Mapping[str, Any] = dataclasses.field(default_factory=lambda: _frozen({}))
+    inputs: Mapping[str, Ref] = dataclasses.field(default_factory=lambda: _frozen({}))
+
+    def __post_init__(self):
+        object.__setattr__(self, "params", _frozen(self.params))
+        object.__setattr__(self, "inputs", _frozen(self.inputs))
+
+
+@dataclasses.dataclass(frozen=True)
+class Graph:
+    """An immutable graph: nodes by id, named outputs, and where it came from.
+
+    ``file`` and ``lines`` (``"nodes.blur.params.sigma" -> 12``) only serve error
+    messages, and ``base_dir`` resolves relative path params; none of the three
+    takes part in equality.
+    """
+
+    nodes: Mapping[str, NodeInstance]
+    outputs: Mapping[str, Ref]
+    file: str | None = dataclasses.field(default=None, compare=False)
+    base_dir: str = dataclasses.field(default="", compare=False)
+    lines: Mapping[str, int] = dataclasses.field(default_factory=lambda: _frozen({}), compare=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "nodes", _frozen(self.nodes))
+        object.__setattr__(self, "outputs", _frozen(self.outputs))
+        object.__setattr__(self, "lines", _frozen(self.lines))
+        object.__setattr__(self, "base_dir", os.path.abspath(self.base_dir or os.getcwd()))
+
+    def resolve_path(self, path: str) -> str:
+        """A path param made absolute against the graph file's folder."""
+        return os.path.normpath(os.path.join(self.base_dir, os.path.expanduser(path)))
+
+    def error(self, message: str, node: str | None = None, field: str | None = None) -> GraphError:
+        """A GraphError with the line of the most specific location known."""
+        line = None
+        keys = []
+        if node is not None:
+            keys = [f"nodes.{node}.{field}" if field else None, f"nodes.{node}"]
+            if field and "." in field:
+                keys.insert(1, f"nodes.{node}.{field.split('.')[0]}")
+        elif field is not None:
+            keys = [field, field.split(".")[0]]
+        for k in keys:
+            if k is not None and k in self.lines:
+                line = self.lines[k]
+                break
+        return GraphError(message, file=self.file, line=line, node=node, field=field)
+
+
+def validate(graph: Graph, registry: Registry) -> Graph:
+    """Check types, params, connections, required inputs and cycles.
+
+    Returns the graph with params coerced to canonical form; raises the first
+    ``GraphError`` in file order.
+    """
+    canonical = {}
+    for nid, inst in graph.nodes.items():
+        if not NODE_ID.match(nid):
+            raise graph.error("node ids are letters, digits, '_' and '-' (no dots), "
+                              "starting with a letter or '_'", node=nid)
+        try:
+            spec = registry.get(inst.type)
+        except UnknownNodeType:
+            hint = registry.suggest(inst.type)
+            raise graph.error(f"unknown node type {inst.type!r}" + (f" (did you mean {hint!r}?)" if hint else ""),
+                              node=nid, field="type") from None
+        params = _check_params(graph, nid, spec, inst.params)
+        _check_inputs(graph, nid, spec, inst.inputs, registry)
+        canonical[nid] = dataclasses.replace(inst, params=params)
+    for name, ref in graph.outputs.items():
+        _check_ref(graph, ref, None, f"outputs.{name}", registry)
+    _check_cycles(graph)
+    return dataclasses.replace(graph, nodes=canonical)
+
+
+def _check_params(graph: Graph, nid: str, spec: NodeSpec, values: Mapping[str, Any]) -> dict:
+    out = {}
+    for name, value in values.items():
+        p = spec.param(name)
+        if p is None:
+            known = ", ".join(q.name for q in spec.params) or "none"
+            raise graph.error(f"unknown param (known: {known})", node=nid, field=f"params.{name}")
+        try:
+            out[name] = p.coerce(value)
+        except ParamError as e:
+            raise graph.error(e.message, node=nid, field=f"params.{name}") from None
+        if p.kind == "path" and not p.writes and not os.path.isfile(graph.resolve_path(out[name])):
+            raise graph.error(f"file not found: {graph.resolve_path(out[name])}", node=nid, field=f"params.{name}")
+    for p in spec.params:
+        if p.required and p.name not in values:
+            raise graph.error("is required and was not set", node=nid, field=f"params.{p.name}")
+    return out
+
+
+def _check_ref(graph: Graph, ref: Ref, nid: str | None, field: str, registry: Registry):
+    src = graph.nodes.get(ref.node)
+    if src is None:
+        raise graph.error(f"refers to node {ref.node!r}, which is not in the graph", node=nid, field=field)
+    if src.type not in registry:
+        raise graph.error(f"refers to node {ref.node!r} of unknown type {src.type!r}", node=nid, field=field)
+    out = registry.get(src.type).output(ref.output)
+    if out is None:
+        names = ", ".join(o.name for o in registry.get(src.type).outputs)
+        raise graph.error(f"node {ref.node!r} has no output {ref.output!r} (outputs: {names})", node=nid, field=field)
+    return out
+
+
+def _check_inputs(graph: Graph, nid: str, spec: NodeSpec, inputs: Mapping[str, Ref], registry: Registry):
+    for port_name, ref in inputs.items():
+        p = spec.input(port_name)
+        if p is None:
+            names = ", ".join(i.name for i in spec.inputs) or "none"
+            raise graph.error(f"unknown input (inputs: {names})", node=nid, field=f"inputs.{port_name}")
+        out = _check_ref(graph, ref, nid, f"inputs.{port_name}", registry)
+        if not p.type.accepts(out.type):
+            raise graph.error(f"{ref} is {out.type.type_name()}, which cannot feed {p.type.type_name()}",
+                              node=nid, field=f"inputs.{port_name}")
+    for p in spec.inputs:
+        if not p.optional and p.name not in inputs:
+            raise graph.error(f"required input is not connected ({p.type.type_name()})",
+                              node=nid, field=f"inputs.{p.name}")
+
+
+def _check_cycles(graph: Graph) -> None:
+    state: dict[str, int] = {}  # 1 = on the DFS stack, 2 = done
+    for root in graph.nodes:
+        if state.get(root):
+            continue
+        stack = [(root, iter(graph.nodes[root].inputs.values()))]
+        path = [root]
+        state[root] = 1
+        while stack:
+            nid, it = stack[-1]
+            ref = next(it, None)
+            if ref is None:
+                state[nid] = 2
+                stack.pop()
+                path.pop()
+                continue
+            s = state.get(ref.node)
+            if s == 1:
+                cycle = path[path.index(ref.node):] + [ref.node]
+                raise graph.error("cycle: " + " <- ".join(cycle), node=ref.node)
+            if s is None:
+                state[ref.node] = 1
+                path.append(ref.node)
+                stack.append((ref.node, iter(graph.nodes[ref.node].inputs.values())))
+
+
+class GraphBuilder:
+    """Mutable recipe for a ``Graph``; ``build()`` validates and freezes it."""
+
+    def __init__(self, registry: Registry, *, base_dir: str | None = None):
+        self.registry = registry
+        self.base_dir = base_dir or os.getcwd()
+        self._nodes: dict[str, dict] = {}
+        self._outputs: dict[str, Ref] = {}
+        self._file: str | None = None
+        self._lines: Mapping[str, int] = {}
+
+    @classmethod
+    def from_graph(cls, graph: Graph, registry: Registry) -> "GraphBuilder":
+        """A builder holding ``graph``'s nodes, to derive an edited graph from it."""
+        b = cls(registry, base_dir=graph.base_dir)
+        for nid, inst in graph.nodes.items():
+            b._nodes[nid] = {"type": inst.type, "params": dict(inst.params), "inputs": dict(inst.inputs)}
+        b._outputs = dict(graph.outputs)
+        b._file, b._lines = graph.file, graph.lines
+        return b
+
+    def add(self, type_id: str, node_id: str, **params: Any) -> str:
+        """Add a node of type ``type_id``; returns ``node_id``."""
+        if node_id in self._nodes:
+            raise GraphError("a node with this id already exists", node=node_id)
+        self._nodes[node_id] = {"type": type_id, "params": dict(params), "inputs": {}}
+        return node_id
+
+    def connect(self, src: str, dst: str) -> None:
+        """Feed output ``src`` (``"node.output"``) into input ``dst`` (``"node.input"``)."""
+        s, d = self._ref(src), self._ref(dst)
+        self._node(d.node)["inputs"][d.output] = s
+
+    def disconnect(self, dst: str) -> None:
+        d = self._ref(dst)
+        self._node(d.node)["inputs"].pop(d.output, None)
+
+    def set(self, node_id: str, **params: Any) -> None:
+        """Set params on a node (validated at ``build()``)."""
+        self._node(node_id)["params"].update(params)
+
+    def unset(self, node_id: str, *names: str) -> None:
+        """Return params to their declared defaults."""
+        for n in names:
+            self._node(node_id)["params"].pop(n, None)
+
+    def remove(self, node_id: str) -> None:
+        self._node(node_id)
+        del self._nodes[node_id]
+
+    def output(self, name: str, ref: str) -> None:
+        """Name an output of the graph: ``output("final", "comp.image")``."""
+        self._outputs[name] = self._ref(ref)
+
+    def build(self) -> Graph:
+        g = Graph({nid: NodeInstance(nid, n["type"], n["params"], n["inputs"]) for nid, n in self._nodes.items()},
+                  self._outputs, file=self._file, base_dir=self.base_dir, lines=self._lines)
+        return validate(g, self.registry)
+
+    def _node(self, node_id: str) -> dict:
+        try:
+            return self._nodes[node_id]
+        except KeyError:
+            raise GraphError("no such node in the graph", node=node_id) from None
+
+    @staticmethod
+    def _ref(text: str) -> Ref:
+        try:
+            return Ref.parse(text)
+        except ValueError as e:
+            raise GraphError(str(e)) from None
