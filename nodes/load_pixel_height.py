@@ -1,0 +1,34 @@
+"""pixgraph.LoadPixelHeight: a pixel-height map from a file (npy, EXR, 16-bit PNG)."""
+from __future__ import annotations
+
+import pathlib
+from pathlib import Path
+
+from pixgraph import types as T
+from pixgraph.node import node, param, port
+
+from .ops.heightmaps import load_pixel_height
+
+
+@node("pixgraph.LoadPixelHeight", version=1)
+class LoadPixelHeight:
+    """Read a cutout or background pixel-height map from a file.
+
+    .npy and float EXR/TIFF hold pixels (times ``scale``); 8/16-bit PNG/TIFF hold a
+    value normalised to [0, 1] times ``scale`` (the height of full white, pixels).
+    """
+
+    class Params:
+        path: Path = param(None, doc="file: .npy, .exr, .tif or .png (relative to the graph file)")
+        scale: float = param(1.0, min=0.0, doc="multiplier to pixels (for PNG: height of full white)")
+
+    class Outputs:
+        height: T.PixelHeight = port(doc="pixel height [px]")
+
+    impl_version = "1"
+
+    def compute(self, ctx, inputs, params):
+        p = pathlib.Path(params.path)
+        if not p.is_absolute() and getattr(ctx, "graph_dir", None):
+            p = pathlib.Path(ctx.graph_dir) / p
+        return {"height": load_pixel_height(p, params.scale)}
