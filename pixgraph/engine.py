@@ -1,0 +1,387 @@
+"""Planning and lazy pull evaluation.
+
+``Engine.plan(graph, outputs)`` computes every needed node's cache key from the
+graph alone and says, per node, whether it will run or be served from memory,
+disk or a bound host array, and which key part changed since the last run of that
+node id. Only ancestors of the requested outputs are considered, and the inputs
+of a node served from cache are not needed at all.
+
+``Engine.run(plan)`` pulls the requested outputs: a node computes once its inputs
+are available; its result goes to the memory cache (and the disk cache when one
+is configured and the value has a disk form). Sinks (``side_effects = True``)
+always run when requested and are never cached.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+import traceback
+from typing import Any, Callable, Mapping
+
+from . import events as E
+from .cache import MISS, DiskCache, MemoryCache, Unstorable
+from .graph import Graph, GraphError, Ref
+from .hashing import FileHasher, KeyParts, array_key, explain_change
+from .node import Namespace, NodeSpec
+from .registry import Registry
+from .types import nbytes
+
+
+class NodeError(RuntimeError):
+    """A node failed while computing, or returned values that break its declaration."""
+
+    def __init__(self, node_id: str, type_id: str, message: str):
+        super().__init__(f"node {node_id!r} ({type_id}): {message}")
+        self.node_id = node_id
+        self.type_id = type_id
+
+
+class NodeContext:
+    """What a node's ``compute`` may use besides its inputs and params.
+
+    ``device`` is opened on first access only, so graphs without OpenCL nodes
+    never touch OpenCL.
+    """
+
+    __slots__ = ("node_id", "graph_dir", "_device", "_cancel", "_emit")
+
+    def __init__(self, node_id: str, graph_dir: str, device: Callable[[], Any],
+                 cancel: E.CancelToken | None, emit: Callable[[Any], None]):
+        self.node_id = node_id
+        self.graph_dir = graph_dir
+        self._device = device
+        self._cancel = cancel
+        self._emit = emit
+
+    @property
+    def device(self):
+        """The session's ``pixgraph.device.Device``."""
+        return self._device()
+
+    def progress(self, fraction: float, message: str = "") -> None:
+        """Report this node's progress, ``fraction`` in [0, 1]."""
+        self._emit(E.NodeProgress(self.node_id, min(1.0, max(0.0, float(fraction))), message))
+
+    def check_cancelled(self) -> None:
+        """Raise ``events.Cancelled`` when the run was cancelled."""
+        if self._cancel is not None:
+            self._cancel.raise_if_cancelled()
+
+    def log(self, message: str) -> None:
+        self._emit(E.NodeLog(self.node_id, str(message)))
+
+
+@dataclasses.dataclass(frozen=True)
+class Step:
+    """One needed node of a plan. ``status`` is run, memory, disk or bound."""
+
+    node_id: str
+    type_id: str
+    key: str
+    status: str
+    reason: str
+
+
+@dataclasses.dataclass(frozen=True)
+class Plan:
+    graph: Graph
+    #: requested output name -> where it comes from
+    outputs: Mapping[str, Ref]
+    #: needed nodes, inputs before the nodes that use them
+    steps: tuple[Step, ...]
+    keys: Mapping[str, str]
+    parts: Mapping[str, KeyParts]
+    #: params as compute receives them: defaults filled in, paths absolute
+    params: Mapping[str, Mapping[str, Any]]
+    bind: Mapping[str, Any]
+
+    def step(self, node_id: str) -> Step:
+        return next(s for s in self.steps if s.node_id == node_id)
+
+    def table(self) -> str:
+        """The plan as a text table, for ``pixgraph explain``."""
+        rows = [("node", "type", "status", "key", "why")]
+        rows += [(s.node_id, s.type_id, s.status, s.key[:12], s.reason) for s in self.steps]
+        widths = [max(len(r[i]) for r in rows) for i in range(4)]
+        return "\n".join("  ".join(c.ljust(w) for c, w in zip(r[:4], widths)) + "  " + r[4] for r in rows)
+
+
+@dataclasses.dataclass(frozen=True)
+class RunResult:
+    values: dict[str, Any]
+    #: compute seconds of each node that ran
+    timings: dict[str, float]
+    ran: tuple[str, ...]
+    cached: tuple[str, ...]
+    plan: Plan
+
+
+class Engine:
+    """Plans and runs graphs against one registry, cache set and device.
+
+    It remembers the key parts of the last run of every node id, so a plan can say
+    which part changed ("params.sigma changed", "input image changed").
+    """
+
+    def __init__(self, registry: Registry, memory: MemoryCache, disk: DiskCache | None = None,
+                 device: Callable[[], Any] | None = None, hasher: FileHasher | None = None):
+        self.registry = registry
+        self.memory = memory
+        self.disk = disk
+        self._device = device or _no_device
+        self._hash_file = hasher or FileHasher()
+        self._last_parts: dict[str, KeyParts] = {}
+        #: node types whose outputs had no disk form last time they ran
+        self.memory_only: dict[str, str] = {}
+
+    # -- plan -------------------------------------------------------------------
+
+    def plan(self, graph: Graph, outputs=None, bind: Mapping[str, Any] | None = None) -> Plan:
+        bind = dict(bind or {})
+        requested = self._requested(graph, outputs)
+        for nid in bind:
+            if nid not in graph.nodes:
+                raise GraphError("cannot bind: no such node in the graph", node=nid)
+        order = self._ancestors(graph, [r.node for r in requested.values()], bind)
+        keys, parts, params = {}, {}, {}
+        for nid in order:
+            inst = graph.nodes[nid]
+            spec = self.registry.get(inst.type)
+            if nid in bind:
+                keys[nid] = array_key(bind[nid])
+                parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
+                params[nid] = {}
+                continue
+            p, relevant = self._params(graph, nid, spec, inst.params)
+            params[nid] = p
+            inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
+            parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
+            keys[nid] = parts[nid].key()
+        steps = self._steps(graph, requested, order, keys, parts, bind)
+        return Plan(graph, requested, steps, keys, parts, params, bind)
+
+    def _requested(self, graph: Graph, outputs) -> dict[str, Ref]:
+        if outputs is None:
+            if not graph.outputs:
+                raise GraphError("the graph has no outputs: name one under 'outputs:' or request 'node.output'",
+                                 file=graph.file)
+            return dict(graph.outputs)
+        if isinstance(outputs, str):
+            outputs = [outputs]
+        out = {}
+        for name in outputs:
+            if name in graph.outputs:
+                out[name] = graph.outputs[name]
+                continue
+            try:
+                ref = Ref.parse(name)
+            except ValueError:
+                raise GraphError(f"no output named {name!r} (outputs: {', '.join(graph.outputs) or 'none'})",
+                                 file=graph.file) from None
+            inst = graph.nodes.get(ref.node)
+            if inst is None or self.registry.get(inst.type).output(ref.output) is None:
+                raise GraphError(f"no such node output {name!r}", file=graph.file, node=ref.node)
+            out[name] = ref
+        return out
+
+    @staticmethod
+    def _ancestors(graph: Graph, roots: list[str], bind: Mapping[str, Any]) -> list[str]:
+        """Ancestors of ``roots`` (inclusive) in dependency order; a bound node's
+        inputs are not followed. Iterative: chains may be thousands long."""
+        order, done = [], set()
+        for root in roots:
+            if root in done:
+                continue
+            stack = [(root, False)]
+            while stack:
+                nid, expanded = stack.pop()
+                if nid in done:
+                    continue
+                if expanded:
+                    done.add(nid)
+                    order.append(nid)
+                    continue
+                stack.append((nid, True))
+                if nid not in bind:
+                    for ref in reversed(list(graph.nodes[nid].inputs.values())):
+                        if ref.node not in done:
+                            stack.append((ref.node, False))
+        return order
+
+    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values) -> tuple[dict, dict]:
+        params = spec.coerce_params(values)
+        relevant = {}
+        for p in spec.params:
+            if p.kind == "path":
+                params[p.name] = graph.resolve_path(params[p.name])
+                if p.writes:
+                    relevant[p.name] = params[p.name]
+                else:
+                    try:
+                        relevant[p.name] = {"file_sha256": self._hash_file(params[p.name])}
+                    except OSError as e:
+                        raise graph.error(f"cannot read {params[p.name]}: {e.strerror}", node=nid,
+                                          field=f"params.{p.name}") from None
+            elif p.cache:
+                v = params[p.name]
+                relevant[p.name] = list(v) if isinstance(v, tuple) else v
+        return params, relevant
+
+    def _steps(self, graph, requested, order, keys, parts, bind) -> tuple[Step, ...]:
+        needed, status = set(), {}
+        stack = [r.node for r in requested.values()]
+        while stack:
+            nid = stack.pop()
+            if nid in needed:
+                continue
+            needed.add(nid)
+            inst = graph.nodes[nid]
+            side_effects = self.registry.get(inst.type).side_effects
+            if nid in bind:
+                status[nid] = "bound"
+                continue
+            if not side_effects and keys[nid] in self.memory:
+                status[nid] = "memory"
+                continue
+            if not side_effects and self.disk is not None and keys[nid] in self.disk:
+                status[nid] = "disk"
+                continue
+            status[nid] = "run"
+            stack.extend(ref.node for ref in inst.inputs.values())
+        steps = []
+        for nid in order:
+            if nid not in needed:
+                continue
+            type_id = graph.nodes[nid].type
+            why = explain_change(self._last_parts.get(nid), parts[nid])
+            if status[nid] == "run":
+                if self.registry.get(type_id).side_effects:
+                    why.append("sink: always runs")
+                elif not why:
+                    why = ["not in cache"]
+                if type_id in self.memory_only:
+                    why.append(f"memory only: {self.memory_only[type_id]}")
+            elif not why:
+                why = ["unchanged"]
+            steps.append(Step(nid, type_id, keys[nid], status[nid], "; ".join(why)))
+        return tuple(steps)
+
+    # -- run --------------------------------------------------------------------
+
+    def run(self, plan: Plan, cancel: E.CancelToken | None = None,
+            on_event: Callable[[Any], None] | None = None) -> RunResult:
+        emit = on_event or _ignore
+        graph = plan.graph
+        results: dict[str, dict[str, Any]] = {}
+        timings: dict[str, float] = {}
+        ran, cached = [], []
+        reasons = {s.node_id: s.reason for s in plan.steps}
+        t_run = time.perf_counter()
+        emit(E.RunStarted(sum(s.status == "run" for s in plan.steps),
+                          sum(s.status != "run" for s in plan.steps)))
+        missed: set[str] = set()
+        stack = list(dict.fromkeys(r.node for r in plan.outputs.values()))
+        while stack:
+            nid = stack[-1]
+            if nid in results:
+                stack.pop()
+                continue
+            if cancel is not None:
+                cancel.raise_if_cancelled()
+            inst = graph.nodes[nid]
+            spec = self.registry.get(inst.type)
+            key = plan.keys[nid]
+            if nid in plan.bind:
+                results[nid] = {spec.outputs[0].name: plan.bind[nid]}
+                cached.append(nid)
+                emit(E.NodeCached(nid, "bound"))
+                stack.pop()
+                continue
+            if not spec.side_effects and nid not in missed:
+                value, where = self._fetch(key)
+                if value is not MISS:
+                    results[nid] = value
+                    cached.append(nid)
+                    emit(E.NodeCached(nid, where))
+                    stack.pop()
+                    continue
+                missed.add(nid)  # evicted since the plan: run it after its inputs
+            waiting = [ref.node for ref in inst.inputs.values() if ref.node not in results]
+            if waiting:
+                stack.extend(waiting)
+                continue
+            stack.pop()
+            emit(E.NodeStarted(nid, spec.type_id, reasons.get(nid, "evicted since the plan")))
+            t0 = time.perf_counter()
+            value = self._compute(nid, spec, inst, plan, results, cancel, emit)
+            timings[nid] = time.perf_counter() - t0
+            results[nid] = value
+            ran.append(nid)
+            stored = self._store(spec, key, value)
+            emit(E.NodeFinished(nid, timings[nid], stored))
+        for nid in results:
+            self._last_parts[nid] = plan.parts[nid]
+        values = {name: results[ref.node][ref.output] for name, ref in plan.outputs.items()}
+        emit(E.RunFinished(time.perf_counter() - t_run, len(ran), len(cached)))
+        return RunResult(values, timings, tuple(ran), tuple(cached), plan)
+
+    def _fetch(self, key: str):
+        value = self.memory.get(key)
+        if value is not MISS:
+            return value, "memory"
+        if self.disk is not None:
+            value = self.disk.get(key)
+            if value is not MISS:
+                self.memory.put(key, value)
+                return value, "disk"
+        return MISS, ""
+
+    def _compute(self, nid, spec: NodeSpec, inst, plan: Plan, results, cancel, emit) -> dict[str, Any]:
+        inputs = {p.name: None for p in spec.inputs}
+        for port, ref in inst.inputs.items():
+            inputs[port] = results[ref.node][ref.output]
+        ctx = NodeContext(nid, plan.graph.base_dir, self._device, cancel, emit)
+        try:
+            out = spec.cls().compute(ctx, Namespace(inputs), Namespace(plan.params[nid]))
+        except E.Cancelled:
+            raise
+        except Exception as exc:
+            err = NodeError(nid, spec.type_id, f"failed: {type(exc).__name__}: {exc}".splitlines()[0])
+            err.detail = traceback.format_exc()
+            raise err from exc
+        if not isinstance(out, dict):
+            raise NodeError(nid, spec.type_id, f"compute returned {type(out).__name__}, expected a dict of outputs")
+        names = [p.name for p in spec.outputs]
+        missing = [n for n in names if n not in out]
+        extra = [n for n in out if n not in names]
+        if missing or extra:
+            raise NodeError(nid, spec.type_id, f"compute returned outputs {sorted(out)}, declared {names}")
+        for p in spec.outputs:
+            try:
+                p.type.validate(out[p.name])
+            except TypeError as e:
+                raise NodeError(nid, spec.type_id, f"output {p.name!r} is not a valid {p.type.type_name()}: {e}") from None
+        return out
+
+    def _store(self, spec: NodeSpec, key: str, value: dict) -> str:
+        if spec.side_effects:
+            return "not cached (sink)"
+        size = nbytes(value)
+        where = "memory" if self.memory.put(key, value, size) else "not cached (larger than the memory limit)"
+        if self.disk is not None:
+            try:
+                self.disk.put(key, value)
+                where = "memory+disk" if where == "memory" else "disk"
+                self.memory_only.pop(spec.type_id, None)
+            except Unstorable as e:
+                self.memory_only[spec.type_id] = str(e)
+                where += f"; memory only: {e}"
+        return where
+
+
+def _ignore(event) -> None:
+    pass
+
+
+def _no_device():
+    raise RuntimeError("this engine has no OpenCL device")

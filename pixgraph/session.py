@@ -1,0 +1,150 @@
+"""The embedding API: the one object a host application holds.
+
+    from pixgraph.session import Session
+    s = Session(cache_bytes=2**30)
+    out = s.run("graphs/shadow.yaml", params={"blur.sigma": 4},
+                bind={"cutout": rgba_float32}, outputs=["final"])
+
+A ``Session`` owns a registry (discovered from entry points unless given), a
+byte-bounded memory cache, an optional disk cache, and an OpenCL device that is
+opened the first time a node asks for one. Repeated runs reuse cached results;
+``plan``/``explain`` say what a run would do, and why, without running it.
+"""
+from __future__ import annotations
+
+import os
+from typing import Any, Callable, Mapping
+
+from . import fileio
+from .cache import DiskCache, MemoryCache
+from .engine import Engine, Plan, RunResult
+from .events import CancelToken
+from .graph import Graph, GraphBuilder, GraphError
+from .registry import Registry
+
+#: defaults, each overridable by a Session argument or an environment variable
+DEFAULT_CACHE_BYTES = 2 << 30          # PIXGRAPH_CACHE_BYTES
+DEFAULT_DISK_CACHE_BYTES = 20 << 30    # PIXGRAPH_DISK_CACHE_BYTES
+
+
+def _env_bytes(name: str, default: int) -> int:
+    raw = os.environ.get(name)
+    if raw is None or raw == "":
+        return default
+    try:
+        value = int(float(raw))
+    except ValueError:
+        raise ValueError(f"{name} must be a number of bytes, got {raw!r}") from None
+    if value < 0:
+        raise ValueError(f"{name} must be >= 0, got {raw!r}")
+    return value
+
+
+class Session:
+    """Registry + caches + device; runs graphs from files, text or ``Graph`` values.
+
+    device: ``None`` (``PIXGRAPH_DEVICE`` or the default choice), a spec string
+        (``"0:0"``, ``"cpu"``, a name substring), or a ``pixgraph.device.Device``
+        (e.g. ``Device.from_cl(host_context, host_queue)``). Opened lazily.
+    cache_bytes: memory cache limit in bytes (default ``PIXGRAPH_CACHE_BYTES`` or 2 GiB).
+    disk_cache: folder of a persistent cache, or ``None`` for none
+        (``PIXGRAPH_DISK_CACHE`` is used when ``None`` is not passed explicitly
+        and the variable is set).
+    disk_cache_bytes: disk cache limit (default ``PIXGRAPH_DISK_CACHE_BYTES`` or 20 GiB).
+    registry: node types; default ``Registry.discover()``.
+    """
+
+    def __init__(self, device=None, cache_bytes: int | None = None, disk_cache: str | os.PathLike | None = None,
+                 registry: Registry | None = None, disk_cache_bytes: int | None = None):
+        self.registry = registry if registry is not None else Registry.discover()
+        if cache_bytes is None:
+            cache_bytes = _env_bytes("PIXGRAPH_CACHE_BYTES", DEFAULT_CACHE_BYTES)
+        if disk_cache_bytes is None:
+            disk_cache_bytes = _env_bytes("PIXGRAPH_DISK_CACHE_BYTES", DEFAULT_DISK_CACHE_BYTES)
+        self.memory = MemoryCache(cache_bytes)
+        self.disk = DiskCache(disk_cache, disk_cache_bytes) if disk_cache is not None else None
+        self._device_arg = device
+        self._device = None
+        self.engine = Engine(self.registry, self.memory, self.disk, self._get_device)
+        self.last_run: RunResult | None = None
+
+    @property
+    def device(self):
+        """The session's ``Device``, opened on first use."""
+        return self._get_device()
+
+    def _get_device(self):
+        if self._device is None:
+            from .device import Device
+
+            arg = self._device_arg
+            self._device = arg if isinstance(arg, Device) else Device.open(arg)
+        return self._device
+
+    @property
+    def device_opened(self) -> bool:
+        return self._device is not None
+
+    # -- graphs -----------------------------------------------------------------
+
+    def load(self, path: str | os.PathLike) -> Graph:
+        return fileio.load(path, self.registry)
+
+    def builder(self, base_dir: str | None = None) -> GraphBuilder:
+        return GraphBuilder(self.registry, base_dir=base_dir)
+
+    def graph(self, graph_or_path: Graph | str | os.PathLike, params: Mapping[str, Any] | None = None) -> Graph:
+        """A validated graph from a file or value, with param overrides applied.
+
+        ``params`` is ``{"node.param": value}`` or ``{"node": {"param": value}}``;
+        values are validated like file params.
+        """
+        graph = graph_or_path if isinstance(graph_or_path, Graph) else self.load(graph_or_path)
+        if not params:
+            return graph
+        b = GraphBuilder.from_graph(graph, self.registry)
+        for name, value in params.items():
+            if isinstance(value, Mapping) and "." not in name:
+                node_id, values = name, dict(value)
+            else:
+                node_id, dot, pname = name.partition(".")
+                if not dot or not pname:
+                    raise GraphError(f"param override {name!r} must be 'node.param' or {{node: {{param: value}}}}")
+                values = {pname: value}
+            if node_id not in graph.nodes:
+                raise GraphError("param override for a node that is not in the graph", file=graph.file, node=node_id)
+            b.set(node_id, **values)
+        return b.build()
+
+    # -- plan and run -----------------------------------------------------------
+
+    def plan(self, graph_or_path, outputs=None, params=None, bind=None) -> Plan:
+        return self.engine.plan(self.graph(graph_or_path, params), outputs, bind)
+
+    def explain(self, graph_or_path, outputs=None, params=None, bind=None) -> str:
+        return self.plan(graph_or_path, outputs, params, bind).table()
+
+    def run(self, graph_or_path, outputs=None, params=None, bind: Mapping[str, Any] | None = None,
+            cancel: CancelToken | None = None, on_event: Callable[[Any], None] | None = None) -> dict[str, Any]:
+        """Run and return ``{output name: value}``.
+
+        outputs: names from the graph's ``outputs`` or ``"node.output"`` refs;
+            default all of the graph's outputs.
+        bind: ``{node_id: array}`` replaces that node's first output with a host
+            array (keyed by its bytes, shape and dtype); its inputs are not run.
+        cancel: a ``CancelToken``; cancelling raises ``events.Cancelled``.
+        on_event: called with each ``pixgraph.events`` event.
+        """
+        plan = self.plan(graph_or_path, outputs, params, bind)
+        if bind:
+            for nid, value in bind.items():
+                port = self.registry.get(plan.graph.nodes[nid].type).outputs[0]
+                try:
+                    port.type.validate(value)
+                except TypeError as e:
+                    raise GraphError(f"bound value does not fit output {port.name!r}: {e}", node=nid) from None
+        self.last_run = self.engine.run(plan, cancel, on_event)
+        return self.last_run.values
+
+    def cache_stats(self) -> dict:
+        return {"memory": self.memory.stats(), "disk": self.disk.stats() if self.disk else None}
