@@ -1,0 +1,75 @@
+"""pixgraph.Light: a point, directional or disk light from artist controls or a shadow tip."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pixgraph import types as T
+from pixgraph.node import node, param, port
+
+from .ops import lights
+
+
+@node("pixgraph.Light", version=1)
+class Light:
+    """A light placed by azimuth/elevation/distance around the object's foot, or by
+    dragging the shadow tip.
+
+    azimuth 0 puts the light on the camera's side (the shadow falls back, onto the
+    wall), 90 to the right, 180 behind the object. Elevations at or below the
+    horizon are raised to 1 degree (with a warning). Softness is the disk ``radius``
+    (point/disk lights, world units) or the ``angular_radius`` (directional, degrees).
+    """
+
+    class Inputs:
+        camera: T.Camera = port(doc="camera used to place the target and the shadow tip in 3D")
+        mask: T.Mask = port(optional=True, doc="cutout; its foot is the target when target_mode is mask_foot")
+
+    class Params:
+        kind: str = param("disk", choices=lights.KINDS, doc="light type")
+        placement: str = param("controls", choices=("controls", "shadow_tip"),
+                               doc="azimuth/elevation around the target, or the shadow tip handles")
+        azimuth: float = param(20.0, min=-360.0, max=360.0, unit="deg",
+                               doc="around the vertical; 0 = camera side, 90 = right")
+        elevation: float = param(45.0, min=-90.0, max=90.0, unit="deg", doc="above the horizontal")
+        distance: float = param(4.0, min=1e-6, unit="world units",
+                                doc="from the target (point/disk lights; directional lights are at infinity)")
+        radius: float = param(0.3, min=0.0, unit="world units", doc="disk light radius (softness)")
+        angular_radius: float = param(0.0, min=0.0, max=60.0, unit="deg",
+                                      doc="directional light's angular radius (softness)")
+        facing: str = param("target", choices=lights.FACINGS, doc="disk faces the target, or faces down")
+        target_mode: str = param("mask_foot", choices=("mask_foot", "pixel"),
+                                 doc="target: the mask's foot (needs mask), or target_uv")
+        target_uv: list[float] = param([256.0, 400.0], length=2, unit="px",
+                                       doc="target pixel on the ground (target_mode pixel)")
+        tip_uv: list[float] = param([150.0, 420.0], length=2, unit="px",
+                                    doc="shadow_tip: the shadow tip on the ground")
+        top_uvh: list[float] = param([256.0, 150.0, 250.0], length=3, unit="px",
+                                     doc="shadow_tip: the object's top point (u, v) and its pixel height")
+
+    class Outputs:
+        light: T.Light = port(doc="the light (pixgraph_nodes.ops.lights.Light)")
+
+    impl_version = "1"
+
+    def compute(self, ctx, inputs, params):
+        cam = inputs.camera
+        dist = math.inf if params.kind == "directional" else params.distance
+        if params.placement == "shadow_tip":
+            light = lights.from_shadow_tip(cam, params.tip_uv, params.top_uvh, dist, params.kind,
+                                           params.radius, params.angular_radius, params.facing)
+            return {"light": light}
+        if params.target_mode == "mask_foot":
+            if inputs.mask is None:
+                raise ValueError("target_mode mask_foot needs the mask input (or use target_mode pixel)")
+            uv = lights.foot_of_mask(inputs.mask)
+        else:
+            uv = tuple(params.target_uv)
+        P, ok = cam.back_project(uv[0], uv[1], 0.0)
+        if not ok:
+            raise ValueError(f"light target {uv} is at or above the horizon ({cam.horizon}): "
+                             "it has no point on the ground")
+        light = lights.from_controls(np.asarray(P), params.azimuth, params.elevation, dist, params.kind,
+                                     params.radius, params.angular_radius, params.facing)
+        return {"light": light}
