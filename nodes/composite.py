@@ -1,0 +1,37 @@
+"""pixgraph.Composite: shadow on the background in linear light, then the cutout over it."""
+from __future__ import annotations
+
+from pixgraph import types as T
+from pixgraph.node import node, param, port
+
+from .ops.composite import composite
+
+
+@node("pixgraph.Composite", version=1)
+class Composite:
+    """Darken the background by the shadow (``bg * (1 - opacity * darkness * (1 - tint))``,
+    linear light), then put the premultiplied cutout over it with its alpha.
+
+    The result is linear light with the background's channels; SaveImage encodes it
+    (sRGB for PNG, linear for EXR).
+    """
+
+    class Inputs:
+        background: T.Image = port(doc="linear-light background (RGB or premultiplied RGBA)")
+        cutout: T.Image = port(doc="linear-light premultiplied cutout colour")
+        alpha: T.Mask = port(doc="cutout coverage")
+        shadow: T.Mask = port(optional=True, doc="shadow darkness, 1 = full shadow")
+
+    class Params:
+        opacity: float = param(0.85, min=0.0, max=1.0, doc="shadow strength")
+        tint: list[float] = param([0.08, 0.09, 0.12], length=3, min=0.0, max=1.0,
+                                  doc="fraction of each colour channel left in full shadow (sky fill)")
+
+    class Outputs:
+        image: T.Image = port(doc="composite, linear light")
+
+    impl_version = "1"
+
+    def compute(self, ctx, inputs, params):
+        return {"image": composite(inputs.background, inputs.cutout, inputs.alpha, inputs.shadow,
+                                   params.opacity, params.tint)}
