@@ -56,7 +56,7 @@ class GraphError(ValueError):
             parts.append(f"{self.file}:{self.line}" if self.line else self.file)
         if self.node:
             parts.append(f"node {self.node!r}")
-        if self.field:
+        if self.field and self.field != "type":
             head, _, rest = self.field.partition(".")
             label = {"params": "param", "inputs": "input", "outputs": "output"}.get(head)
             parts.append(f"{label} {rest!r}" if label and rest else self.field)
@@ -253,7 +253,7 @@ class GraphBuilder:
         self._nodes: dict[str, dict] = {}
         self._outputs: dict[str, Ref] = {}
         self._file: str | None = None
-        self._lines: Mapping[str, int] = {}
+        self._lines: dict[str, int] = {}
 
     @classmethod
     def from_graph(cls, graph: Graph, registry: Registry) -> "GraphBuilder":
@@ -262,7 +262,7 @@ class GraphBuilder:
         for nid, inst in graph.nodes.items():
             b._nodes[nid] = {"type": inst.type, "params": dict(inst.params), "inputs": dict(inst.inputs)}
         b._outputs = dict(graph.outputs)
-        b._file, b._lines = graph.file, graph.lines
+        b._file, b._lines = graph.file, dict(graph.lines)
         return b
 
     def add(self, type_id: str, node_id: str, **params: Any) -> str:
@@ -284,6 +284,8 @@ class GraphBuilder:
     def set(self, node_id: str, **params: Any) -> None:
         """Set params on a node (validated at ``build()``)."""
         self._node(node_id)["params"].update(params)
+        for name in params:  # no longer the value on that line of the file
+            self._lines.pop(f"nodes.{node_id}.params.{name}", None)
 
     def unset(self, node_id: str, *names: str) -> None:
         """Return params to their declared defaults."""

@@ -271,7 +271,9 @@ class NodeSpec:
 
     @property
     def summary(self) -> str:
-        return self.doc.strip().splitlines()[0] if self.doc.strip() else ""
+        """The first paragraph of the doc, on one line."""
+        first = self.doc.strip().split("\n\n")[0]
+        return " ".join(first.split())
 
     def input(self, name: str) -> PortSpec | None:
         return next((p for p in self.inputs if p.name == name), None)

@@ -1,0 +1,304 @@
+"""``pixgraph`` command line: a thin shell over ``Session``.
+
+Exit codes: 0 success; 2 bad input (graph file, params, options: one line on
+stderr naming file, line, node and field); 1 internal failure (a node raised, a
+device failed); 130 cancelled by Ctrl-C. ``--debug`` adds tracebacks.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import traceback
+from typing import Any
+
+import yaml
+
+from .graph import GraphError
+from .registry import Registry
+
+EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_CANCELLED = 0, 1, 2, 130
+
+
+class UsageError(Exception):
+    """Bad command-line input (exit 2)."""
+
+
+def default_disk_cache() -> str:
+    """``PIXGRAPH_DISK_CACHE``, else ``$XDG_CACHE_HOME/pixgraph`` (``~/.cache/pixgraph``)."""
+    env = os.environ.get("PIXGRAPH_DISK_CACHE")
+    if env:
+        return env
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "pixgraph")
+
+
+def _parser() -> argparse.ArgumentParser:
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", help="show tracebacks")
+    common.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summaries")
+
+    graph_opts = argparse.ArgumentParser(add_help=False)
+    graph_opts.add_argument("graph", help="graph file (YAML)")
+    graph_opts.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
+                            help="override a param; VALUE is a YAML scalar or list")
+
+    cache_opts = argparse.ArgumentParser(add_help=False)
+    cache_opts.add_argument("--disk-cache", metavar="DIR", default=None,
+                            help="disk cache folder (default PIXGRAPH_DISK_CACHE or ~/.cache/pixgraph)")
+    cache_opts.add_argument("--no-disk-cache", action="store_true", help="memory cache only")
+
+    p = argparse.ArgumentParser(prog="pixgraph", description="Node-graph compositing with pixel-height light effects.",
+                                parents=[common])
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    r = sub.add_parser("run", parents=[common, graph_opts, cache_opts], help="run a graph")
+    r.add_argument("-o", "--output", action="append", default=[], metavar="NAME=PATH",
+                   help="write graph output NAME to an image file PATH (png, tif, jpg, exr)")
+    r.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
+    r.add_argument("--cache-bytes", type=int, default=None, help="memory cache limit in bytes")
+
+    sub.add_parser("validate", parents=[common, graph_opts], help="check a graph file without running it")
+    sub.add_parser("explain", parents=[common, graph_opts, cache_opts],
+                   help="show what a run would compute or take from cache, and why")
+
+    n = sub.add_parser("nodes", parents=[common], help="list node types, or show one")
+    n.add_argument("name", nargs="?", help="node type id")
+    n.add_argument("--errors", action="store_true", help="show plugins that failed to load")
+    n.add_argument("--markdown", action="store_true", help="print the node reference as Markdown")
+
+    sub.add_parser("schema", parents=[common], help="print the JSON Schema of graph files")
+    sub.add_parser("devices", parents=[common], help="list OpenCL platforms and devices")
+
+    c = sub.add_parser("cache", parents=[common, cache_opts], help="disk cache statistics or clearing")
+    c.add_argument("action", choices=["stats", "clear"])
+    return p
+
+
+def parse_sets(items: list[str]) -> dict[str, Any]:
+    """``["blur.sigma=4", "m.color=[1, 0, 0]"]`` -> ``{"blur.sigma": 4, ...}`` (safe YAML values)."""
+    out = {}
+    for item in items:
+        name, eq, raw = item.partition("=")
+        if not eq or "." not in name:
+            raise UsageError(f"--set {item}: expected NODE.PARAM=VALUE")
+        try:
+            out[name.strip()] = yaml.safe_load(raw) if raw.strip() else ""
+        except yaml.YAMLError as e:
+            raise UsageError(f"--set {item}: value is not valid YAML: {str(e).splitlines()[0]}") from None
+    return out
+
+
+def main(argv: list[str] | None = None, registry: Registry | None = None) -> int:
+    """Entry point; returns the exit code. ``registry`` replaces discovery (tests, hosts)."""
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # argparse prints its own one-line usage error
+        return EXIT_BAD_INPUT if e.code else EXIT_OK
+    try:
+        return _COMMANDS[args.command](args, registry)
+    except (GraphError, UsageError) as e:
+        _fail(args, e)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("pixgraph: cancelled", file=sys.stderr)
+        return EXIT_CANCELLED
+    except Exception as e:
+        from .device import DeviceError
+        from .events import Cancelled
+
+        if isinstance(e, Cancelled):
+            print("pixgraph: cancelled", file=sys.stderr)
+            return EXIT_CANCELLED
+        _fail(args, e, prefix="" if isinstance(e, DeviceError) else "error: ")
+        if args.debug and getattr(e, "detail", None):
+            print(e.detail, file=sys.stderr, end="")
+        return EXIT_BAD_INPUT if isinstance(e, DeviceError) and "matches" in str(e) else EXIT_INTERNAL
+
+
+def _fail(args, e: BaseException, prefix: str = "") -> None:
+    line = str(e).replace("\n", " ") if not isinstance(e, GraphError) else str(e)
+    print(f"{prefix}{line}" if prefix else line, file=sys.stderr)
+    if getattr(args, "debug", False):
+        traceback.print_exception(e, file=sys.stderr)
+
+
+def _session(args, registry, disk: bool = True):
+    from .session import Session
+
+    disk_dir = None
+    if disk and not getattr(args, "no_disk_cache", False):
+        disk_dir = args.disk_cache or default_disk_cache()
+        try:
+            os.makedirs(disk_dir, exist_ok=True)
+            if not os.access(disk_dir, os.W_OK):
+                raise PermissionError(disk_dir)
+        except OSError:
+            if not args.quiet:
+                print(f"pixgraph: disk cache {disk_dir} is not writable; using memory only", file=sys.stderr)
+            disk_dir = None
+    return Session(device=getattr(args, "device", None), cache_bytes=getattr(args, "cache_bytes", None),
+                   disk_cache=disk_dir, registry=registry)
+
+
+def _cmd_run(args, registry) -> int:
+    from .events import NodeCached, NodeFinished, NodeProgress, RunStarted
+
+    targets = {}
+    for item in args.output:
+        name, eq, path = item.partition("=")
+        if not eq or not name or not path:
+            raise UsageError(f"-o {item}: expected NAME=PATH")
+        targets[name] = path
+    s = _session(args, registry)
+    graph = s.graph(args.graph, parse_sets(args.set))
+    for name in targets:
+        if name not in graph.outputs:
+            raise GraphError(f"no output named {name!r} (outputs: {', '.join(graph.outputs) or 'none'})",
+                             file=graph.file)
+    bar = None
+    show_bar = not args.quiet and sys.stderr.isatty()
+
+    def on_event(ev):
+        nonlocal bar
+        if not show_bar:
+            return
+        if isinstance(ev, RunStarted):
+            from tqdm import tqdm
+
+            bar = tqdm(total=ev.to_run + ev.cached, file=sys.stderr, unit="node", leave=False)
+        elif isinstance(ev, (NodeFinished, NodeCached)):
+            bar.set_postfix_str(ev.node_id)
+            bar.update(1)
+        elif isinstance(ev, NodeProgress):
+            bar.set_postfix_str(f"{ev.node_id} {ev.fraction:.0%} {ev.message}".strip())
+
+    try:
+        values = s.run(graph, outputs=list(targets) or None, on_event=on_event)
+    finally:
+        if bar is not None:
+            bar.close()
+    for name, path in targets.items():
+        _write_output(name, values[name], path)
+    if not args.quiet:
+        res = s.last_run
+        print(f"ran {len(res.ran)} node(s), {len(res.cached)} from cache, "
+              f"{sum(res.timings.values()):.3f} s compute", file=sys.stderr)
+        for name, v in values.items():
+            where = f" -> {targets[name]}" if name in targets else ""
+            print(f"{name}: {_describe(v)}{where}")
+    return EXIT_OK
+
+
+def _write_output(name: str, value, path: str) -> None:
+    import numpy as np
+
+    from pixgraph_nodes.ops.imageio import write_image
+
+    if not isinstance(value, np.ndarray):
+        raise UsageError(f"-o {name}={path}: output {name!r} is a {type(value).__name__}, not an image")
+    try:
+        write_image(path, value)
+    except (ValueError, OSError) as e:
+        raise UsageError(f"-o {name}={path}: {e}") from None
+
+
+def _describe(v) -> str:
+    import numpy as np
+
+    if isinstance(v, np.ndarray):
+        return f"array {v.dtype} {tuple(v.shape)}"
+    return repr(v) if len(repr(v)) < 80 else type(v).__name__
+
+
+def _cmd_validate(args, registry) -> int:
+    reg = registry if registry is not None else Registry.discover()
+    from .session import Session
+
+    s = Session(registry=reg)
+    g = s.graph(args.graph, parse_sets(args.set))
+    if not args.quiet:
+        print(f"{args.graph}: ok ({len(g.nodes)} nodes, outputs: {', '.join(g.outputs) or 'none'})")
+    return EXIT_OK
+
+
+def _cmd_explain(args, registry) -> int:
+    s = _session(args, registry)
+    print(s.explain(args.graph, params=parse_sets(args.set)))
+    return EXIT_OK
+
+
+def _cmd_nodes(args, registry) -> int:
+    from . import reference
+
+    reg = registry if registry is not None else Registry.discover()
+    if args.errors:
+        for e in reg.errors:
+            print(str(e))
+            if args.debug and e.detail:
+                print(e.detail, end="")
+        if not reg.errors:
+            print("no plugin errors")
+        return EXIT_OK if not reg.errors else EXIT_INTERNAL
+    if args.markdown:
+        sys.stdout.write(reference.markdown(reg))
+        return EXIT_OK
+    if args.name:
+        if args.name not in reg:
+            hint = reg.suggest(args.name)
+            raise UsageError(f"unknown node type {args.name!r}" + (f" (did you mean {hint!r}?)" if hint else ""))
+        sys.stdout.write(reference.text(reg.get(args.name), reg.source(args.name)))
+        return EXIT_OK
+    width = max((len(s.type_id) for s in reg.specs()), default=0)
+    for spec in reg.specs():
+        print(f"{spec.type_id.ljust(width)}  v{spec.version}  {spec.summary}")
+    if reg.errors and not args.quiet:
+        print(f"pixgraph: {len(reg.errors)} plugin error(s); see 'pixgraph nodes --errors'", file=sys.stderr)
+    return EXIT_OK
+
+
+def _cmd_schema(args, registry) -> int:
+    from .fileio import schema_text
+
+    sys.stdout.write(schema_text(registry if registry is not None else Registry.discover()))
+    return EXIT_OK
+
+
+def _cmd_devices(args, registry) -> int:
+    from .device import choose, list_devices
+
+    devices = list_devices()
+    if not devices:
+        print("no OpenCL device found", file=sys.stderr)
+        return EXIT_INTERNAL
+    default = choose().spec
+    for d in devices:
+        mark = "*" if d.spec == default else " "
+        print(f"{mark} {d.describe()}")
+    if not args.quiet:
+        print("(* = default; choose with --device SPEC or PIXGRAPH_DEVICE)", file=sys.stderr)
+    return EXIT_OK
+
+
+def _cmd_cache(args, registry) -> int:
+    from .cache import DiskCache
+
+    root = args.disk_cache or default_disk_cache()
+    if args.no_disk_cache or not os.path.isdir(root):
+        print(json.dumps({"root": root, "entries": 0, "bytes": 0}))
+        return EXIT_OK
+    from .session import DEFAULT_DISK_CACHE_BYTES, _env_bytes
+
+    d = DiskCache(root, _env_bytes("PIXGRAPH_DISK_CACHE_BYTES", DEFAULT_DISK_CACHE_BYTES))
+    if args.action == "clear":
+        n = d.clear()
+        print(f"removed {n} entr{'y' if n == 1 else 'ies'} from {root}")
+    else:
+        print(json.dumps(d.stats(), sort_keys=True))
+    return EXIT_OK
+
+
+_COMMANDS = {"run": _cmd_run, "validate": _cmd_validate, "explain": _cmd_explain, "nodes": _cmd_nodes,
+             "schema": _cmd_schema, "devices": _cmd_devices, "cache": _cmd_cache}
