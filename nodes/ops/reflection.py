@@ -1,0 +1,711 @@
+"""Reflection and refraction traced in pixel-height space (PixHt-Lab Sec. 3.3).
+
+Numpy references next to the OpenCL kernels of ``reflection.cl`` (same names,
+``rt_`` prefix dropped), plus the host-side wrappers the nodes call.
+
+Units: image coordinates ``u`` (right), ``v`` (down) and pixel height ``h`` in
+pixels, pixel centres at ``+0.5``; 3D directions are unit vectors in the world
+frame (y up, ground ``Y = 0``, camera at ``(0, H_cam, 0)`` looking down ``-Z``).
+
+**3D ray to (u, v, h).** The projection ``(u, v, h) = (W/2 + f X/D, horizon +
+f (H_cam - Y)/D, f Y/D)`` is homogeneous with the common denominator ``D = -Z``,
+so a 3D ray ``P + t d`` maps to the straight (u, v, h) ray ``p0 + s e`` with
+
+    e = Nd + d_z p0,   Nd = (W/2 (-d_z) + f d_x, horizon (-d_z) - f d_y, f d_y),
+    s = t / (D0 - t d_z).
+
+When ``d_z < 0`` (away from the camera) the ray ends at its vanishing point
+``Nd / (-d_z)`` (foot on the horizon) at ``s = 1/(-d_z)``; otherwise its image runs
+away from the vanishing point without end. The depth ``D0`` cancels: only the
+origin's ``(u, v, h)`` and ``d`` matter.
+
+**Planar mirror closed form.** Reflecting ``P = (X, Y, Z)`` over the ground gives
+``(X, -Y, Z)``: same ``u`` and ``D``, ``v' = horizon + f (H_cam + Y)/D = v + 2h`` and
+``h' = -h``. A cutout point ``(u, v, h)`` appears in a flat mirror floor at
+``(u, v + 2h)``: the cutout flipped about its foot line. The reflected view ray of
+a ground pixel runs straight up its own column with ray height ``(v_r - v)/2``
+at row ``v``; :func:`planar_mirror` evaluates that column march for every pixel at
+once by scattering each cutout pixel to the receiver rows it is hit from.
+
+**Material model.** Isotropic GGX with ``alpha = roughness**2``, Smith
+height-correlated masking-shadowing, visible-normal (VNDF, Heitz 2018) importance
+sampling; the sample weight is ``F(wo.m) G2(wo, wi) / G1(wo)`` and a direction below
+the surface is rejected (weight 0, never traced). Fresnel: *exact* unpolarised
+dielectric reflectance with IOR ``eta`` (not Schlick), or Schlick with a coloured
+``f0`` for conductors.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import march
+from .camera import Camera, reconstruct
+
+F32 = np.float32
+#: thickness (pixels) of a solid surface: everything behind the background is inside it
+SOLID = F32(1.0e30)
+UNBOUNDED = F32(1.0e30)
+_U32 = np.uint32
+
+
+# ---------------------------------------------------------------------------
+# random numbers (bit-exact mirror of rt_pcg / rt_rand)
+# ---------------------------------------------------------------------------
+
+def pcg(v) -> np.ndarray:
+    """PCG integer hash of uint32 values (wrapping arithmetic)."""
+    v = np.asarray(v, dtype=_U32)
+    with np.errstate(over="ignore"):
+        state = v * _U32(747796405) + _U32(2891336453)
+        word = ((state >> ((state >> _U32(28)) + _U32(4))) ^ state) * _U32(277803737)
+    return (word >> _U32(22)) ^ word
+
+
+def rand(seed, pix, sample, dim) -> np.ndarray:
+    """Uniform float32 in [0, 1), one per (seed, pixel, sample, dimension)."""
+    with np.errstate(over="ignore"):
+        x = pcg(pcg(pcg(_U32(seed) + _U32(dim)) + np.asarray(sample, _U32)) + np.asarray(pix, _U32))
+    return ((x >> _U32(8)).astype(np.float32) * F32(1.0 / 16777216.0)).astype(np.float32)
+
+
+# ---------------------------------------------------------------------------
+# 3D ray -> (u, v, h) ray
+# ---------------------------------------------------------------------------
+
+def uvh_direction(camera: Camera, p0, d):
+    """(u, v, h) direction ``e`` and far end ``s_max`` of 3D rays.
+
+    p0: (..., 3) image point ``(u, v, h)`` of the ray origins [px].
+    d: (..., 3) world directions (need not be unit).
+    Returns ``(e, s_max)``: e (..., 3) [px per unit s], s_max (...) (``UNBOUNDED``
+    where the ray points toward the camera or parallel to the image plane).
+    """
+    p0 = np.asarray(p0, np.float64)
+    d = np.asarray(d, np.float64)
+    f = camera.focal
+    mdz = -d[..., 2]
+    nd = np.stack([0.5 * camera.width * mdz + f * d[..., 0],
+                   camera.horizon * mdz - f * d[..., 1],
+                   f * d[..., 1]], axis=-1)
+    e = nd - mdz[..., None] * p0
+    with np.errstate(divide="ignore"):
+        s_max = np.where(mdz > 0, np.minimum(1.0 / np.where(mdz > 0, mdz, 1.0), UNBOUNDED), UNBOUNDED)
+    return e, s_max
+
+
+def view_directions(camera: Camera) -> np.ndarray:
+    """Unit view ray (camera -> scene) of every pixel centre, float64 (H, W, 3)."""
+    u, v = camera.pixel_grid()
+    r = camera.ray(u, v)
+    return r / np.linalg.norm(r, axis=-1, keepdims=True)
+
+
+# ---------------------------------------------------------------------------
+# BRDF and interface math
+# ---------------------------------------------------------------------------
+
+def fresnel_dielectric(cos_i, eta) -> np.ndarray:
+    """Exact unpolarised Fresnel reflectance; ``eta = n_t / n_i``, cos_i in [0, 1].
+
+    ``((1 - eta)/(1 + eta))**2`` at normal incidence, 1 at grazing incidence and 1
+    under total internal reflection (``eta < 1`` past the critical angle)."""
+    c = np.clip(np.asarray(cos_i, np.float64), 0.0, 1.0)
+    eta = np.asarray(eta, np.float64)
+    g2 = eta * eta - 1.0 + c * c
+    tir = g2 <= 0.0
+    g = np.sqrt(np.where(tir, 1.0, g2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = (g - c) / (g + c)
+        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+        F = 0.5 * a * a * (1.0 + b * b)
+    return np.where(tir, 1.0, np.clip(F, 0.0, 1.0))
+
+
+def fresnel_schlick(cos_i, f0) -> np.ndarray:
+    """Schlick's approximation with normal-incidence reflectance ``f0`` (..., 3)."""
+    m = 1.0 - np.clip(np.asarray(cos_i, np.float64), 0.0, 1.0)
+    f0 = np.asarray(f0, np.float64)
+    return f0 + (1.0 - f0) * (m ** 5)[..., None]
+
+
+def smith_lambda(cos_t, alpha) -> np.ndarray:
+    """GGX Smith Lambda; cos_t = cosine to the macro normal."""
+    c2 = np.maximum(np.asarray(cos_t, np.float64) ** 2, 1e-12)
+    t2 = np.maximum(1.0 - c2, 0.0) / c2
+    return 0.5 * (-1.0 + np.sqrt(1.0 + alpha * alpha * t2))
+
+
+def ggx_d(cos_m, alpha) -> np.ndarray:
+    """GGX normal distribution D(m) [1/sr] for microfacet normals at cosine cos_m."""
+    c2 = np.asarray(cos_m, np.float64) ** 2
+    a2 = alpha * alpha
+    return np.where(c2 > 0, a2 / (math.pi * (c2 * (a2 - 1.0) + 1.0) ** 2), 0.0)
+
+
+def sample_vndf(wo, alpha, u1, u2) -> np.ndarray:
+    """Visible GGX normals (Heitz 2018) in the local frame (n = +z), wo (..., 3), wo_z > 0."""
+    wo = np.asarray(wo, np.float64)
+    vh = np.stack([alpha * wo[..., 0], alpha * wo[..., 1], wo[..., 2]], axis=-1)
+    vh /= np.linalg.norm(vh, axis=-1, keepdims=True)
+    lensq = vh[..., 0] ** 2 + vh[..., 1] ** 2
+    inv = 1.0 / np.sqrt(np.where(lensq > 0, lensq, 1.0))
+    t1 = np.where((lensq > 0)[..., None],
+                  np.stack([-vh[..., 1] * inv, vh[..., 0] * inv, np.zeros_like(lensq)], axis=-1),
+                  np.array([1.0, 0.0, 0.0]))
+    t2 = np.cross(vh, t1)
+    r = np.sqrt(u1)
+    phi = 2.0 * math.pi * u2
+    p1 = r * np.cos(phi)
+    p2 = r * np.sin(phi)
+    s = 0.5 * (1.0 + vh[..., 2])
+    p2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - p1 * p1, 0.0)) + s * p2
+    nh = p1[..., None] * t1 + p2[..., None] * t2 + np.sqrt(np.maximum(0.0, 1.0 - p1 * p1 - p2 * p2))[..., None] * vh
+    m = np.stack([alpha * nh[..., 0], alpha * nh[..., 1], np.maximum(1e-6, nh[..., 2])], axis=-1)
+    return m / np.linalg.norm(m, axis=-1, keepdims=True)
+
+
+def reflect(wo, m) -> np.ndarray:
+    """Mirror of wo (pointing away from the surface) about m: ``2 (wo.m) m - wo``."""
+    return 2.0 * np.sum(wo * m, axis=-1, keepdims=True) * m - wo
+
+
+def refract(view, n, eta):
+    """Snell refraction of ``view`` (toward the surface, unit) through a surface with
+    unit normal ``n`` (toward the viewer); ``eta`` = IOR inside / outside.
+
+    Returns ``(direction, tir)``: the refracted unit direction, or the reflected one
+    where total internal reflection happens (``tir`` True)."""
+    view = np.asarray(view, np.float64)
+    n = np.asarray(n, np.float64)
+    cos_i = -np.sum(view * n, axis=-1, keepdims=True)
+    r = 1.0 / np.asarray(eta, np.float64)
+    k = 1.0 - r * r * (1.0 - cos_i * cos_i)
+    tir = k < 0
+    wt = r * view + (r * cos_i - np.sqrt(np.where(tir, 0.0, k))) * n
+    wt /= np.linalg.norm(wt, axis=-1, keepdims=True)
+    wr = view + 2.0 * cos_i * n
+    return np.where(tir, wr, wt), tir[..., 0]
+
+
+def basis(n):
+    """Orthonormal (b1, b2) completing unit normals n (..., 3) (Duff et al. 2017)."""
+    n = np.asarray(n, np.float64)
+    sgn = np.where(n[..., 2] >= 0, 1.0, -1.0)
+    a = -1.0 / (sgn + n[..., 2])
+    b = n[..., 0] * n[..., 1] * a
+    b1 = np.stack([1.0 + sgn * n[..., 0] ** 2 * a, sgn * b, -sgn * n[..., 0]], axis=-1)
+    b2 = np.stack([b, sgn + n[..., 1] ** 2 * a, -n[..., 1]], axis=-1)
+    return b1, b2
+
+
+def ggx_sample_weight(wol, alpha, u1, u2, eta=1.5, conductor=False, f0=(1.0, 1.0, 1.0)):
+    """One VNDF sample per local outgoing direction ``wol`` (..., 3), ``wol_z > 0``.
+
+    Returns ``(wil, weight)``: the sampled incoming direction (local) and the
+    estimator weight ``f cos / pdf = F G2 / G1`` (..., 3), 0 below the surface.
+    For ``alpha = 0``: the mirror direction and weight F."""
+    wol = np.asarray(wol, np.float64)
+    if alpha > 0:
+        m = sample_vndf(wol, alpha, u1, u2)
+    else:
+        m = np.broadcast_to(np.array([0.0, 0.0, 1.0]), wol.shape)
+    cm = np.sum(wol * m, axis=-1)
+    wil = 2.0 * cm[..., None] * m - wol
+    ok = (wil[..., 2] > 0) & (cm > 0)
+    F = fresnel_schlick(cm, f0) if conductor else np.repeat(fresnel_dielectric(cm, eta)[..., None], 3, -1)
+    if alpha > 0:
+        lo = smith_lambda(wol[..., 2], alpha)
+        li = smith_lambda(wil[..., 2], alpha)
+        F = F * ((1.0 + lo) / (1.0 + lo + li))[..., None]
+    return wil, np.where(ok[..., None], F, 0.0)
+
+
+# ---------------------------------------------------------------------------
+# surfaces and the max-height pyramid
+# ---------------------------------------------------------------------------
+
+def max_pyramid(surf: np.ndarray):
+    """Max-height pyramid of a surface buffer (``march.surface_buffer``).
+
+    Level 0 is ``surf`` itself (not stored). Level ``l >= 1`` holds, per 2^l x 2^l
+    tile, the max of ``surf`` dilated by one pixel (the march interpolates the
+    surface between minor-axis neighbours, which may lie in the next tile) —
+    NO_SURFACE for empty tiles. Levels go up to a single tile.
+    Returns ``(pyr, lvl, nlev)``: flat float32 levels, int32 (nlev, 3) rows of
+    (width, height, offset) (row 0 describes level 0, offset unused), and the
+    level count.
+    """
+    surf = np.asarray(surf, np.float32)
+    H, W = surf.shape
+    dil = surf.copy()
+    pad = np.pad(surf, 1, constant_values=march.NO_SURFACE)
+    for di in (0, 1, 2):
+        for dj in (0, 1, 2):
+            np.maximum(dil, pad[di:di + H, dj:dj + W], out=dil)
+    levels = [(W, H, 0)]
+    chunks = []
+    cur = dil
+    off = 0
+    while max(cur.shape) > 1:
+        h, w = cur.shape
+        p = np.pad(cur, ((0, h % 2), (0, w % 2)), constant_values=march.NO_SURFACE)
+        cur = np.maximum(np.maximum(p[0::2, 0::2], p[0::2, 1::2]), np.maximum(p[1::2, 0::2], p[1::2, 1::2]))
+        levels.append((cur.shape[1], cur.shape[0], off))
+        chunks.append(cur.ravel())
+        off += cur.size
+    pyr = np.concatenate(chunks).astype(np.float32) if chunks else np.zeros(1, np.float32)
+    return pyr, np.asarray(levels, np.int32), len(levels)
+
+
+def surface_box(surf: np.ndarray, thickness: float):
+    """Bounding box of a surface buffer for march clipping: ``(rect, h_lo, h_hi)``
+    with rect = (u0, v0, u1, v1) pixel edges; None when the surface is empty."""
+    present = surf > march.NO_SURFACE_TEST
+    if not present.any():
+        return None
+    rows = np.flatnonzero(present.any(axis=1))
+    cols = np.flatnonzero(present.any(axis=0))
+    hs = surf[present]
+    rect = (float(cols[0]), float(rows[0]), float(cols[-1] + 1), float(rows[-1] + 1))
+    return rect, float(max(hs.min() - thickness, -SOLID)), float(hs.max())
+
+
+# ---------------------------------------------------------------------------
+# numpy reference of the closest-hit march (plain, no pyramid)
+# ---------------------------------------------------------------------------
+
+def setup_rays(p0, e, s_max, W, H, box=None, h_lo=-SOLID, h_hi=SOLID):
+    """March set-up of (u, v, h) rays ``p0 + s e`` clipped to the image and a box
+    (mirror of ``rt_setup``). Returns ``(march.March, ok)``."""
+    p0 = np.asarray(p0, np.float32).reshape(-1, 3)
+    e = np.asarray(e, np.float32).reshape(-1, 3)
+    m, ok = march.march_setup(p0[:, 0], p0[:, 1], p0[:, 2], e[:, 0], e[:, 1], e[:, 2],
+                              np.asarray(s_max, np.float32).reshape(-1))
+    ok &= march.march_clip_box(m, (0.0, 0.0, float(W), float(H)), -SOLID, SOLID)
+    if box is not None:
+        ok &= march.march_clip_box(m, box, h_lo, h_hi)
+    return m, ok
+
+
+def trace_closest(surf: np.ndarray, m: march.March, ok: np.ndarray, thickness: float):
+    """Closest hit of every march against a pixel-height surface (plain marching).
+
+    Returns ``(hit, last)``: flat pixel index of the first sample where the ray
+    passes behind the surface by at most ``thickness`` pixels or crosses it between
+    two consecutive surface samples (``march.occludes``), -1 for none; and the last
+    in-image sample pixel visited (-1 for none)."""
+    H, W = surf.shape
+    n = m.u.shape[0]
+    hit = np.full(n, -1, np.int64)
+    last = np.full(n, -1, np.int64)
+    prev = np.zeros(n, np.int8)
+    active = ok & (m.k_lo <= m.k_hi)
+    if not active.any():
+        return hit, last
+    k = m.k_lo.astype(np.int64).copy()
+    while active.any():
+        idx = np.flatnonzero(active)
+        kk = k[idx]
+        sub = march.March(m.u[idx], m.v[idx], m.h[idx], m.su[idx], m.sv[idx], m.sh[idx],
+                          m.k_lo[idx], m.k_hi[idx], m.major_u[idx])
+        u = sub.sample_u(kk)
+        v = sub.sample_v(kk)
+        j = np.floor(u).astype(np.int64)
+        i = np.floor(v).astype(np.int64)
+        inside = (j >= 0) & (j < W) & (i >= 0) & (i < H)
+        pix = np.where(inside, i * W + j, -1)
+        last[idx] = np.where(inside, pix, last[idx])
+        sh = march.surface_height(surf, u, v, sub.major_u)
+        rh = sub.ray_height(kk)
+        side = march.side(rh, sh)
+        occ = march.occludes(rh, sh, thickness, side, prev[idx])
+        hit[idx[occ]] = pix[occ]
+        prev[idx] = side
+        k[idx] += 1
+        active[idx[occ]] = False
+        active &= k <= m.k_hi
+    return hit, last
+
+
+# ---------------------------------------------------------------------------
+# planar mirror closed form
+# ---------------------------------------------------------------------------
+
+def planar_mirror(camera: Camera, surf: np.ndarray, thickness: float) -> np.ndarray:
+    """Closest hit of the mirror reflection of every ground pixel of a flat floor.
+
+    Exact closed form of the column march: the reflected view ray of the ground
+    pixel at row ``r`` (index) climbs its own column with ray height ``(r - q)/2`` at
+    row ``q < r`` (pixels between centres), so sample ``q`` is behind the cutout
+    when ``r < m(q) - 2 eps`` with ``m(q) = q + 2 fg(q)`` (the mirror row
+    ``v + 2h`` of the cutout pixel), within the thickness when
+    ``r >= m(q) - 2 thickness``, and consecutive samples ``q + 1, q`` cross the
+    surface when ``r`` lies between ``m'(q)`` and ``m'(q+1)``. Each cutout pixel
+    scatters its row index to the receiver rows of those intervals; the largest
+    (first along the march) wins. Cost O(mask pixels x interval length).
+
+    Returns int64 (H, W) hit pixel index, -1 for none. Valid for receivers on flat
+    ground (normal +Y); the caller decides where that holds.
+    """
+    H, W = surf.shape
+    eps = float(march.BEHIND_EPS)
+    present = surf > march.NO_SURFACE_TEST
+    best = np.full((H, W), -1, np.int64)
+    q, c = np.nonzero(present)
+    if q.size == 0:
+        return best
+    fg = surf[q, c].astype(np.float64)
+    mprime = q + 2.0 * fg - 2.0 * eps
+    # the ray ends at its vanishing point: row centre q + .5 >= 2 horizon - (r + .5)
+    r_vp = np.ceil(2.0 * camera.horizon - q - 1.0)
+
+    def scatter(lo, hi, qq, cc):
+        # integer receivers r in [lo, hi) (reals), r <= H - 1
+        r0 = np.ceil(lo).astype(np.int64)
+        r1 = np.minimum(np.ceil(hi).astype(np.int64), H)
+        n = np.maximum(r1 - r0, 0)
+        if n.sum() == 0:
+            return
+        rep = np.repeat(np.arange(n.size), n)
+        offs = np.arange(rep.size) - np.repeat(np.cumsum(n) - n, n)
+        rr = r0[rep] + offs
+        np.maximum.at(best, (rr, cc[rep]), qq[rep])
+
+    # within the thickness at q itself (the first sample is q = r - 1)
+    lo = np.maximum.reduce([q + 2.0 * fg - 2.0 * thickness, q + 1.0, r_vp])
+    scatter(lo, mprime, q, c)
+    # crossing between the previous sample q + 1 (also a surface sample) and q
+    nb = (q + 1 < H)
+    qn, cn, mpn = q[nb], c[nb], mprime[nb]
+    has = present[qn + 1, cn]
+    qn, cn, mpn = qn[has], cn[has], mpn[has]
+    fg1 = surf[qn + 1, cn].astype(np.float64)
+    mp1 = (qn + 1) + 2.0 * fg1 - 2.0 * eps
+    lo = np.maximum.reduce([np.minimum(mpn, mp1), qn + 2.0, r_vp[nb][has]])
+    scatter(lo, np.maximum(mpn, mp1), qn, cn)
+    return np.where(best >= 0, best * W + np.arange(W)[None, :], -1)
+
+
+def flat_ground(bg_height: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Receivers where the planar closed form is exact: ground (h = 0) whose 3x3
+    neighbourhood is ground too (so the reconstructed normal is exactly +Y)."""
+    h = np.asarray(bg_height)
+    z = np.pad(h == 0, 1, constant_values=True)
+    H, W = h.shape
+    ok = np.ones((H, W), bool)
+    for di in (0, 1, 2):
+        for dj in (0, 1, 2):
+            ok &= z[di:di + H, dj:dj + W]
+    return ok & (np.asarray(valid) > 0.5)
+
+
+# ---------------------------------------------------------------------------
+# numpy reference of the reflection estimator (fixed sample count)
+# ---------------------------------------------------------------------------
+
+def _receivers(camera: Camera, bg_height):
+    geo = reconstruct(camera, bg_height)
+    view = view_directions(camera)
+    n = geo["normal"].astype(np.float64)
+    wo = -view
+    cos_o = np.sum(n * wo, axis=-1)
+    ok = (geo["valid"] > 0.5) & (cos_o > 1e-4)
+    return geo, n, wo, cos_o, ok
+
+
+def reflection_numpy(camera: Camera, cutout: np.ndarray, fg_height: np.ndarray,
+                     bg_height: np.ndarray, *, roughness=0.0, eta=1.5, conductor=False,
+                     f0=(1.0, 1.0, 1.0), strength=1.0, thickness=4.0, spp=16, seed=0,
+                     mask=None) -> np.ndarray:
+    """Reference of ``rt_reflect`` with a fixed sample count (no adaptivity).
+
+    cutout: (H, W, 4) premultiplied linear RGBA; its alpha is the mask unless
+    ``mask`` is given. Returns float32 (H, W, 4) premultiplied reflection layer.
+    Same random numbers as the kernel, so they agree up to float rounding."""
+    H, W = bg_height.shape
+    cutout = np.asarray(cutout, np.float32)
+    surf = march.surface_buffer(cutout[..., 3] if mask is None else mask, fg_height)
+    box = surface_box(surf, thickness)
+    out = np.zeros((H, W, 4), np.float64)
+    if box is None:
+        return out.astype(np.float32)
+    geo, n, wo, cos_o, ok = _receivers(camera, bg_height)
+    alpha = float(roughness) ** 2
+    idx = np.flatnonzero(ok.ravel())
+    nn = n.reshape(-1, 3)[idx]
+    wwo = wo.reshape(-1, 3)[idx]
+    b1, b2 = basis(nn)
+    wol = np.stack([np.sum(wwo * b1, -1), np.sum(wwo * b2, -1), np.sum(wwo * nn, -1)], -1)
+    u, v = camera.pixel_grid()
+    p0 = np.stack([u.ravel()[idx], v.ravel()[idx], np.asarray(bg_height, np.float32).ravel()[idx]], -1)
+    flat_rgba = cutout.reshape(-1, 4).astype(np.float64)
+    nsamp = spp if alpha > 0 else 1
+    acc = np.zeros((idx.size, 4))
+    for s in range(nsamp):
+        u1 = rand(seed, idx, s, 0).astype(np.float64)
+        u2 = rand(seed, idx, s, 1).astype(np.float64)
+        wil, w = ggx_sample_weight(wol, alpha, u1, u2, eta, conductor, f0)
+        wi = wil[:, :1] * b1 + wil[:, 1:2] * b2 + wil[:, 2:] * nn
+        e, s_max = uvh_direction(camera, p0, wi)
+        m, okm = setup_rays(p0, e, s_max, W, H, *box)
+        okm &= np.any(w > 0, axis=-1)
+        hit, _ = trace_closest(surf, m, okm, thickness)
+        got = hit >= 0
+        col = flat_rgba[np.where(got, hit, 0)]
+        c = np.concatenate([w * col[:, :3], w.mean(-1, keepdims=True) * col[:, 3:]], -1)
+        acc += np.where(got[:, None], strength * c, 0.0)
+    out.reshape(-1, 4)[idx] = acc / nsamp
+    return out.astype(np.float32)
+
+
+def refraction_numpy(camera: Camera, glass: np.ndarray, glass_height: np.ndarray,
+                     background: np.ndarray, bg_height: np.ndarray, *, eta=1.5,
+                     tint=(1.0, 1.0, 1.0), fresnel=True):
+    """Reference of ``rt_refract``. Returns ``(layer, tir)``: float32 (H, W, 4)
+    premultiplied refraction layer and bool (H, W) where total internal reflection
+    happened at the front surface."""
+    H, W = bg_height.shape
+    glass = np.asarray(glass, np.float32)
+    a = glass[..., 3]
+    geo = reconstruct(camera, glass_height)
+    view = view_directions(camera)
+    n = geo["normal"].astype(np.float64)
+    cos_i = -np.sum(view * n, -1)
+    n = np.where((cos_i < 0)[..., None], -n, n)
+    cos_i = np.abs(cos_i)
+    sel = (a > 0) & (geo["valid"] > 0.5)
+    idx = np.flatnonzero(sel.ravel())
+    out = np.zeros((H * W, 4))
+    tir_map = np.zeros(H * W, bool)
+    if idx.size == 0:
+        return out.reshape(H, W, 4).astype(np.float32), tir_map.reshape(H, W)
+    bgs = march.surface_buffer(np.ones_like(bg_height), bg_height)
+    bg_rgb = np.asarray(background, np.float32).reshape(-1, background.shape[-1])[:, :3].astype(np.float64)
+    vv = view.reshape(-1, 3)[idx]
+    nn = n.reshape(-1, 3)[idx]
+    ci = cos_i.ravel()[idx]
+    u, v = camera.pixel_grid()
+    p0 = np.stack([u.ravel()[idx], v.ravel()[idx], np.asarray(glass_height, np.float32).ravel()[idx]], -1)
+    d, tir = refract(vv, nn, eta)
+    F = np.where(tir, 1.0, fresnel_dielectric(ci, eta) if fresnel else 0.0)
+    col = np.zeros((idx.size, 3))
+    t = ~tir & (F < 1.0)
+    col[t] += (1.0 - F[t, None]) * np.asarray(tint) * _background_along(camera, p0[t], d[t], bgs, bg_rgb)
+    r = F > 0
+    wr = vv + 2.0 * ci[:, None] * nn
+    col[r] += F[r, None] * _background_along(camera, p0[r], wr[r], bgs, bg_rgb)
+    out[idx, :3] = a.ravel()[idx, None] * col
+    out[idx, 3] = a.ravel()[idx]
+    tir_map[idx] = tir
+    return out.reshape(H, W, 4).astype(np.float32), tir_map.reshape(H, W)
+
+
+def _background_along(camera, p0, d, bgs, bg_rgb):
+    """Mirror of rt_background_along for many rays: background colour (N, 3)."""
+    H, W = bgs.shape
+    if len(p0) == 0:
+        return np.zeros((0, 3))
+    e, s_max = uvh_direction(camera, p0, d)
+    e32 = e.astype(np.float32)
+    p32 = np.asarray(p0, np.float32)
+    origin = np.floor(p32[:, 1]).astype(np.int64) * W + np.floor(p32[:, 0]).astype(np.int64)
+    major = np.maximum(np.abs(e32[:, 0]), np.abs(e32[:, 1]))
+    good = major >= march.MIN_IMAGE_LENGTH
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h_edge = np.where(good, p32[:, 2] + F32(0.5) * e32[:, 2] / np.where(good, major, 1),
+                          np.where(e32[:, 2] < 0, -SOLID, p32[:, 2])).astype(np.float32)
+    at_origin = march.side(h_edge, bgs.ravel()[origin]) == 1
+    m, ok = setup_rays(p32, e32, s_max, W, H)
+    ok &= ~at_origin
+    hit, last = trace_closest(bgs, m, ok, SOLID)
+    pix = np.where(at_origin, origin, np.where(hit >= 0, hit, np.where(last >= 0, last, origin)))
+    return bg_rgb[pix]
+
+
+# ---------------------------------------------------------------------------
+# OpenCL wrappers
+# ---------------------------------------------------------------------------
+
+class _Kernels:
+    """Kernels of the built program, a fresh ``cl.Kernel`` per call: kernel objects
+    carry their arguments, so sharing one between threads would race."""
+
+    def __init__(self, prg):
+        self._prg = prg
+
+    def __getattr__(self, name):
+        import pyopencl as cl
+        return cl.Kernel(self._prg, name)
+
+
+def _program(device):
+    from pixgraph.device import load_kernel_source
+    return _Kernels(device.program(load_kernel_source(__file__, "reflection.cl")))
+
+
+def _buf(cl, ctx, array, flags=None):
+    mf = cl.mem_flags
+    a = np.ascontiguousarray(array)
+    return cl.Buffer(ctx, (flags or mf.READ_ONLY) | mf.COPY_HOST_PTR, hostbuf=a)
+
+
+class _Surface:
+    """A surface buffer with its pyramid and box, uploaded once."""
+
+    def __init__(self, cl, ctx, surf, thickness, hiz=True):
+        self.surf = np.ascontiguousarray(surf, np.float32)
+        pyr, lvl, nlev = max_pyramid(self.surf)
+        self.nlev = nlev if hiz else 1
+        box = surface_box(self.surf, thickness)
+        self.empty = box is None
+        rect, self.h_lo, self.h_hi = box if box else ((0.0, 0.0, 0.0, 0.0), 0.0, 0.0)
+        self.box = np.array(rect, np.float32)
+        self.d_surf = _buf(cl, ctx, self.surf)
+        self.d_pyr = _buf(cl, ctx, pyr)
+        self.d_lvl = _buf(cl, ctx, lvl.ravel())
+
+
+def trace_rays_cl(device, surf, p0, e, s_max, thickness, *, hiz=True, clip_box=True):
+    """Closest hits of (u, v, h) rays on the device (test/benchmark entry).
+
+    Returns ``(hit, last, steps)`` int32 arrays (hit/last flat pixel indices, -1 none;
+    steps = march loop iterations)."""
+    import pyopencl as cl
+    ctx, queue = device.context, device.queue
+    H, W = surf.shape
+    S = _Surface(cl, ctx, surf, thickness, hiz)
+    rays = np.concatenate([np.asarray(p0, np.float32).reshape(-1, 3), np.asarray(e, np.float32).reshape(-1, 3),
+                           np.asarray(s_max, np.float32).reshape(-1, 1)], 1)
+    n = rays.shape[0]
+    outs = [np.empty(n, np.int32) for _ in range(3)]
+    d_out = [cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, max(4 * n, 4)) for _ in range(3)]
+    if clip_box and not S.empty:
+        box, lo, hi = S.box, S.h_lo, S.h_hi
+    else:
+        box, lo, hi = np.array([0, 0, W, H], np.float32), -float(SOLID), float(SOLID)
+    prg = _program(device)
+    prg.rt_trace_rays(queue, (max(n, 1),), None, np.int32(W), np.int32(H), np.int32(n), _buf(cl, ctx, rays),
+                      S.d_surf, S.d_pyr, S.d_lvl, np.int32(S.nlev), np.float32(thickness),
+                      np.asarray(box, np.float32),
+                      np.float32(lo), np.float32(hi), *d_out)
+    for h, d in zip(outs, d_out):
+        cl.enqueue_copy(queue, h, d)
+    queue.finish()
+    return tuple(outs)
+
+
+def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, roughness=0.0, eta=1.5,
+                  conductor=False, f0=(1.0, 1.0, 1.0), strength=1.0, thickness=4.0, min_spp=16,
+                  max_spp=256, target_se=0.002, seed=0, mask=None, hiz=True, planar=True,
+                  band_rows=64, progress=None, check_cancelled=None):
+    """Glossy reflection layer of the cutout on the background, on the device.
+
+    Returns a dict: ``layer`` float32 (H, W, 4) premultiplied linear RGBA, ``spp``
+    int32 (H, W) samples used per pixel (0 where none were needed), ``steps``
+    int32 (H, W) march iterations, ``planar`` bool (H, W) pixels done by the
+    closed form. ``planar`` (roughness 0 only) uses :func:`planar_mirror` on flat
+    ground, where it is exact. Work is enqueued in bands of ``band_rows`` rows so
+    that progress and cancellation are checked between bands."""
+    import pyopencl as cl
+    ctx, queue = device.context, device.queue
+    H, W = bg_height.shape
+    cutout = np.asarray(cutout, np.float32)
+    if cutout.shape != (H, W, 4):
+        raise ValueError(f"cutout must be (H, W, 4) RGBA matching the background, got {cutout.shape}")
+    surf = march.surface_buffer(cutout[..., 3] if mask is None else mask, fg_height)
+    layer = np.zeros((H, W, 4), np.float32)
+    spp = np.zeros((H, W), np.int32)
+    steps = np.zeros((H, W), np.int32)
+    done = np.zeros((H, W), bool)
+    S = _Surface(cl, ctx, surf, thickness, hiz)
+    if S.empty:
+        return {"layer": layer, "spp": spp, "steps": steps, "planar": done}
+    geo = reconstruct(camera, bg_height)
+    alpha = float(roughness) ** 2
+    if alpha == 0.0 and planar:
+        done = flat_ground(bg_height, geo["valid"])
+        hit = planar_mirror(camera, surf, thickness)
+        view = view_directions(camera)
+        cos_o = np.clip(-view[..., 1], 0.0, 1.0)            # n = +Y
+        w = (fresnel_schlick(cos_o, f0) if conductor
+             else np.repeat(fresnel_dielectric(cos_o, eta)[..., None], 3, -1))
+        got = done & (hit >= 0) & (cos_o > 1e-4)
+        col = cutout.reshape(-1, 4)[np.where(got, hit, 0)]
+        c = np.concatenate([w * col[..., :3], w.mean(-1, keepdims=True) * col[..., 3:]], -1)
+        layer = np.where(got[..., None], strength * c, 0.0).astype(np.float32)
+        spp = np.where(done & (geo["valid"] > 0.5), 1, 0).astype(np.int32)
+        if done.all():
+            return {"layer": layer, "spp": spp, "steps": steps, "planar": done}
+    prg = _program(device)
+    mf = cl.mem_flags
+    d_out = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 16)
+    d_spp = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 4)
+    d_steps = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 4)
+    args = [_buf(cl, ctx, np.asarray(bg_height, np.float32)), _buf(cl, ctx, geo["normal"]),
+            _buf(cl, ctx, geo["valid"]), _buf(cl, ctx, done.astype(np.uint8)),
+            S.d_surf, S.d_pyr, S.d_lvl, np.int32(S.nlev), S.box, np.float32(S.h_lo), np.float32(S.h_hi),
+            _buf(cl, ctx, cutout), np.float32(thickness), np.float32(alpha), np.int32(bool(conductor)),
+            np.float32(eta), np.asarray(tuple(f0) + (0.0,), np.float32), np.float32(strength),
+            np.int32(max(1, min_spp)), np.int32(max(1, max_spp, min_spp)), np.float32(target_se),
+            np.uint32(seed), d_out, d_spp, d_steps]
+    for y0 in range(0, H, band_rows):
+        if check_cancelled is not None:
+            check_cancelled()
+        rows = min(band_rows, H - y0)
+        prg.rt_reflect(queue, (W, rows), None, np.int32(W), np.int32(H), np.int32(y0),
+                       np.float32(camera.focal), np.float32(camera.horizon), *args)
+        queue.finish()
+        if progress is not None:
+            progress((y0 + rows) / H, "reflection")
+    out = np.empty((H, W, 4), np.float32)
+    s_out = np.empty((H, W), np.int32)
+    st_out = np.empty((H, W), np.int32)
+    cl.enqueue_copy(queue, out, d_out)
+    cl.enqueue_copy(queue, s_out, d_spp)
+    cl.enqueue_copy(queue, st_out, d_steps)
+    queue.finish()
+    layer = np.where(done[..., None], layer, out)
+    spp = np.where(done, spp, s_out)
+    return {"layer": layer, "spp": spp, "steps": st_out, "planar": done}
+
+
+def refraction_cl(device, camera: Camera, glass, glass_height, background, bg_height, *, eta=1.5,
+                  tint=(1.0, 1.0, 1.0), fresnel=True, hiz=True):
+    """Refraction layer of a transparent cutout on the device.
+
+    Returns a dict: ``layer`` float32 (H, W, 4) premultiplied, ``tir`` bool (H, W)
+    (total internal reflection at the front surface), ``hit`` bool (H, W) (the
+    transmitted or TIR ray found the background inside the image), ``steps``."""
+    import pyopencl as cl
+    ctx, queue = device.context, device.queue
+    H, W = bg_height.shape
+    glass = np.asarray(glass, np.float32)
+    bg = np.asarray(background, np.float32)
+    if bg.ndim == 2:
+        bg = bg[..., None]
+    rgb = np.zeros((H, W, 4), np.float32)
+    rgb[..., :3] = bg[..., :3] if bg.shape[-1] >= 3 else bg[..., :1]
+    geo = reconstruct(camera, glass_height)
+    bgs = march.surface_buffer(np.ones_like(bg_height), bg_height)
+    S = _Surface(cl, ctx, bgs, float(SOLID), hiz)
+    prg = _program(device)
+    mf = cl.mem_flags
+    d_out = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 16)
+    d_flags = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 4)
+    d_steps = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 4)
+    prg.rt_refract(queue, (W, H), None, np.int32(W), np.int32(H), np.float32(camera.focal),
+                   np.float32(camera.horizon), _buf(cl, ctx, glass[..., 3]),
+                   _buf(cl, ctx, np.asarray(glass_height, np.float32)), _buf(cl, ctx, geo["normal"]),
+                   _buf(cl, ctx, geo["valid"]), S.d_surf, S.d_pyr, S.d_lvl, np.int32(S.nlev),
+                   _buf(cl, ctx, rgb), np.float32(eta), np.asarray(tuple(tint) + (0.0,), np.float32),
+                   np.int32(bool(fresnel)), d_out, d_flags, d_steps)
+    out = np.empty((H, W, 4), np.float32)
+    flags = np.empty((H, W), np.int32)
+    steps = np.empty((H, W), np.int32)
+    cl.enqueue_copy(queue, out, d_out)
+    cl.enqueue_copy(queue, flags, d_flags)
+    cl.enqueue_copy(queue, steps, d_steps)
+    queue.finish()
+    return {"layer": out, "tir": (flags & 4) != 0, "hit": (flags & 1) != 0, "steps": steps}
