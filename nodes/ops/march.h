@@ -197,4 +197,50 @@ inline int ph_occludes(float ray_h, float surf_h, float thickness, int side, int
     return prev_side != 0 && prev_side != side;
 }
 
+/* ---- coarse skipping (exact) -------------------------------------------------
+ * A tile map bounds the surface heights: the surface buffer is cut in tiles of
+ * `tile` x `tile` pixels (tile row ti covers pixel rows ti*tile .. ti*tile+tile-1)
+ * and tiles[ti * TW + tj] = (min, max) of the surface heights over that tile AND
+ * its 8 neighbours, (+1e30, -1e30) where there is none (march.py: tile_minmax).
+ * A "span" is the run of samples from k to the last sample in the same
+ * major-axis tile column; along it the minor coordinate moves by less than one
+ * tile (|slope| <= 1), so the dilated tile of sample k bounds every surface
+ * height the span can read (including the minor-axis interpolation). */
+
+/* floor(a / b) for b > 0 */
+inline int ph_floordiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+
+/* Last sample index of the span that starts at sample k. */
+inline int ph_span_end(const ph_march *m, int k, int tile)
+{
+    if (m->major_u) {
+        int j = (int)floor(ph_sample_u(m, k));
+        int t0 = ph_floordiv(j, tile) * tile;
+        return k + (m->su > 0.0f ? t0 + tile - 1 - j : j - t0);
+    } else {
+        int i = (int)floor(ph_sample_v(m, k));
+        int t0 = ph_floordiv(i, tile) * tile;
+        return k + (m->sv > 0.0f ? t0 + tile - 1 - i : i - t0);
+    }
+}
+
+/* 1 when no sample of k..e (inside one span) can occlude or take part in a
+ * side flip with a neighbour inside the span: at every sample the ray is at or
+ * above the highest surface (in front), or lower than the lowest surface by
+ * more than max(thickness, PH_BEHIND_EPS) (behind, beyond the thickness).
+ * A tracer may then jump from k to e and evaluate e with prev_side = 0: all of
+ * k..e are on one side or have no surface, so no flip happens inside. */
+inline int ph_span_skippable(__global const float2 *tiles, int TW, int TH, int tile,
+                             const ph_march *m, int k, int e, float thickness)
+{
+    int ti = ph_floordiv((int)floor(ph_sample_v(m, k)), tile);
+    int tj = ph_floordiv((int)floor(ph_sample_u(m, k)), tile);
+    ti = clamp(ti, 0, TH - 1);
+    tj = clamp(tj, 0, TW - 1);
+    float2 b = tiles[ti * TW + tj];
+    float ha = ph_ray_height(m, k), hb = ph_ray_height(m, e);
+    float lo = fmin(ha, hb), hi = fmax(ha, hb);
+    return lo >= b.y || hi < b.x - fmax(thickness, PH_BEHIND_EPS);
+}
+
 #endif /* PIXGRAPH_MARCH_H */

@@ -210,3 +210,35 @@ def occludes(ray_h, surf_h, thickness, side_now, prev_side) -> np.ndarray:
         within = (side_now == 1) & ((surf_h - ray_h) <= F32(thickness))
     flip = (side_now != 0) & (prev_side != 0) & (prev_side != side_now)
     return within | flip
+
+
+#: Tile size (pixels) of the coarse min/max map used by the kernels to skip
+#: runs of samples that cannot occlude (march.h: ph_span_skippable).
+TILE = 8
+
+
+def tile_minmax(surf: np.ndarray, tile: int = TILE) -> np.ndarray:
+    """Coarse bounds of a surface buffer for exact skipping in the kernels.
+
+    Returns float32 (TH, TW, 2): for each tile of ``tile`` x ``tile`` pixels the
+    (min, max) surface height (pixels) over the tile and its 8 neighbours;
+    (+1e30, -1e30) where there is no surface. ``TH = ceil(H / tile)``."""
+    H, W = surf.shape
+    TH, TW = -(-H // tile), -(-W // tile)
+    pad = np.full((TH * tile, TW * tile), NO_SURFACE, np.float32)
+    pad[:H, :W] = surf
+    present = pad > NO_SURFACE_TEST
+    blocks = pad.reshape(TH, tile, TW, tile).transpose(0, 2, 1, 3).reshape(TH, TW, -1)
+    pres = present.reshape(TH, tile, TW, tile).transpose(0, 2, 1, 3).reshape(TH, TW, -1)
+    big = np.float32(1e30)
+    tmin = np.where(pres, blocks, big).min(axis=2)
+    tmax = np.where(pres, blocks, -big).max(axis=2)
+    pmin = np.pad(tmin, 1, constant_values=big)
+    pmax = np.pad(tmax, 1, constant_values=-big)
+    dmin = np.full((TH, TW), big, np.float32)
+    dmax = np.full((TH, TW), -big, np.float32)
+    for a in range(3):
+        for b in range(3):
+            dmin = np.minimum(dmin, pmin[a:a + TH, b:b + TW])
+            dmax = np.maximum(dmax, pmax[a:a + TH, b:b + TW])
+    return np.ascontiguousarray(np.stack([dmin, dmax], axis=-1), dtype=np.float32)

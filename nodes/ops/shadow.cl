@@ -1,0 +1,195 @@
+/* shadow.cl -- hard shadows, soft shadows and SSN++ buffer channels by marching
+ * in pixel-height space (SSG's algorithm, design.md §3; PixHt-Lab Sec. 3.2-3.3).
+ * Numpy reference: shadow.py (hard_shadow_ref, soft_shadow_ref) and buffers.py
+ * (buffer_channels_ref).
+ *
+ * Inputs prepared on the host (shadow.py: ShadowScene):
+ *   surf  (H, W) occluder height in pixels: the cutout's pixel height where the
+ *         mask is on and the height finite, PH_NO_SURFACE elsewhere.
+ *   recv  (H, W) receiver height in pixels: the cutout's height inside the mask,
+ *         the background's outside; PH_NO_SURFACE for a non-finite height (such
+ *         receivers are reported lit).
+ *   rect  (u0, v0, u1, v1) pixel edges of the cutout's bounding box, and
+ *   h_lo, h_hi: the ray heights that can hit the cutout (min height - thickness,
+ *         max height). Every march is clipped to that box (march.h).
+ *   light (u, v, h, s): s = +1 march from the receiver toward (u, v) and stop
+ *         there; s = -1 the light is behind the camera plane: march away from
+ *         (u, v), the height extrapolated along the same (u, v, h) line, no far
+ *         end; s = 0 (extension) (u, v, h) is a direction in (u, v, h) space (a
+ *         light at infinity parallel to the image plane). The host maps
+ *         non-finite lights to (0, 0, 0, 0), which every march refuses (lit).
+ */
+#include "march.h"
+
+/* The march from receiver (ru, rv, rh) to light point L. Returns 0 when the ray
+ * has no image extent (receiver on the light's image point, or an invalid
+ * light): then the receiver is lit -- the only possible occluder would sit on
+ * the receiver's own pixel, which a receiver never occludes. */
+inline int light_march(float ru, float rv, float rh, float4 L, ph_march *m)
+{
+    if (L.w > 0.5f)
+        return ph_march_setup(ru, rv, rh, L.x - ru, L.y - rv, L.z - rh, 1.0f, m);
+    if (L.w < -0.5f)
+        return ph_march_setup(ru, rv, rh, ru - L.x, rv - L.y, rh - L.z, 1.0e30f, m);
+    return ph_march_setup(ru, rv, rh, L.x, L.y, L.z, 1.0e30f, m);
+}
+
+/* The cutout as the tracers see it: occluder heights, the coarse tile bounds
+ * (march.h), the cutout's box and height band, and the thickness. */
+typedef struct {
+    __global const float *surf;
+    __global const float2 *tiles;
+    int W, H, TW, TH, tile;
+    float4 rect;
+    float h_lo, h_hi, thickness;
+} occluder;
+
+/* Trace one shadow ray. Returns 1 when blocked, with *hit_k the first blocking
+ * sample (nearest the receiver) and *hit_s the cutout height there (pixels).
+ * Runs of samples that provably cannot occlude are skipped a tile span at a
+ * time (ph_span_skippable); the result equals the sample-by-sample march of
+ * the numpy reference. */
+inline int shadow_trace(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
+{
+    if (!ph_march_clip_box(m, o->rect, o->h_lo, o->h_hi)) return 0;
+    int prev = 0;
+    int k = m->k_lo;
+    int next_test = k;
+    while (k <= m->k_hi) {
+        float s = ph_surface_height(o->surf, o->W, o->H, ph_sample_u(m, k), ph_sample_v(m, k),
+                                    m->major_u);
+        float rh = ph_ray_height(m, k);
+        int sd = ph_side(rh, s);
+        if (ph_occludes(rh, s, o->thickness, sd, prev)) {
+            *hit_k = k;
+            *hit_s = s;
+            return 1;
+        }
+        prev = sd;
+        if (k == next_test) {
+            int e = min(m->k_hi, ph_span_end(m, k, o->tile));
+            if (e > k + 1 && ph_span_skippable(o->tiles, o->TW, o->TH, o->tile, m, k, e, o->thickness)) {
+                k = e;        /* evaluate e next, as the first of a new run */
+                prev = 0;
+                next_test = e + 1;
+                continue;
+            }
+            next_test = e + 1;
+        }
+        ++k;
+    }
+    return 0;
+}
+
+/* 1 when receiver (ru, rv, rh) is blocked from light L. */
+inline int blocked(const occluder *o, float ru, float rv, float rh, float4 L)
+{
+    ph_march m;
+    if (!light_march(ru, rv, rh, L, &m)) return 0;
+    int k; float s;
+    return shadow_trace(o, &m, &k, &s);
+}
+
+#define OCCLUDER_ARGS \
+    __global const float *surf, __global const float2 *tiles, const int W, const int H, \
+    const int TW, const int TH, const int tile, const float4 rect, const float h_lo, \
+    const float h_hi, const float thickness
+#define OCCLUDER_INIT(o) \
+    occluder o; o.surf = surf; o.tiles = tiles; o.W = W; o.H = H; o.TW = TW; o.TH = TH; \
+    o.tile = tile; o.rect = rect; o.h_lo = h_lo; o.h_hi = h_hi; o.thickness = thickness
+
+/* lit (H, W): 1 lit, 0 shadow. NDRange (W, H). */
+__kernel void hard_shadow(OCCLUDER_ARGS, __global const float *recv, const float4 light,
+                          __global float *lit)
+{
+    int j = get_global_id(0), i = get_global_id(1);
+    if (j >= W || i >= H) return;
+    OCCLUDER_INIT(o);
+    float rh = recv[i * W + j];
+    float out = 1.0f;
+    if (rh > PH_NO_SURFACE_TEST && blocked(&o, (float)j + 0.5f, (float)i + 0.5f, rh, light))
+        out = 0.0f;
+    lit[i * W + j] = out;
+}
+
+/* lit fraction (H, W) in [0, 1]: the mean of the hard shadows of n light
+ * samples, all in one launch. NDRange (W, H). */
+__kernel void soft_shadow(OCCLUDER_ARGS, __global const float *recv,
+                          __global const float4 *lights, const int n, __global float *lit)
+{
+    int j = get_global_id(0), i = get_global_id(1);
+    if (j >= W || i >= H) return;
+    OCCLUDER_INIT(o);
+    float rh = recv[i * W + j];
+    if (!(rh > PH_NO_SURFACE_TEST) || n <= 0) { lit[i * W + j] = 1.0f; return; }
+    float ru = (float)j + 0.5f, rv = (float)i + 0.5f;
+    int nb = 0;
+    for (int l = 0; l < n; ++l)
+        nb += blocked(&o, ru, rv, rh, lights[l]);
+    lit[i * W + j] = 1.0f - (float)nb / (float)n;
+}
+
+/* SSN++ buffer channels (paper Sec. 3.2, Fig. 5), one launch. out is (9, H, W)
+ * in the order of buffers.CHANNELS:
+ *   0 cutout_height      cutout pixel height inside the mask, 0 outside (px)
+ *   1 bg_gradient_x      d bg_height / du (px per px), central differences,
+ *   2 bg_gradient_y      d bg_height / dv   one-sided at borders/invalid pixels
+ *   3 hard_shadow        darkness from lights[0] (the disk centre): 1 shadow, 0 lit
+ *   4..7 sparse_hard_shadow_0..3  darkness from lights[1..4] (disk extremes)
+ *   8 relative_distance  |receiver - first blocking occluder point| in (u, v, h)
+ *                        pixels for receivers shadowed by the centre, 0 if lit.
+ * bg holds the background height with PH_NO_SURFACE where non-finite.
+ * NDRange (W, H). */
+__kernel void buffer_channels(OCCLUDER_ARGS, __global const float *recv,
+                              __global const float *bg, __global const float4 *lights,
+                              __global float *out)
+{
+    int j = get_global_id(0), i = get_global_id(1);
+    if (j >= W || i >= H) return;
+    OCCLUDER_INIT(o);
+    int idx = i * W + j;
+    int plane = W * H;
+
+    float s = surf[idx];
+    out[idx] = s > PH_NO_SURFACE_TEST ? s : 0.0f;
+
+    /* background gradient; neighbours that are missing or non-finite drop out */
+    float c = bg[idx];
+    float gx = 0.0f, gy = 0.0f;
+    if (c > PH_NO_SURFACE_TEST) {
+        float l = j > 0 ? bg[idx - 1] : PH_NO_SURFACE;
+        float r = j + 1 < W ? bg[idx + 1] : PH_NO_SURFACE;
+        int okl = l > PH_NO_SURFACE_TEST, okr = r > PH_NO_SURFACE_TEST;
+        gx = (okl && okr) ? 0.5f * (r - l) : okr ? (r - c) : okl ? (c - l) : 0.0f;
+        float t = i > 0 ? bg[idx - W] : PH_NO_SURFACE;
+        float b = i + 1 < H ? bg[idx + W] : PH_NO_SURFACE;
+        int okt = t > PH_NO_SURFACE_TEST, okb = b > PH_NO_SURFACE_TEST;
+        gy = (okt && okb) ? 0.5f * (b - t) : okb ? (b - c) : okt ? (c - t) : 0.0f;
+    }
+    out[plane + idx] = gx;
+    out[2 * plane + idx] = gy;
+
+    float rh = recv[idx];
+    float ru = (float)j + 0.5f, rv = (float)i + 0.5f;
+    float dist = 0.0f;
+    float dark0 = 0.0f;
+    if (rh > PH_NO_SURFACE_TEST) {
+        ph_march m;
+        int k; float hs;
+        if (light_march(ru, rv, rh, lights[0], &m)
+            && shadow_trace(&o, &m, &k, &hs)) {
+            dark0 = 1.0f;
+            float du = (float)k * m.su, dv = (float)k * m.sv, dh = hs - rh;
+            dist = sqrt(du * du + dv * dv + dh * dh);
+        }
+    }
+    out[3 * plane + idx] = dark0;
+    for (int e = 0; e < 4; ++e) {
+        float d = 0.0f;
+        if (rh > PH_NO_SURFACE_TEST
+            && blocked(&o, ru, rv, rh, lights[1 + e]))
+            d = 1.0f;
+        out[(4 + e) * plane + idx] = d;
+    }
+    out[8 * plane + idx] = dist;
+}

@@ -1,0 +1,351 @@
+"""Hard and soft shadows by marching in pixel-height space (design.md §3).
+
+SSG's hard-shadow algorithm, as used by PixHt-Lab (CVPR 2023, Sec. 3.3): for each
+receiver pixel r walk the image segment toward (or away from) the light's image
+point, one pixel along the major axis; at each step q on the cutout, the ray's
+height is the linear interpolation of r.h and L.h ((u, v, h) space keeps lines);
+the receiver is in shadow when the ray passes behind the cutout surface by at
+most ``thickness`` pixels, or changes side of the surface between two
+consecutive cutout samples. Each walk is clipped to the cutout's bounding box
+and to the band of heights the cutout spans (march.h), so receivers whose ray
+never meets the cutout cost a few flops.
+
+Units: all positions and heights in pixels. Arrays: float32 (H, W).
+
+Light points are float arrays ``(u, v, h, s)``:
+
+* ``s = +1``: march from the receiver toward (u, v) and stop there.
+* ``s = -1``: the light is behind the camera plane (or a directional light
+  pointing toward the camera): march from the receiver *away* from (u, v); the
+  ray height is the same linear function along the line through (r.u, r.v, r.h)
+  and (u, v, h), extrapolated; no far end (the cutout's box ends the march).
+* ``s = 0`` (extension): (u, v, h) is a direction in (u, v, h) space, for a light at
+  infinity parallel to the image plane (its image point is at infinity).
+
+Other s values are snapped to the nearest of these. A light with a non-finite
+component occludes nothing (all lit). Receivers whose own height is non-finite
+are reported lit; non-finite cutout heights do not occlude.
+
+Receivers are all pixels: inside the mask (mask > 0.5) at the cutout's height
+``fg_height`` (so cutouts shadow each other and themselves, guarded by
+``thickness``; a receiver's own pixel is never sampled, which avoids self-shadow
+acne), outside at ``bg_height``. The background itself never occludes.
+
+Several cutouts: pass one mask and one ``fg_height`` that already merge them
+(e.g. ``mask = max(m_i)``, ``fg_height`` = the height of the front-most cutout at
+each pixel); merging is the caller's job. The bounding box is that of the merged
+mask.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from pixgraph.device import load_kernel_source
+
+from . import march as M
+
+F32 = np.float32
+#: Stand-in for "no far end" of a march (s = -1 or 0), in units of t.
+_T_FAR = F32(1.0e30)
+
+
+def _cl():
+    import pyopencl as cl
+    return cl
+
+
+def light_array(light) -> np.ndarray:
+    """A light point as float32 (4,) ``(u, v, h, s)`` with s snapped to {-1, 0, 1};
+    a non-finite light becomes ``(0, 0, 0, 0)``, which every march refuses (lit)."""
+    a = np.asarray(light, dtype=np.float64).reshape(-1)
+    if a.shape != (4,):
+        raise ValueError(f"a light point is (u, v, h, s), got shape {np.shape(light)}")
+    return light_samples_array(a[None])[0]
+
+
+def light_samples_array(samples) -> np.ndarray:
+    """Light samples as float32 (N, 4), each sanitised like :func:`light_array`."""
+    a = np.asarray(samples, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 4:
+        raise ValueError(f"light samples are (N, 4) rows (u, v, h, s), got shape {a.shape}")
+    a = a.copy()
+    a[:, 3] = np.where(a[:, 3] > 0.5, 1.0, np.where(a[:, 3] < -0.5, -1.0, 0.0))
+    bad = ~np.all(np.isfinite(a), axis=1) | ~np.all(np.abs(a[:, :3]) < 1e30, axis=1)
+    a[bad] = 0.0
+    return a.astype(np.float32)
+
+
+def _check_thickness(thickness) -> float:
+    t = float(thickness)
+    if not t >= 0.0:
+        raise ValueError(f"thickness must be >= 0 pixels, got {thickness}")
+    return min(t, 1.0e20)  # inf: any depth behind the surface occludes
+
+
+class Prepared:
+    """Host-side preparation shared by the reference and the kernels.
+
+    surf: occluder heights (NO_SURFACE off the cutout); recv: receiver heights
+    (cutout inside the mask, background outside; NO_SURFACE where non-finite);
+    bg: background heights (NO_SURFACE where non-finite); rect: the cutout's
+    bounding box as pixel edges (u0, v0, u1, v1); h_lo, h_hi: the ray heights
+    that can hit the cutout; empty: no cutout pixel at all.
+    """
+
+    def __init__(self, mask, fg_height, bg_height, thickness=1.0):
+        mask = np.asarray(mask)
+        fg = np.asarray(fg_height, dtype=np.float32)
+        bg = np.asarray(bg_height, dtype=np.float32)
+        if mask.ndim != 2 or fg.shape != mask.shape or bg.shape != mask.shape:
+            raise ValueError(f"mask, fg_height and bg_height must share one (H, W) shape, got "
+                             f"{mask.shape}, {fg.shape}, {bg.shape}")
+        self.thickness = _check_thickness(thickness)
+        self.H, self.W = mask.shape
+        self.surf = M.surface_buffer(mask, fg)
+        inside = mask > 0.5
+        recv = np.where(inside, fg, bg)
+        self.recv = np.where(np.isfinite(recv), recv, M.NO_SURFACE).astype(np.float32)
+        self.bg = np.where(np.isfinite(bg), bg, M.NO_SURFACE).astype(np.float32)
+        occ = self.surf > M.NO_SURFACE_TEST
+        rows = np.flatnonzero(occ.any(axis=1))
+        self.empty = rows.size == 0
+        if self.empty:
+            self.rect = np.zeros(4, np.float32)
+            self.h_lo = self.h_hi = F32(0)
+        else:
+            cols = np.flatnonzero(occ.any(axis=0))
+            self.rect = np.array([cols[0], rows[0], cols[-1] + 1, rows[-1] + 1], np.float32)
+            hs = self.surf[occ]
+            self.h_lo = F32(float(hs.min()) - self.thickness)
+            self.h_hi = F32(hs.max())
+
+
+# --------------------------------------------------------------------------
+# numpy reference
+# --------------------------------------------------------------------------
+
+def light_march_ref(ru, rv, rh, light):
+    """Marches from receivers (arrays) to one light point (mirror of light_march)."""
+    lu, lv, lh, s = (F32(x) for x in light)
+    if s > 0.5:
+        return M.march_setup(ru, rv, rh, lu - ru, lv - rv, lh - rh, F32(1.0))
+    if s < -0.5:
+        return M.march_setup(ru, rv, rh, ru - lu, rv - lv, rh - lh, _T_FAR)
+    return M.march_setup(ru, rv, rh, lu, lv, lh, _T_FAR)
+
+
+def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
+    """Trace every receiver toward one light (numpy, vectorised over receivers).
+
+    clip_to_cutout: clip each march to the cutout's box (as the kernels do);
+    False clips only to the image (the plain algorithm; used to test that the
+    clip changes nothing).
+    Returns ``(blocked, hit_u, hit_v, hit_s)``: bool (H, W), and for blocked
+    receivers the image position and cutout height (pixels) of the first
+    blocking sample (NaN elsewhere).
+    """
+    H, W = prep.H, prep.W
+    light = light_array(light)
+    blocked = np.zeros((H, W), bool)
+    hit = np.full((3, H, W), np.nan, np.float32)
+    if prep.empty:
+        return blocked, hit[0], hit[1], hit[2]
+    ii, jj = np.nonzero(prep.recv > M.NO_SURFACE_TEST)
+    ru = (jj + 0.5).astype(np.float32)
+    rv = (ii + 0.5).astype(np.float32)
+    rh = prep.recv[ii, jj]
+    m, ok = light_march_ref(ru, rv, rh, light)
+    if clip_to_cutout:
+        ok &= M.march_clip_box(m, prep.rect, prep.h_lo, prep.h_hi)
+    else:
+        ok &= M.march_clip_box(m, (0, 0, W, H), F32(-1e30), F32(1e30))
+    sel = np.flatnonzero(ok)
+    prev = np.zeros(sel.size, np.int8)
+    n = 0
+    while sel.size:
+        k = m.k_lo[sel] + n
+        live = k <= m.k_hi[sel]
+        sel, prev, k = sel[live], prev[live], k[live]
+        if not sel.size:
+            break
+        kf = k.astype(np.float32)
+        u = (m.u[sel] + kf * m.su[sel]).astype(np.float32)
+        v = (m.v[sel] + kf * m.sv[sel]).astype(np.float32)
+        s = M.surface_height(prep.surf, u, v, m.major_u[sel])
+        h = (m.h[sel] + kf * m.sh[sel]).astype(np.float32)
+        sd = M.side(h, s)
+        occ = M.occludes(h, s, prep.thickness, sd, prev)
+        if occ.any():
+            b = sel[occ]
+            blocked[ii[b], jj[b]] = True
+            hit[0, ii[b], jj[b]] = u[occ]
+            hit[1, ii[b], jj[b]] = v[occ]
+            hit[2, ii[b], jj[b]] = s[occ]
+        sel, prev = sel[~occ], sd[~occ]
+        n += 1
+    return blocked, hit[0], hit[1], hit[2]
+
+
+def hard_shadow_ref(mask, fg_height, bg_height, light, thickness=1.0, *,
+                    clip_to_cutout: bool = True) -> np.ndarray:
+    """Numpy reference of :func:`hard_shadow`: lit float32 (H, W), 1 lit, 0 shadow.
+    ``clip_to_cutout=False`` walks the whole image segment (slow, same result)."""
+    prep = Prepared(mask, fg_height, bg_height, thickness)
+    blocked, *_ = trace_ref(prep, light, clip_to_cutout)
+    return np.where(blocked, 0.0, 1.0).astype(np.float32)
+
+
+def soft_shadow_ref(mask, fg_height, bg_height, light_samples, thickness=1.0) -> np.ndarray:
+    """Numpy reference of :func:`soft_shadow`: the lit fraction float32 (H, W)."""
+    prep = Prepared(mask, fg_height, bg_height, thickness)
+    samples = light_samples_array(light_samples)
+    if samples.shape[0] == 0:
+        return np.ones((prep.H, prep.W), np.float32)
+    acc = np.zeros((prep.H, prep.W), np.float64)
+    for L in samples:
+        acc += trace_ref(prep, L)[0]
+    return (1.0 - acc / samples.shape[0]).astype(np.float32)
+
+
+# --------------------------------------------------------------------------
+# OpenCL
+# --------------------------------------------------------------------------
+
+#: Build options. -cl-fast-relaxed-math is safe for these kernels (no NaN/inf
+#: tests; sentinels instead) and agrees with the reference within the tests'
+#: tolerance; see tests/test_shadow_ref.py.
+BUILD_OPTIONS: tuple[str, ...] = ("-cl-fast-relaxed-math",)
+
+
+def program(device):
+    """The built shadow program (cached per device by ``device.program``)."""
+    return device.program(load_kernel_source(__file__, "shadow.cl"), BUILD_OPTIONS)
+
+
+def _f4(x):
+    import pyopencl.cltypes as cltypes
+    return cltypes.make_float4(*(float(v) for v in x))
+
+
+class ShadowScene:
+    """One scene (mask, cutout and background heights) uploaded once to a device,
+    traced against any number of lights without further uploads.
+
+    The module functions :func:`hard_shadow`, :func:`soft_shadow` and
+    ``buffers.buffer_channels`` build one per call; keep one yourself to trace
+    many lights (interactive light dragging) or for benchmarks.
+    """
+
+    def __init__(self, device, mask, fg_height, bg_height, thickness=1.0):
+        cl = _cl()
+        self.device = device
+        self.prep = Prepared(mask, fg_height, bg_height, thickness)
+        self.prg = program(device)
+        mf = cl.mem_flags
+        ctx = device.context
+        p = self.prep
+        self.surf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=p.surf)
+        self.recv = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=p.recv)
+        tiles = M.tile_minmax(p.surf, M.TILE)
+        self.TH, self.TW = tiles.shape[:2]
+        self.tiles = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=tiles)
+        self._kernels = {}
+        self._bg = None
+        self._out = {}
+        self.last_event = None
+
+    @property
+    def shape(self):
+        return self.prep.H, self.prep.W
+
+    def bg_buffer(self):
+        if self._bg is None:
+            cl = _cl()
+            self._bg = cl.Buffer(self.device.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                                 hostbuf=self.prep.bg)
+        return self._bg
+
+    def out_buffer(self, name, nbytes):
+        """A device output buffer reused between launches of the same size."""
+        cl = _cl()
+        buf = self._out.get(name)
+        if buf is None or buf.size != nbytes:
+            buf = cl.Buffer(self.device.context, cl.mem_flags.WRITE_ONLY, nbytes)
+            self._out[name] = buf
+        return buf
+
+    def occluder_args(self):
+        """The kernels' leading OCCLUDER_ARGS (shadow.cl), in order."""
+        p = self.prep
+        return (self.surf, self.tiles, np.int32(p.W), np.int32(p.H), np.int32(self.TW),
+                np.int32(self.TH), np.int32(M.TILE), _f4(p.rect), np.float32(p.h_lo),
+                np.float32(p.h_hi), np.float32(p.thickness))
+
+    def launch(self, name, *args):
+        """Enqueue kernel `name` over (W, H) with the occluder args then `args`."""
+        cl = _cl()
+        kern = self._kernels.get(name)
+        if kern is None:
+            kern = self._kernels[name] = cl.Kernel(self.prg, name)
+        kern.set_args(*self.occluder_args(), *args)
+        p = self.prep
+        return cl.enqueue_nd_range_kernel(self.device.queue, kern, (p.W, p.H), None)
+
+    def launch_hard(self, light):
+        """Enqueue the hard-shadow kernel; returns (event, output buffer)."""
+        p = self.prep
+        out = self.out_buffer("hard", p.H * p.W * 4)
+        return self.launch("hard_shadow", self.recv, _f4(light_array(light)), out), out
+
+    def launch_soft(self, samples_buf, n):
+        p = self.prep
+        out = self.out_buffer("soft", p.H * p.W * 4)
+        return self.launch("soft_shadow", self.recv, samples_buf, np.int32(n), out), out
+
+    def _read(self, buf, shape):
+        cl = _cl()
+        host = np.empty(shape, np.float32)
+        cl.enqueue_copy(self.device.queue, host, buf)
+        return host
+
+    def samples_buffer(self, samples: np.ndarray):
+        cl = _cl()
+        return cl.Buffer(self.device.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                         hostbuf=np.ascontiguousarray(samples, np.float32))
+
+    def hard_shadow(self, light) -> np.ndarray:
+        p = self.prep
+        if p.empty:
+            return np.ones((p.H, p.W), np.float32)
+        ev, out = self.launch_hard(light)
+        self.last_event = ev
+        return self._read(out, (p.H, p.W))
+
+    def soft_shadow(self, light_samples) -> np.ndarray:
+        p = self.prep
+        samples = light_samples_array(light_samples)
+        if p.empty or samples.shape[0] == 0:
+            return np.ones((p.H, p.W), np.float32)
+        ev, out = self.launch_soft(self.samples_buffer(samples), samples.shape[0])
+        self.last_event = ev
+        return self._read(out, (p.H, p.W))
+
+
+def hard_shadow(device, mask, fg_height, bg_height, light, thickness=1.0) -> np.ndarray:
+    """Hard shadow of the cutout from one light point (OpenCL).
+
+    mask: (H, W), cutout where > 0.5. fg_height, bg_height: float (H, W) pixel
+    heights of the cutout and the background (pixels). light: (u, v, h, s), see
+    the module docstring. thickness: how far (pixels) a ray may pass behind the
+    cutout surface and still count as blocked.
+    Returns lit float32 (H, W): 1 lit, 0 shadow. An empty mask returns all ones
+    without launching.
+    """
+    return ShadowScene(device, mask, fg_height, bg_height, thickness).hard_shadow(light)
+
+
+def soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness=1.0) -> np.ndarray:
+    """Soft shadow: the fraction of light samples (N, 4) that reach each pixel,
+    float32 (H, W) in [0, 1] (1 fully lit), in one kernel launch. Invalid
+    (non-finite) samples count as reaching the pixel; N = 0 gives all ones."""
+    return ShadowScene(device, mask, fg_height, bg_height, thickness).soft_shadow(light_samples)
