@@ -43,10 +43,14 @@ def select_variant() -> str:
     raise RuntimeError("no usable Mitsuba variant: " + "; ".join(errors))
 
 
-def _mesh(name: str, V: np.ndarray, F: np.ndarray):
+def _mesh(name: str, V: np.ndarray, F: np.ndarray, bsdf=None):
+    """A Mitsuba triangle mesh; ``bsdf`` (a loaded BSDF) only matters for renders."""
     import drjit as dr
     import mitsuba as mi
-    m = mi.Mesh(name, vertex_count=len(V), face_count=len(F), has_vertex_normals=False)
+    props = mi.Properties()
+    if bsdf is not None:
+        props["bsdf"] = bsdf
+    m = mi.Mesh(name, vertex_count=len(V), face_count=len(F), has_vertex_normals=False, props=props)
     p = mi.traverse(m)
     p["vertex_positions"] = dr.ravel(mi.TensorXf(np.ascontiguousarray(V, np.float32).ravel()))
     p["faces"] = dr.ravel(mi.TensorXu(np.ascontiguousarray(F, np.uint32).ravel()))
