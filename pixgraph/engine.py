@@ -280,7 +280,8 @@ class Engine:
         emit(E.RunStarted(sum(s.status == "run" for s in plan.steps),
                           sum(s.status != "run" for s in plan.steps)))
         missed: set[str] = set()
-        stack = list(dict.fromkeys(r.node for r in plan.outputs.values()))
+        # a stack: reversed, so outputs (and inputs, below) are pulled in the order given
+        stack = list(reversed(dict.fromkeys(r.node for r in plan.outputs.values())))
         while stack:
             nid = stack[-1]
             if nid in results:
@@ -308,7 +309,7 @@ class Engine:
                 missed.add(nid)  # evicted since the plan: run it after its inputs
             waiting = [ref.node for ref in inst.inputs.values() if ref.node not in results]
             if waiting:
-                stack.extend(waiting)
+                stack.extend(reversed(waiting))
                 continue
             stack.pop()
             emit(E.NodeStarted(nid, spec.type_id, reasons.get(nid, "evicted since the plan")))
