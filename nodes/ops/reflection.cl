@@ -145,8 +145,9 @@ inline int rt_trace(const ph_march *m, __global const float *surf,
             int tj = j >> level, ti = i >> level;
             float tmax = pyr[lvl[3 * level + 2] + ti * lvl[3 * level] + tj];
             /* last sample of the run inside this tile, from each axis */
-            float u_lo = (float)(tj * T), u_hi = (float)(tj * T + T);
-            float v_lo = (float)(ti * T), v_hi = (float)(ti * T + T);
+            /* the tile clipped to the image: samples outside it are never skipped */
+            float u_lo = (float)(tj * T), u_hi = (float)min(tj * T + T, W);
+            float v_lo = (float)(ti * T), v_hi = (float)min(ti * T + T, H);
             float kb = (float)m->k_hi;
             if (m->su > 0.0f) kb = fmin(kb, ceil((u_hi - m->u) / m->su) - 1.0f);
             else if (m->su < 0.0f) kb = fmin(kb, floor((u_lo - m->u) / m->su));
@@ -156,7 +157,8 @@ inline int rt_trace(const ph_march *m, __global const float *surf,
             /* guard rounding: the run's last sample must really lie in the tile */
             while (kend > k) {
                 int jj = (int)floor(ph_sample_u(m, kend)), ii = (int)floor(ph_sample_v(m, kend));
-                if ((jj >> level) == tj && (ii >> level) == ti && jj >= 0 && ii >= 0) break;
+                if ((jj >> level) == tj && (ii >> level) == ti && jj >= 0 && ii >= 0
+                    && jj < W && ii < H) break;
                 kend -= 1;
             }
             if (kend > k && fmin(ph_ray_height(m, k), ph_ray_height(m, kend)) > tmax) {
