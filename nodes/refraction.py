@@ -1,0 +1,46 @@
+"""pixgraph.Refraction: the background seen through a transparent cutout."""
+from __future__ import annotations
+
+from pixgraph import types as T
+from pixgraph.node import node, param, port
+
+from .ops.reflection import refraction_cl
+
+
+@node("pixgraph.Refraction", version=1)
+class Refraction:
+    """Refract each view ray at the front surface of a transparent cutout (a glass
+    ball, a bottle) by Snell's law, with normals reconstructed from its pixel height,
+    and trace it in pixel-height space to the background surface (ground, walls),
+    whose colour it takes. Total internal reflection (possible for ``eta < 1``, e.g.
+    an air bubble) reflects instead. With ``fresnel`` the front-surface reflection is
+    added with the exact dielectric Fresnel weight. Only the front interface is
+    modelled (the back surface is unknown in a single pixel-height map). Output: a
+    premultiplied layer covering the object, to put over the background.
+    """
+
+    class Inputs:
+        camera: T.Camera = port(doc="pixel-height camera")
+        glass: T.Image = port(doc="the transparent object; its alpha is the coverage")
+        glass_height: T.PixelHeight = port(doc="pixel height of the object's front surface [px]")
+        background: T.Image = port(doc="background colour, linear light")
+        bg_height: T.PixelHeight = port(doc="background pixel height [px]")
+
+    class Params:
+        eta: float = param(1.5, min=0.1, max=4.0, doc="IOR of the object relative to its surroundings")
+        tint: list[float] = param([1.0, 1.0, 1.0], length=3, min=0.0, max=1.0,
+                                  doc="transmittance per channel")
+        fresnel: bool = param(True, doc="add the front-surface reflection with Fresnel weights")
+        accelerate: bool = param(True, cache=False, doc="max-height pyramid skipping (same result)")
+
+    class Outputs:
+        layer: T.Image = port(doc="refraction, premultiplied linear RGBA")
+        tir: T.Mask = port(doc="1 where total internal reflection happened")
+
+    impl_version = "1"
+
+    def compute(self, ctx, inputs, params):
+        r = refraction_cl(ctx.device, inputs.camera, inputs.glass, inputs.glass_height, inputs.background,
+                          inputs.bg_height, eta=params.eta, tint=params.tint, fresnel=params.fresnel,
+                          hiz=params.accelerate)
+        return {"layer": r["layer"], "tir": r["tir"].astype("float32")}
