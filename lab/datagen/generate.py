@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from .dataset import FORMAT_VERSION, load_sample, sample_path, save_sample
+from .dataset import FORMAT_VERSION, sample_path, save_sample
 from .objects import choose_object, load_object
 from .scene import (WALL_KINDS_TEST, WALL_KINDS_TRAIN, SceneSpec, make_camera, place_object,
                     sample_background_params, sample_light)
@@ -55,7 +55,10 @@ def make_sample(benchmark: str, split: str, index: int, seed: int = 0, res: int 
         if scene_tries > 200:
             raise RuntimeError(f"sample {index}: no valid scene in 200 tries")
         obj_id = choose_object(split, rng)
-        V, F = load_object(obj_id, rng)
+        try:
+            V, F = load_object(obj_id, rng)
+        except ValueError:          # broken source mesh: draw another object
+            continue
         placed = place_object(make_camera(res, rng), V, rng)
         if placed is None:
             continue

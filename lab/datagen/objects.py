@@ -131,7 +131,11 @@ def load_object(obj_id: str, rng: np.random.Generator, height_range=(0.4, 1.6)):
         num = obj_id.split(":", 1)[1]
         path = os.path.join(pybullet_data.getDataPath(), "random_urdfs", num, num + ".obj")
         m = trimesh.load(path, force="mesh", process=False)
-        V = np.asarray(m.vertices, np.float64) @ _random_rotation(rng).T
+        V = np.asarray(m.vertices, np.float64)
+        if not np.isfinite(V).all() or len(m.faces) == 0:
+            # a few random_urdfs files are broken (168.obj is all "v nan nan nan")
+            raise ValueError(f"{obj_id}: mesh has non-finite vertices or no faces")
+        V = V @ _random_rotation(rng).T
         F = np.asarray(m.faces, np.int64)
         V[:, 1] *= rng.uniform(1.0, 2.5)
     else:
