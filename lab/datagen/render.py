@@ -103,7 +103,11 @@ class SampleRenderer:
             flip = np.sum(n * d, axis=1) > 0             # make normals face the camera
             return np.where(flip[:, None], -n, n)
 
+        def depth(p, ok):
+            return np.where(ok, -np.nan_to_num(p[:, 2]), 0.0)
+
         self._primary = {
+            "fg_depth": depth(po, hit_obj).reshape(H, W), "bg_depth": depth(pb, hit_bg).reshape(H, W),
             "mask": hit_obj.reshape(H, W), "alpha": alpha.reshape(H, W),
             "fg_height": pix_height(po, hit_obj).reshape(H, W),
             "bg_height": pix_height(pb, hit_bg).reshape(H, W),
@@ -252,6 +256,7 @@ def render(spec: SceneSpec, light: DiskLight, n_samples: int, rng: np.random.Gen
         "rgb": rgb.astype(np.float16), "alpha": pr["alpha"].astype(np.float32), "mask": pr["mask"],
         "fg_height": pr["fg_height"].astype(np.float32), "bg_height": pr["bg_height"].astype(np.float32),
         "bg_valid": pr["bg_valid"], "bg_is_ground": pr["bg_is_ground"],
+        "fg_depth": pr["fg_depth"].astype(np.float32), "bg_depth": pr["bg_depth"].astype(np.float32),
         "shadow": soft.astype(np.float32), "shadow_stderr": err.astype(np.float16),
         "hard_shadow": hard.astype(np.uint8), "light_samples": np.int32(n),
         "light_uvhs": light.uvhs(spec.camera).astype(np.float64),
