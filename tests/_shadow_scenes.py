@@ -58,7 +58,9 @@ def figure(H, W, scale=1.0):
     for du in (-12 * s, 12 * s):                                                 # legs
         leg = (np.abs(j + 0.5 - (cu + du)) <= 6 * s) & (i + 0.5 >= foot - 45 * s) & (i + 0.5 <= foot)
         m = np.maximum(m, leg.astype(np.float32))
-    return m, upright(m), wall_bg(H, W, H * 0.45)
+    # stands on the continuous contact line v = foot: h = foot - v at pixel centres
+    fg = np.where(m > 0.5, np.maximum(0.0, foot - (i + 0.5)), 0.0).astype(np.float32)
+    return m, fg, wall_bg(H, W, H * 0.45)
 
 
 def blobs(H, W, seed):

@@ -1,0 +1,123 @@
+"""Shadows against closed forms: a pole's shadow tip, scale invariance, and the
+1/sqrt(N) Monte Carlo law of the soft shadow."""
+import numpy as np
+import pytest
+
+import _shadow_scenes as sc
+from pixgraph_nodes.ops import shadow as S
+
+H = W = 160
+POLE_LEFT, POLE_WIDTH, TOP, BOTTOM = 63, 3, 60, 100
+
+
+def pole_tip(light):
+    """Analytic shadow tips on the ground (h = 0) of the pole's top pixel centres.
+
+    A top pixel centre T = (u_c, TOP + 0.5, h_T), h_T = BOTTOM - TOP (pixel height
+    of an upright pole whose contact row is BOTTOM). The tip t is the ground point
+    whose ray to the light passes through T; in (u, v, h) space lines stay lines:
+      s = +1:  T = t + lam (L - t),  lam = h_T / h_L        -> t = (T - lam L) / (1 - lam)
+      s = -1:  T = t + mu (t - L),   mu = -h_T / h_L (h_L<0) -> t = (T + mu L) / (1 + mu)
+    (similar triangles). Returns (tips (n, 2), foot (2,))."""
+    u_l, v_l, h_l, s = light
+    h_T = BOTTOM - TOP
+    cols = np.arange(POLE_LEFT, POLE_LEFT + POLE_WIDTH) + 0.5
+    T = np.stack([cols, np.full_like(cols, TOP + 0.5)], axis=1)
+    L = np.array([u_l, v_l])
+    if s > 0:
+        lam = h_T / h_l
+        tips = (T - lam * L) / (1 - lam)
+    else:
+        mu = -h_T / h_l
+        tips = (T + mu * L) / (1 + mu)
+    foot = np.array([POLE_LEFT + POLE_WIDTH / 2, BOTTOM + 0.5])
+    return tips, foot
+
+
+LIGHTS = {
+    # in front of the pole (its foot at v = 130 is nearer the camera), to the left:
+    # the shadow runs up and to the right, away from the light's foot (4, 130)
+    "front-left": (4.0, 130.0 - 80.0, 80.0, 1.0),
+    # steep light: short shadow (lam = 40 / 140)
+    "front-high": (30.0, 150.0 - 140.0, 140.0, 1.0),
+    # behind the camera plane (h < 0): march away from the light's image point
+    "behind-camera": (200.0, 20.0, -80.0, -1.0),
+}
+
+
+@pytest.mark.parametrize("name", list(LIGHTS))
+def test_pole_shadow_tip_matches_similar_triangles(device, name):
+    light = LIGHTS[name]
+    mask, fg = sc.pole(H, W, POLE_LEFT, POLE_WIDTH, TOP, BOTTOM)
+    bg = np.zeros((H, W), np.float32)
+    lit = S.hard_shadow(device, mask, fg, bg, light)
+    assert np.array_equal(lit, S.hard_shadow_ref(mask, fg, bg, light))
+    tips, foot = pole_tip(light)
+    direction = tips.mean(axis=0) - foot
+    length = np.linalg.norm(direction)
+    direction /= length
+    assert length > 15, "a visible shadow"
+    ii, jj = np.nonzero((lit == 0) & (mask < 0.5))
+    assert ii.size > 10
+    pts = np.stack([jj + 0.5, ii + 0.5], axis=1)
+    along = (pts - foot) @ direction
+    across = (pts - foot) @ np.array([-direction[1], direction[0]])
+    analytic = ((tips - foot) @ direction).max()
+    # the farthest shadowed ground pixel is the tip, within 2 px
+    assert abs(along.max() - analytic) <= 2.0, (along.max(), analytic)
+    # and the shadow is a thin band along the segment foot -> tip
+    assert np.abs(across).max() <= POLE_WIDTH + 1.5
+    assert along.min() >= -2.0
+    # no gaps along the segment: every 1-px bin between foot and tip has a shadow pixel
+    visible = along[along > 2.0]
+    bins = np.unique(np.floor(visible).astype(int))
+    assert bins.size >= 0.9 * (np.floor(along.max()) - 2)
+
+
+@pytest.mark.parametrize("rel_light", [(0.22, 0.35, 0.45, 1.0), (0.8, 0.5, 0.3, 1.0)])
+def test_scaling_image_and_heights_gives_same_shadow(device, rel_light):
+    """Resizing an image by s multiplies pixel heights by s (design.md §2): a
+    scene at 128 and the same scene at 256 (heights x2, light x2, and the
+    thickness x2 -- it is in pixels too) give the same shadow after
+    downsampling. (With the thickness kept at the same number of pixels the
+    IoU drops to 0.90-0.95: thin-cutout shadows depend on the thickness.)"""
+    def render(n):
+        mask, fg, bg = sc.figure(n, n)
+        light = np.array(rel_light) * [n, n, n, 1]
+        lit = S.hard_shadow(device, mask, fg, bg, light, thickness=2.0 * n / 128)
+        return lit, mask
+
+    lit1, mask1 = render(128)
+    lit2, _ = render(256)
+    down = lit2.reshape(128, 2, 128, 2).mean(axis=(1, 3))
+    a = (lit1 < 0.5) & (mask1 < 0.5)
+    b = (down < 0.5) & (mask1 < 0.5)
+    assert a.sum() > 300
+    iou = (a & b).sum() / (a | b).sum()
+    assert iou > 0.95, iou
+
+
+def test_soft_shadow_error_falls_like_inverse_sqrt_n(device):
+    """Random light samples: Monte Carlo error ~ N^-1/2 (log-log slope -0.5);
+    stratified samples do better at the same N."""
+    n = 96
+    mask, fg, bg = sc.figure(n, n)
+    center = (0.2 * n, 0.3 * n, 0.55 * n, 1.0)
+    radius = 0.12 * n
+    rng = np.random.default_rng(7)
+    scene = S.ShadowScene(device, mask, fg, bg)
+    ref = np.mean([scene.soft_shadow(sc.jitter_samples(center, radius, 1024, rng, stratified=True))
+                   for _ in range(4)], axis=0)          # 4096 stratified samples
+    penumbra = (ref > 0.02) & (ref < 0.98)
+    assert penumbra.sum() > 100
+    Ns = np.array([4, 16, 64, 256])
+    errs = []
+    for N in Ns:
+        e = [np.sqrt(np.mean((scene.soft_shadow(sc.jitter_samples(center, radius, N, rng)) - ref)[penumbra] ** 2))
+             for _ in range(6)]
+        errs.append(np.mean(e))
+    slope = np.polyfit(np.log(Ns), np.log(errs), 1)[0]
+    assert -0.65 <= slope <= -0.35, (slope, errs)
+    strat = np.mean([np.sqrt(np.mean((scene.soft_shadow(sc.jitter_samples(center, radius, 64, rng, stratified=True))
+                                      - ref)[penumbra] ** 2)) for _ in range(6)])
+    assert strat < 0.8 * errs[2], (strat, errs[2])
