@@ -93,7 +93,10 @@ class RayScene:
         si = self._scene.ray_intersect(self._rays(o, d, maxt))
         valid = np.array(si.is_valid(), bool)
         t = np.where(valid, np.array(si.t, np.float64), np.inf)
-        p = np.array(si.p, np.float64).T
+        # o + t d, not si.p: Mitsuba interpolates si.p from barycentrics, which are
+        # off by up to ~1 world unit on our 800-unit-long sliver triangles (cove
+        # segments, step risers); t comes from the plane equation and is accurate.
+        p = o + np.where(valid, t, 0.0)[:, None] * d
         n = np.array(si.n, np.float64).T
         n[~valid] = np.nan
         p[~valid] = np.nan
@@ -121,6 +124,6 @@ class RayScene:
             si = self._scene.ray_intersect(ray)
             if si.is_valid():
                 t[i] = si.t
-                p[i] = list(si.p)
+                p[i] = o[i] + si.t * d[i]
                 nn[i] = list(si.n)
         return t, p, nn
