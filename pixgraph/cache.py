@@ -205,6 +205,26 @@ class DiskCache:
             raise
         self.evict()
 
+    def save_record(self, name: str, data: dict) -> None:
+        """Keep a small JSON document (e.g. last-run key parts) next to the entries."""
+        folder = os.path.join(self.root, "records")
+        os.makedirs(folder, exist_ok=True)
+        tmp = os.path.join(folder, f"{TMP_PREFIX}{name}-{uuid.uuid4().hex}.json")
+        try:
+            with open(tmp, "w", encoding="utf-8") as f:
+                json.dump(data, f, sort_keys=True)
+            os.replace(tmp, os.path.join(folder, name + ".json"))
+        except OSError:
+            self._remove(tmp)  # records only serve explanations: never fail a run for one
+
+    def load_record(self, name: str) -> dict | None:
+        try:
+            with open(os.path.join(self.root, "records", name + ".json"), encoding="utf-8") as f:
+                data = json.load(f)
+        except (OSError, ValueError):
+            return None
+        return data if isinstance(data, dict) else None
+
     def entries(self) -> list[tuple[str, int, float]]:
         """(path, bytes, mtime) of every committed entry, oldest first."""
         out = []
@@ -242,7 +262,7 @@ class DiskCache:
         n = len(self.entries())
         for name in os.listdir(self.root):
             p = os.path.join(self.root, name)
-            if os.path.isdir(p) and len(name) == 2:
+            if os.path.isdir(p) and (len(name) == 2 or name == "records"):
                 shutil.rmtree(p, ignore_errors=True)
         return n
 

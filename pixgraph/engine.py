@@ -14,6 +14,7 @@ always run when requested and are never cached.
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
 import traceback
 from typing import Any, Callable, Mapping
@@ -21,7 +22,7 @@ from typing import Any, Callable, Mapping
 from . import events as E
 from .cache import MISS, DiskCache, MemoryCache, Unstorable
 from .graph import Graph, GraphError, Ref
-from .hashing import FileHasher, KeyParts, array_key, explain_change
+from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import Namespace, NodeSpec
 from .registry import Registry
 from .types import nbytes
@@ -130,7 +131,8 @@ class Engine:
         self.disk = disk
         self._device = device or _no_device
         self._hash_file = hasher or FileHasher()
-        self._last_parts: dict[str, KeyParts] = {}
+        #: graph file (None for built graphs) -> node id -> key parts of its last run
+        self._last_parts: dict[str | None, dict[str, KeyParts]] = {}
         #: node types whose outputs had no disk form last time they ran
         self.memory_only: dict[str, str] = {}
 
@@ -228,6 +230,7 @@ class Engine:
         return params, relevant
 
     def _steps(self, graph, requested, order, keys, parts, bind) -> tuple[Step, ...]:
+        last = self._last_run_parts(graph.file)
         needed, status = set(), {}
         stack = [r.node for r in requested.values()]
         while stack:
@@ -253,7 +256,7 @@ class Engine:
             if nid not in needed:
                 continue
             type_id = graph.nodes[nid].type
-            why = explain_change(self._last_parts.get(nid), parts[nid])
+            why = explain_change(last.get(nid), parts[nid])
             if status[nid] == "run":
                 if self.registry.get(type_id).side_effects:
                     why.append("sink: always runs")
@@ -320,11 +323,30 @@ class Engine:
             ran.append(nid)
             stored = self._store(spec, key, value)
             emit(E.NodeFinished(nid, timings[nid], stored))
+        last = self._last_run_parts(graph.file)
         for nid in results:
-            self._last_parts[nid] = plan.parts[nid]
+            last[nid] = plan.parts[nid]
+        if self.disk is not None and graph.file is not None:
+            self.disk.save_record(_record_name(graph.file), {n: p.to_dict() for n, p in last.items()})
         values = {name: results[ref.node][ref.output] for name, ref in plan.outputs.items()}
         emit(E.RunFinished(time.perf_counter() - t_run, len(ran), len(cached)))
         return RunResult(values, timings, tuple(ran), tuple(cached), plan)
+
+    def _last_run_parts(self, file: str | None) -> dict[str, KeyParts]:
+        """Last-run key parts by node id for a graph file; read from the disk
+        cache's records on first use, so ``explain`` works across processes."""
+        last = self._last_parts.get(file)
+        if last is None:
+            last = {}
+            if self.disk is not None and file is not None:
+                record = self.disk.load_record(_record_name(file)) or {}
+                for nid, d in record.items():
+                    try:
+                        last[nid] = KeyParts.from_dict(d)
+                    except (KeyError, TypeError):
+                        pass  # a record from another pixgraph version: only explanations suffer
+            self._last_parts[file] = last
+        return last
 
     def _fetch(self, key: str):
         value = self.memory.get(key)
@@ -378,6 +400,10 @@ class Engine:
                 self.memory_only[spec.type_id] = str(e)
                 where += f"; memory only: {e}"
         return where
+
+
+def _record_name(file: str) -> str:
+    return "last-run-" + sha256_text(os.path.abspath(file))
 
 
 def _ignore(event) -> None:

@@ -129,7 +129,11 @@ def loads(text: str, registry: Registry, *, file: str | None = None, base_dir: s
         doc = yaml.load(text, Loader=LineLoader)
     except yaml.MarkedYAMLError as e:
         mark = e.problem_mark or e.context_mark
-        what = " ".join(x for x in (e.context, e.problem) if x)
+        context = e.context or ""
+        if e.context and e.context_mark is not None and e.problem_mark is not None \
+                and e.context_mark.line != e.problem_mark.line:
+            context += f" (from line {e.context_mark.line + 1})"
+        what = " ".join(x for x in (context, e.problem) if x)
         raise fail(f"invalid YAML: {what}", mark.line + 1 if mark else None) from None
     except yaml.YAMLError as e:
         raise fail(f"invalid YAML: {e}") from None

@@ -69,9 +69,16 @@ class KeyParts:
     #: ``"<upstream key>:<output name>"`` by input port
     inputs: Mapping[str, str]
 
+    def to_dict(self) -> dict:
+        return {"type": self.type_id, "version": self.version, "impl_version": self.impl_version,
+                "params": dict(self.params), "inputs": dict(self.inputs)}
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "KeyParts":
+        return cls(d["type"], d["version"], d["impl_version"], dict(d["params"]), dict(d["inputs"]))
+
     def to_json(self) -> str:
-        return canonical_json({"type": self.type_id, "version": self.version, "impl_version": self.impl_version,
-                               "params": dict(self.params), "inputs": dict(self.inputs)})
+        return canonical_json(self.to_dict())
 
     def key(self) -> str:
         return sha256_text(self.to_json())
