@@ -12,7 +12,8 @@ registry). ``Registry.discover()`` loads every entry point of the group
 Loading never stops at the first broken plugin: a plugin that fails to import and
 a node type id registered twice are recorded in ``registry.errors`` (shown by
 ``pixgraph nodes --errors``) and every other node stays usable. A duplicate id
-is an error naming both sources; the first one registered keeps the id.
+is an error naming both sources; the first one registered keeps the id (the
+built-in pack loads first, then plugins by entry-point name).
 """
 from __future__ import annotations
 
@@ -76,7 +77,9 @@ class Registry:
         ``.load()`` (``importlib.metadata`` by default; tests inject their own).
         """
         reg = cls()
-        for ep in sorted(entry_points(group), key=lambda e: (e.name, e.value)):
+        # built-in nodes first, so a plugin can never take over a built-in id
+        for ep in sorted(entry_points(group), key=lambda e: (not e.value.startswith("pixgraph_nodes"),
+                                                             e.name, e.value)):
             reg.load_entry_point(ep)
         return reg
 
