@@ -14,8 +14,10 @@ class Refraction:
     and trace it in pixel-height space to the background surface (ground, walls),
     whose colour it takes. Total internal reflection (possible for ``eta < 1``, e.g.
     an air bubble) reflects instead. With ``fresnel`` the front-surface reflection is
-    added with the exact dielectric Fresnel weight. Only the front interface is
-    modelled (the back surface is unknown in a single pixel-height map). Output: a
+    added with the exact dielectric Fresnel weight. A single pixel-height map has no
+    back surface: ``local_sphere`` takes it from the sphere of the front surface's
+    local curvature (exact for a ball, an approximation for other solids), ``none``
+    keeps one interface. Output: a
     premultiplied layer covering the object, to put over the background.
     """
 
@@ -31,6 +33,10 @@ class Refraction:
         tint: list[float] = param([1.0, 1.0, 1.0], length=3, min=0.0, max=1.0,
                                   doc="transmittance per channel")
         fresnel: bool = param(True, doc="add the front-surface reflection with Fresnel weights")
+        back_surface: str = param("local_sphere", choices=("local_sphere", "none"),
+                                  doc="local_sphere: a solid object; the ray refracts out again at the back "
+                                      "of the sphere of the surface's local curvature (exact for a ball); "
+                                      "none: front interface only")
         accelerate: bool = param(True, cache=False, doc="max-height pyramid skipping (same result)")
 
     class Outputs:
@@ -42,5 +48,5 @@ class Refraction:
     def compute(self, ctx, inputs, params):
         r = refraction_cl(ctx.device, inputs.camera, inputs.glass, inputs.glass_height, inputs.background,
                           inputs.bg_height, eta=params.eta, tint=params.tint, fresnel=params.fresnel,
-                          hiz=params.accelerate)
+                          hiz=params.accelerate, back_surface=params.back_surface)
         return {"layer": r["layer"], "tir": r["tir"].astype("float32")}

@@ -109,3 +109,44 @@ def test_sphere_pixel_height_reconstructs_the_sphere():
     assert gh[full].min() > 0 and glass[..., 3].sum() > 100
     with pytest.raises(ValueError):
         sphere_cutout(cam, 70.0, 10.0, 0.2)          # contact point above the horizon
+
+
+def test_local_sphere_radius_of_a_ball():
+    cam, glass, gh, bg, bgh = ball_scene()
+    R_ = R.local_radius(reconstruct(cam, gh), glass[..., 3])
+    full = glass[..., 3] == 1
+    assert np.median(R_[full]) == pytest.approx(0.12, rel=0.05)
+    assert np.all(R_[full] > 0) and np.all(R_[glass[..., 3] == 0] == 0)
+    # a flat cutout has no finite radius: one interface only
+    card = np.zeros_like(full)
+    card[40:70, 30:60] = True
+    v = np.arange(96)[:, None] + 0.5
+    flat = np.where(card, 75.0 - v, 0.0).astype(np.float32)    # an upright card facing the camera
+    assert np.all(R.local_radius(reconstruct(cam, flat), card.astype(np.float32), max_radius=1e3) == 0)
+
+
+@pytest.mark.parametrize("eta", [1.0, 1.5, 0.7])
+def test_back_surface_numpy_and_opencl_agree(device, eta):
+    cam, glass, gh, bg, bgh = ball_scene()
+    cl = R.refraction_cl(device, cam, glass, gh, bg, bgh, eta=eta, back_surface="local_sphere")
+    ref, _ = R.refraction_numpy(cam, glass, gh, bg, bgh, eta=eta, back_surface="local_sphere")
+    assert (np.abs(cl["layer"] - ref).max(-1) > 1e-4).sum() <= 2
+    assert np.isfinite(cl["layer"]).all()
+    if eta == 1.0:
+        np.testing.assert_array_equal(cl["layer"][..., :3], glass[..., 3:] * bg)
+
+
+def test_ball_inverts_the_image_behind_it(device):
+    """A solid glass ball is a lens: the wall (above the floor behind it) shows in
+    the ball's lower half and the floor in its upper half; with one interface the
+    order stays upright."""
+    cam, glass, gh, bg, bgh = ball_scene()
+    full = glass[..., 3] == 1
+    rows = np.nonzero(full.any(1))[0]
+    top, bottom = rows[: len(rows) // 3], rows[-len(rows) // 3:]
+    wall_green = lambda L, rr: np.mean(L[rr][full[rr]][:, 1] - L[rr][full[rr]][:, 0])
+    two = R.refraction_cl(device, cam, glass, gh, bg, bgh, eta=1.5, fresnel=False, back_surface="local_sphere")["layer"]
+    one = R.refraction_cl(device, cam, glass, gh, bg, bgh, eta=1.5, fresnel=False, back_surface="none")["layer"]
+    # the floor is grey (r = g up to the red ramp), the wall stripes green
+    assert wall_green(two, bottom) > wall_green(two, top)
+    assert wall_green(one, bottom) <= wall_green(one, top)

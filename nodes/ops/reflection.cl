@@ -332,15 +332,19 @@ inline float4 rt_background_along(float3 p0, float3 e, float s_max, int W, int H
 }
 
 /* One work item per pixel. glass: coverage (cutout alpha) > 0 marks the
- * transparent object; gn its front-surface normal (world), gh its pixel height.
+ * transparent object; gn its front-surface normal (world), gh its pixel height,
+ * gpos its 3D position (world units). gradius > 0: the object is solid and its
+ * back surface is taken from the local sphere of that radius (world units) at
+ * the front point (exact for a ball); 0: only the front interface.
  * eta: IOR of the object relative to the surrounding medium. Refracted direction by
  * Snell's law; under total internal reflection (only possible for eta < 1) the
  * reflected direction takes all the energy. With fresnel != 0 the result is
  * (1 - F) T + F R (F exact dielectric Fresnel at the front surface); else T (R
  * under TIR). out = coverage * (tint * that colour, 1), premultiplied. */
-__kernel void rt_refract(int W, int H, float f, float horizon,
+__kernel void rt_refract(int W, int H, float f, float horizon, float cam_height,
                          __global const float *coverage, __global const float *gh,
                          __global const float *gn, __global const float *gvalid,
+                         __global const float *gpos, __global const float *gradius,
                          __global const float *bgs, __global const float *pyr,
                          __global const int *lvl, int nlev,
                          __global const float4 *bg_rgb, float eta, float3 tint, int fresnel,
@@ -367,8 +371,31 @@ __kernel void rt_refract(int W, int H, float f, float horizon,
         float s_max;
         if (k >= 0.0f && F < 1.0f) {
             float3 wt = normalize(r * view + (r * cos_i - sqrt(k)) * nn);
-            float3 e = rt_uvh_direction(p0, wt, (float)W, horizon, f, &s_max);
-            col += (1.0f - F) * tint * rt_background_along(p0, e, s_max, W, H, bgs, pyr, lvl, nlev, bg_rgb, &steps, &hf).xyz;
+            float3 q0 = p0;
+            float T = 1.0f - F;
+            float R = gradius[idx];
+            if (R > 0.0f) {
+                /* back surface of the local sphere (radius R, centre P - R n): the
+                 * ray leaves it after the chord 2 R cos_t and refracts out again */
+                float3 P = (float3)(gpos[3 * idx], gpos[3 * idx + 1], gpos[3 * idx + 2]);
+                float3 C = P - R * nn;
+                float cos_t = -dot(wt, nn);
+                float3 Q = P + (2.0f * R * cos_t) * wt;
+                float3 n2 = (Q - C) / R;                        /* outward */
+                float c2 = clamp(dot(wt, n2), 0.0f, 1.0f);
+                float k2 = 1.0f - eta * eta * (1.0f - c2 * c2);
+                if (k2 >= 0.0f) {
+                    wt = normalize(eta * wt + (eta * c2 - sqrt(k2)) * (-n2));
+                    if (fresnel) T *= 1.0f - rt_fresnel_dielectric(c2, 1.0f / eta);
+                }
+                float D = -Q.z;
+                if (D > 1e-6f)
+                    q0 = (float3)(0.5f * (float)W + f * Q.x / D, horizon + f * (cam_height - Q.y) / D, f * Q.y / D);
+                q0.x = clamp(q0.x, 0.0f, (float)W - 1e-3f);
+                q0.y = clamp(q0.y, 0.0f, (float)H - 1e-3f);
+            }
+            float3 e = rt_uvh_direction(q0, wt, (float)W, horizon, f, &s_max);
+            col += T * tint * rt_background_along(q0, e, s_max, W, H, bgs, pyr, lvl, nlev, bg_rgb, &steps, &hf).xyz;
             flag |= hf;
         } else {
             flag |= 4;                                      /* total internal reflection */

@@ -460,12 +460,69 @@ def reflection_numpy(camera: Camera, cutout: np.ndarray, fg_height: np.ndarray,
     return out.astype(np.float32)
 
 
+def local_radius(geo: dict, mask: np.ndarray, max_radius: float = np.inf) -> np.ndarray:
+    """Radius of curvature (world units) of a reconstructed surface at each pixel:
+    ``|dP| / |dn|`` between the two neighbours along u and along v (central
+    differences), the smaller of the two (the most curved direction), for pixels
+    at least two pixels inside ``mask``; the rim takes the mean of the nearest such
+    pixels. Exact for a sphere. 0 where the surface is flat (no finite
+    radius below ``max_radius``) or no interior pixel exists. float32 (H, W)."""
+    P = geo["position"].astype(np.float64)
+    n = geo["normal"].astype(np.float64)
+    inside = (np.asarray(mask) > 0) & (geo["valid"] > 0.5)
+    H, W = inside.shape
+
+    def erode(m):
+        e = m.copy()
+        e[1:-1, 1:-1] &= m[:-2, 1:-1] & m[2:, 1:-1] & m[1:-1, :-2] & m[1:-1, 2:]
+        e[[0, -1], :] = False
+        e[:, [0, -1]] = False
+        return e
+
+    # twice: the rim pixels' normals mix in the outside (reconstruct differences
+    # cross the mask edge), so neighbours must be one pixel in from the rim
+    interior = erode(erode(inside))
+    R = np.full((H, W), np.inf)
+    for ax in (0, 1):
+        dP = np.linalg.norm(np.roll(P, -1, ax) - np.roll(P, 1, ax), axis=-1)
+        dn = np.linalg.norm(np.roll(n, -1, ax) - np.roll(n, 1, ax), axis=-1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            R = np.minimum(R, np.where(dn > 1e-9, dP / np.where(dn > 1e-9, dn, 1.0), np.inf))
+    R = np.where(interior & (R < max_radius), R, 0.0)
+    have = interior & (R > 0)
+    if not have.any():
+        return np.zeros((H, W), np.float32)
+    # fill the rim from the nearest interior pixel (a few rings of 3x3 growth)
+    out = np.where(have, R, 0.0)
+    known = have.copy()
+    for _ in range(max(H, W)):
+        todo = inside & ~known
+        if not todo.any():
+            break
+        pad = np.pad(out, 1)
+        kpad = np.pad(known, 1)
+        acc = np.zeros((H, W))
+        cnt = np.zeros((H, W))
+        for di in (0, 1, 2):
+            for dj in (0, 1, 2):
+                k = kpad[di:di + H, dj:dj + W]
+                acc += np.where(k, pad[di:di + H, dj:dj + W], 0.0)
+                cnt += k
+        grow = todo & (cnt > 0)
+        if not grow.any():
+            break
+        out[grow] = acc[grow] / cnt[grow]
+        known |= grow
+    return np.where(inside, out, 0.0).astype(np.float32)
+
+
 def refraction_numpy(camera: Camera, glass: np.ndarray, glass_height: np.ndarray,
                      background: np.ndarray, bg_height: np.ndarray, *, eta=1.5,
-                     tint=(1.0, 1.0, 1.0), fresnel=True):
+                     tint=(1.0, 1.0, 1.0), fresnel=True, back_surface="none"):
     """Reference of ``rt_refract``. Returns ``(layer, tir)``: float32 (H, W, 4)
     premultiplied refraction layer and bool (H, W) where total internal reflection
-    happened at the front surface."""
+    happened at the front surface. ``back_surface="local_sphere"`` refracts again
+    at the back of the local sphere (see :func:`local_radius`)."""
     H, W = bg_height.shape
     glass = np.asarray(glass, np.float32)
     a = glass[..., 3]
@@ -492,7 +549,30 @@ def refraction_numpy(camera: Camera, glass: np.ndarray, glass_height: np.ndarray
     F = np.where(tir, 1.0, fresnel_dielectric(ci, eta) if fresnel else 0.0)
     col = np.zeros((idx.size, 3))
     t = ~tir & (F < 1.0)
-    col[t] += (1.0 - F[t, None]) * np.asarray(tint) * _background_along(camera, p0[t], d[t], bgs, bg_rgb)
+    T = 1.0 - F
+    q0 = p0.copy()
+    if back_surface == "local_sphere":
+        Rr = local_radius(geo, a).astype(np.float64).ravel()[idx]
+        P = geo["position"].astype(np.float64).reshape(-1, 3)[idx]
+        sph = t & (Rr > 0)
+        C = P - Rr[:, None] * nn
+        cos_t = -np.sum(d * nn, -1)
+        Q = P + (2.0 * Rr * cos_t)[:, None] * d
+        with np.errstate(divide="ignore", invalid="ignore"):
+            n2 = (Q - C) / np.where(Rr > 0, Rr, 1.0)[:, None]
+        c2 = np.clip(np.sum(d * n2, -1), 0.0, 1.0)
+        k2 = 1.0 - eta * eta * (1.0 - c2 * c2)
+        out_ok = sph & (k2 >= 0)
+        d2 = eta * d + (eta * c2 - np.sqrt(np.maximum(k2, 0.0)))[:, None] * (-n2)
+        d2 /= np.linalg.norm(d2, axis=-1, keepdims=True)
+        d = np.where(out_ok[:, None], d2, d)
+        if fresnel:
+            T = np.where(out_ok, T * (1.0 - fresnel_dielectric(c2, 1.0 / eta)), T)
+        qq, D = camera.project(Q)
+        qq[:, 0] = np.clip(qq[:, 0], 0.0, W - 1e-3)
+        qq[:, 1] = np.clip(qq[:, 1], 0.0, H - 1e-3)
+        q0 = np.where((sph & (D > 1e-6))[:, None], qq, p0)
+    col[t] += T[t, None] * np.asarray(tint) * _background_along(camera, q0[t], d[t], bgs, bg_rgb)
     r = F > 0
     wr = vv + 2.0 * ci[:, None] * nn
     col[r] += F[r, None] * _background_along(camera, p0[r], wr[r], bgs, bg_rgb)
@@ -672,8 +752,10 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
 
 
 def refraction_cl(device, camera: Camera, glass, glass_height, background, bg_height, *, eta=1.5,
-                  tint=(1.0, 1.0, 1.0), fresnel=True, hiz=True):
-    """Refraction layer of a transparent cutout on the device.
+                  tint=(1.0, 1.0, 1.0), fresnel=True, hiz=True, back_surface="none"):
+    """Refraction layer of a transparent cutout on the device. ``back_surface``:
+    ``"none"`` (front interface only) or ``"local_sphere"`` (refract out again at the
+    back of the local sphere: a solid ball or bottle).
 
     Returns a dict: ``layer`` float32 (H, W, 4) premultiplied, ``tir`` bool (H, W)
     (total internal reflection at the front surface), ``hit`` bool (H, W) (the
@@ -695,10 +777,15 @@ def refraction_cl(device, camera: Camera, glass, glass_height, background, bg_he
     d_out = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 16)
     d_flags = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 4)
     d_steps = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 4)
+    if back_surface not in ("none", "local_sphere"):
+        raise ValueError(f"back_surface must be 'none' or 'local_sphere', got {back_surface!r}")
+    radius = (local_radius(geo, glass[..., 3]) if back_surface == "local_sphere"
+              else np.zeros((H, W), np.float32))
     prg.rt_refract(queue, (W, H), None, np.int32(W), np.int32(H), np.float32(camera.focal),
-                   np.float32(camera.horizon), _buf(cl, ctx, glass[..., 3]),
+                   np.float32(camera.horizon), np.float32(camera.cam_height), _buf(cl, ctx, glass[..., 3]),
                    _buf(cl, ctx, np.asarray(glass_height, np.float32)), _buf(cl, ctx, geo["normal"]),
-                   _buf(cl, ctx, geo["valid"]), S.d_surf, S.d_pyr, S.d_lvl, np.int32(S.nlev),
+                   _buf(cl, ctx, geo["valid"]), _buf(cl, ctx, geo["position"]), _buf(cl, ctx, radius),
+                   S.d_surf, S.d_pyr, S.d_lvl, np.int32(S.nlev),
                    _buf(cl, ctx, rgb), np.float32(eta), np.asarray(tuple(tint) + (0.0,), np.float32),
                    np.int32(bool(fresnel)), d_out, d_flags, d_steps)
     out = np.empty((H, W, 4), np.float32)
