@@ -112,9 +112,7 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         if isinstance(e, Cancelled):
             print("pixgraph: cancelled", file=sys.stderr)
             return EXIT_CANCELLED
-        _fail(args, e, prefix="" if isinstance(e, DeviceError) else "error: ")
-        if args.debug and getattr(e, "detail", None):
-            print(e.detail, file=sys.stderr, end="")
+        _fail(args, e, prefix="error: ")
         return EXIT_BAD_INPUT if isinstance(e, DeviceError) and "matches" in str(e) else EXIT_INTERNAL
 
 
@@ -139,6 +137,13 @@ def _session(args, registry, disk: bool = True):
             if not args.quiet:
                 print(f"pixgraph: disk cache {disk_dir} is not writable; using memory only", file=sys.stderr)
             disk_dir = None
+    if getattr(args, "device", None):
+        from .device import DeviceError, choose
+
+        try:
+            choose(args.device)  # a bad spec is bad input, found before any node runs
+        except DeviceError as e:
+            raise UsageError(str(e)) from None
     return Session(device=getattr(args, "device", None), cache_bytes=getattr(args, "cache_bytes", None),
                    disk_cache=disk_dir, registry=registry)
 

@@ -16,10 +16,10 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
-import traceback
 from typing import Any, Callable, Mapping
 
 from . import events as E
+from .device import DeviceError
 from .cache import MISS, DiskCache, MemoryCache, Unstorable
 from .graph import Graph, GraphError, Ref
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
@@ -366,12 +366,10 @@ class Engine:
         ctx = NodeContext(nid, plan.graph.base_dir, self._device, cancel, emit)
         try:
             out = spec.cls().compute(ctx, Namespace(inputs), Namespace(plan.params[nid]))
-        except E.Cancelled:
-            raise
+        except (E.Cancelled, DeviceError):
+            raise  # not the node's fault: no device could be opened
         except Exception as exc:
-            err = NodeError(nid, spec.type_id, f"failed: {type(exc).__name__}: {exc}".splitlines()[0])
-            err.detail = traceback.format_exc()
-            raise err from exc
+            raise NodeError(nid, spec.type_id, f"failed: {type(exc).__name__}: {exc}".splitlines()[0]) from exc
         if not isinstance(out, dict):
             raise NodeError(nid, spec.type_id, f"compute returned {type(out).__name__}, expected a dict of outputs")
         names = [p.name for p in spec.outputs]
