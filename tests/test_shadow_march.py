@@ -72,17 +72,26 @@ def test_surface_height_interpolates_minor_axis_only_inside_the_surface():
     assert M.surface_height(surf, -0.5, 2.0, True) <= M.NO_SURFACE_TEST
 
 
-def test_tile_minmax_bounds_neighbourhood():
+def test_tile_bounds_hold_the_foot_of_the_neighbourhood():
     surf = np.full((20, 20), M.NO_SURFACE, np.float32)
-    surf[3, 3] = 5.0
-    surf[12, 12] = 9.0
-    t = M.tile_minmax(surf, 8)
+    surf[3, 3] = 5.0        # foot 3.5 + 5 = 8.5
+    surf[12, 12] = 9.0      # foot 12.5 + 9 = 21.5
+    t = M.tile_bounds(surf, 8)
+    mg = float(M.FOOT_MARGIN)
     assert t.shape == (3, 3, 2)
-    assert t[0, 0, 0] == 5.0 and t[0, 0, 1] == 9.0      # tile (1, 1) is a neighbour
-    assert t[2, 2, 0] == 9.0 and t[2, 2, 1] == 9.0
-    assert t[0, 2, 0] == 9.0                              # (0,2) neighbours (1,1) too
-    empty = M.tile_minmax(np.full((8, 8), M.NO_SURFACE, np.float32), 8)
+    assert t[0, 0, 0] == pytest.approx(8.5 - mg) and t[0, 0, 1] == pytest.approx(21.5 + mg)  # (1,1) neighbours (0,0)
+    assert t[2, 2, 0] == pytest.approx(21.5 - mg) and t[2, 2, 1] == pytest.approx(21.5 + mg)
+    assert t[0, 2, 0] == pytest.approx(21.5 - mg)        # (0,2) neighbours (1,1) too
+    empty = M.tile_bounds(np.full((8, 8), M.NO_SURFACE, np.float32), 8)
     assert empty[0, 0, 0] > 1e29 and empty[0, 0, 1] < -1e29
+
+
+def test_march_clip_foot():
+    # ray along u at v = 0.5 rising 1 px per step: foot = 0.5 + 0.5 + k
+    m, _ = M.march_setup(0.5, 0.5, 0.5, 100.0, 0.0, 100.0, 1.0)
+    assert M.march_clip_foot(m, 10.0, 20.0)
+    assert m.k_lo == 8 and m.k_hi == 20
+    assert M.ray_foot(m, 9) == pytest.approx(10.0)
 
 
 _PROBE = r'''

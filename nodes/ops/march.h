@@ -197,15 +197,64 @@ inline int ph_occludes(float ray_h, float surf_h, float thickness, int side, int
     return prev_side != 0 && prev_side != side;
 }
 
+/* Foot coordinate (pixels) of a ray point: v + h. Behind/in front of a surface
+ * compares heights at the same image point, so it compares feet too:
+ * ray_h - surf_h = (v + ray_h) - (v + surf_h). For an upright cutout the
+ * surface's foot is (nearly) constant, which makes foot bounds tight. */
+inline float ph_ray_foot(const ph_march *m, int k)
+{
+    return (m->v + m->h) + (float)k * (m->sv + m->sh);
+}
+
+/* Clip a march's sample range to the rays whose foot v + h lies in
+ * [f_lo, f_hi], keeping one extra sample on each side (as ph_march_clip_box).
+ * With [f_lo, f_hi] = [min foot - thickness, max foot] of the cutout (pixels,
+ * see tile_bounds in march.py for the foot of a sample) no occluding sample is
+ * dropped. Returns 0 when no sample remains. */
+inline int ph_march_clip_foot(ph_march *m, float f_lo, float f_hi)
+{
+    float t0 = (float)m->k_lo - 1.0f, t1 = (float)m->k_hi + 1.0f;
+    if (!ph_clip_slab(m->v + m->h, m->sv + m->sh, f_lo, f_hi, &t0, &t1)) {
+        m->k_hi = m->k_lo - 1;
+        return 0;
+    }
+    int a = (int)ceil(t0) - 1;
+    int b = (int)floor(t1) + 1;
+    if (a > m->k_lo) m->k_lo = a;
+    if (b < m->k_hi) m->k_hi = b;
+    return m->k_lo <= m->k_hi;
+}
+
+/* Conservative whole-segment rejection, no division: 0 when no point of the
+ * segments from receiver r = (ru, rv, rh) to any light point inside the bounds
+ * lb = (u_min, u_max, v_min, v_max, h_min, h_max, foot_min, foot_max) can meet
+ * the box rect x [h_lo, h_hi] with feet in [f_lo, f_hi] -- every coordinate
+ * (and the foot v + h) is linear along a segment, so the segments' range in each
+ * is the hull of r's value and lb's interval. 1 means "may hit": march. */
+inline int ph_segments_may_hit(float ru, float rv, float rh, float8 lb, float4 rect,
+                               float h_lo, float h_hi, float f_lo, float f_hi)
+{
+    float rf = rv + rh;
+    return fmin(ru, lb.s0) <= rect.z && fmax(ru, lb.s1) >= rect.x
+        && fmin(rv, lb.s2) <= rect.w && fmax(rv, lb.s3) >= rect.y
+        && fmin(rh, lb.s4) <= h_hi && fmax(rh, lb.s5) >= h_lo
+        && fmin(rf, lb.s6) <= f_hi && fmax(rf, lb.s7) >= f_lo;
+}
+
 /* ---- coarse skipping (exact) -------------------------------------------------
- * A tile map bounds the surface heights: the surface buffer is cut in tiles of
- * `tile` x `tile` pixels (tile row ti covers pixel rows ti*tile .. ti*tile+tile-1)
- * and tiles[ti * TW + tj] = (min, max) of the surface heights over that tile AND
- * its 8 neighbours, (+1e30, -1e30) where there is none (march.py: tile_minmax).
+ * A tile map bounds the surface's foot v + h: the surface buffer is cut in
+ * tiles of `tile` x `tile` pixels (tile row ti covers pixel rows
+ * ti*tile .. ti*tile+tile-1) and tiles[ti * TW + tj] = (min, max) of the foot
+ * (i + 0.5) + surf[i, j] over that tile AND its 8 neighbours, widened by
+ * PH_FOOT_MARGIN, (+1e30, -1e30) where there is no surface (march.py:
+ * tile_bounds). The margin covers a sample that reads its containing pixel's
+ * height off the pixel centre (|v - (i + 0.5)| <= 0.5); interpolated heights
+ * have their foot between the two pixel feet.
  * A "span" is the run of samples from k to the last sample in the same
  * major-axis tile column; along it the minor coordinate moves by less than one
  * tile (|slope| <= 1), so the dilated tile of sample k bounds every surface
- * height the span can read (including the minor-axis interpolation). */
+ * the span can read (including the minor-axis interpolation). */
+#define PH_FOOT_MARGIN 0.501f
 
 /* floor(a / b) for b > 0 */
 inline int ph_floordiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
@@ -225,9 +274,10 @@ inline int ph_span_end(const ph_march *m, int k, int tile)
 }
 
 /* 1 when no sample of k..e (inside one span) can occlude or take part in a
- * side flip with a neighbour inside the span: at every sample the ray is at or
- * above the highest surface (in front), or lower than the lowest surface by
- * more than max(thickness, PH_BEHIND_EPS) (behind, beyond the thickness).
+ * side flip with a neighbour inside the span: at every sample the ray's foot
+ * is at or beyond (nearer the camera than) the largest surface foot -- the ray
+ * is in front --, or short of the smallest by more than
+ * max(thickness, PH_BEHIND_EPS) -- behind, beyond the thickness.
  * A tracer may then jump from k to e and evaluate e with prev_side = 0: all of
  * k..e are on one side or have no surface, so no flip happens inside. */
 inline int ph_span_skippable(__global const float2 *tiles, int TW, int TH, int tile,
@@ -238,8 +288,8 @@ inline int ph_span_skippable(__global const float2 *tiles, int TW, int TH, int t
     ti = clamp(ti, 0, TH - 1);
     tj = clamp(tj, 0, TW - 1);
     float2 b = tiles[ti * TW + tj];
-    float ha = ph_ray_height(m, k), hb = ph_ray_height(m, e);
-    float lo = fmin(ha, hb), hi = fmax(ha, hb);
+    float fa = ph_ray_foot(m, k), fb = ph_ray_foot(m, e);
+    float lo = fmin(fa, fb), hi = fmax(fa, fb);
     return lo >= b.y || hi < b.x - fmax(thickness, PH_BEHIND_EPS);
 }
 

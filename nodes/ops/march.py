@@ -212,33 +212,73 @@ def occludes(ray_h, surf_h, thickness, side_now, prev_side) -> np.ndarray:
     return within | flip
 
 
-#: Tile size (pixels) of the coarse min/max map used by the kernels to skip
+#: Tile size (pixels) of the coarse foot-bounds map used by the kernels to skip
 #: runs of samples that cannot occlude (march.h: ph_span_skippable).
 TILE = 8
+#: Widening (pixels) of the foot bounds: a sample reading its containing pixel's
+#: height off the pixel centre has its foot within 0.5 px of the centre's.
+FOOT_MARGIN = np.float32(0.501)
 
 
-def tile_minmax(surf: np.ndarray, tile: int = TILE) -> np.ndarray:
-    """Coarse bounds of a surface buffer for exact skipping in the kernels.
+def ray_foot(m: "March", k):
+    """Foot v + h (pixels) of the ray at sample k (mirror of ph_ray_foot)."""
+    k = np.asarray(k, np.float32)
+    return ((m.v + m.h) + k * (m.sv + m.sh)).astype(np.float32)
+
+
+def march_clip_foot(m: March, f_lo, f_hi) -> np.ndarray:
+    """Clip the sample range to rays whose foot v + h is in [f_lo, f_hi], one
+    margin sample each side (mirror of ph_march_clip_foot). Returns ``ok``."""
+    t0 = (m.k_lo - 1).astype(np.float32)
+    t1 = (m.k_hi + 1).astype(np.float32)
+    t0, t1, ok = clip_slab((m.v + m.h).astype(np.float32), (m.sv + m.sh).astype(np.float32),
+                           f_lo, f_hi, t0, t1)
+    with np.errstate(invalid="ignore"):
+        a = np.where(ok, np.ceil(t0), 0).astype(np.int64) - 1
+        b = np.where(ok, np.floor(t1), 0).astype(np.int64) + 1
+    m.k_lo = np.where(ok, np.maximum(m.k_lo, a), m.k_lo)
+    m.k_hi = np.where(ok, np.minimum(m.k_hi, b), m.k_lo - 1)
+    return m.k_lo <= m.k_hi
+
+
+def foot_range(surf: np.ndarray):
+    """(min, max) foot (i + 0.5) + surf over the surface, widened by FOOT_MARGIN
+    (pixels); None when there is no surface."""
+    present = surf > NO_SURFACE_TEST
+    if not present.any():
+        return None
+    i = np.nonzero(present)[0]
+    f = (i + 0.5).astype(np.float64) + surf[present]
+    return float(f.min()) - float(FOOT_MARGIN), float(f.max()) + float(FOOT_MARGIN)
+
+
+def tile_bounds(surf: np.ndarray, tile: int = TILE) -> np.ndarray:
+    """Coarse foot bounds of a surface buffer for exact skipping in the kernels.
 
     Returns float32 (TH, TW, 2): for each tile of ``tile`` x ``tile`` pixels the
-    (min, max) surface height (pixels) over the tile and its 8 neighbours;
-    (+1e30, -1e30) where there is no surface. ``TH = ceil(H / tile)``."""
+    (min, max) of the foot ``(i + 0.5) + surf[i, j]`` (pixels) over the tile and
+    its 8 neighbours, widened by FOOT_MARGIN; (+1e30, -1e30) where there is no
+    surface. ``TH = ceil(H / tile)``."""
     H, W = surf.shape
     TH, TW = -(-H // tile), -(-W // tile)
     pad = np.full((TH * tile, TW * tile), NO_SURFACE, np.float32)
     pad[:H, :W] = surf
     present = pad > NO_SURFACE_TEST
-    blocks = pad.reshape(TH, tile, TW, tile).transpose(0, 2, 1, 3).reshape(TH, TW, -1)
+    foot = pad.astype(np.float64) + (np.arange(TH * tile) + 0.5)[:, None]
+    blocks = foot.reshape(TH, tile, TW, tile).transpose(0, 2, 1, 3).reshape(TH, TW, -1)
     pres = present.reshape(TH, tile, TW, tile).transpose(0, 2, 1, 3).reshape(TH, TW, -1)
-    big = np.float32(1e30)
+    big = 1e30
     tmin = np.where(pres, blocks, big).min(axis=2)
     tmax = np.where(pres, blocks, -big).max(axis=2)
     pmin = np.pad(tmin, 1, constant_values=big)
     pmax = np.pad(tmax, 1, constant_values=-big)
-    dmin = np.full((TH, TW), big, np.float32)
-    dmax = np.full((TH, TW), -big, np.float32)
+    dmin = np.full((TH, TW), big)
+    dmax = np.full((TH, TW), -big)
     for a in range(3):
         for b in range(3):
             dmin = np.minimum(dmin, pmin[a:a + TH, b:b + TW])
             dmax = np.maximum(dmax, pmax[a:a + TH, b:b + TW])
+    some = dmax > -big / 2
+    dmin = np.where(some, dmin - float(FOOT_MARGIN), big)
+    dmax = np.where(some, dmax + float(FOOT_MARGIN), -big)
     return np.ascontiguousarray(np.stack([dmin, dmax], axis=-1), dtype=np.float32)

@@ -11,7 +11,9 @@
  *         receivers are reported lit).
  *   rect  (u0, v0, u1, v1) pixel edges of the cutout's bounding box, and
  *   h_lo, h_hi: the ray heights that can hit the cutout (min height - thickness,
- *         max height). Every march is clipped to that box (march.h).
+ *         max height), and f_lo, f_hi: the same for the ray's foot v + h. Every
+ *         march is clipped to that box and foot band (march.h).
+ *   tiles (TH, TW) float2 foot bounds for exact skipping (march.h, tile_bounds).
  *   light (u, v, h, s): s = +1 march from the receiver toward (u, v) and stop
  *         there; s = -1 the light is behind the camera plane: march away from
  *         (u, v), the height extrapolated along the same (u, v, h) line, no far
@@ -41,7 +43,7 @@ typedef struct {
     __global const float2 *tiles;
     int W, H, TW, TH, tile;
     float4 rect;
-    float h_lo, h_hi, thickness;
+    float h_lo, h_hi, f_lo, f_hi, thickness;
 } occluder;
 
 /* Trace one shadow ray. Returns 1 when blocked, with *hit_k the first blocking
@@ -52,6 +54,7 @@ typedef struct {
 inline int shadow_trace(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
 {
     if (!ph_march_clip_box(m, o->rect, o->h_lo, o->h_hi)) return 0;
+    if (!ph_march_clip_foot(m, o->f_lo, o->f_hi)) return 0;
     int prev = 0;
     int k = m->k_lo;
     int next_test = k;
@@ -81,9 +84,25 @@ inline int shadow_trace(const occluder *o, ph_march *m, int *hit_k, float *hit_s
     return 0;
 }
 
+/* 0 when no segment from the receiver to a light point within bounds lb
+ * (march.h: ph_segments_may_hit) can reach the cutout's box. */
+inline int may_hit(const occluder *o, float ru, float rv, float rh, float8 lb)
+{
+    return ph_segments_may_hit(ru, rv, rh, lb, o->rect, o->h_lo, o->h_hi, o->f_lo, o->f_hi);
+}
+
+/* Bounds (u, u, v, v, h, h, foot, foot) of one light point, for may_hit. */
+inline float8 point_bounds(float4 L)
+{
+    float f = L.y + L.z;
+    return (float8)(L.x, L.x, L.y, L.y, L.z, L.z, f, f);
+}
+
 /* 1 when receiver (ru, rv, rh) is blocked from light L. */
 inline int blocked(const occluder *o, float ru, float rv, float rh, float4 L)
 {
+    /* cheap exact rejection of segments that miss the cutout's box (s = +1) */
+    if (L.w > 0.5f && !may_hit(o, ru, rv, rh, point_bounds(L))) return 0;
     ph_march m;
     if (!light_march(ru, rv, rh, L, &m)) return 0;
     int k; float s;
@@ -93,10 +112,11 @@ inline int blocked(const occluder *o, float ru, float rv, float rh, float4 L)
 #define OCCLUDER_ARGS \
     __global const float *surf, __global const float2 *tiles, const int W, const int H, \
     const int TW, const int TH, const int tile, const float4 rect, const float h_lo, \
-    const float h_hi, const float thickness
+    const float h_hi, const float f_lo, const float f_hi, const float thickness
 #define OCCLUDER_INIT(o) \
     occluder o; o.surf = surf; o.tiles = tiles; o.W = W; o.H = H; o.TW = TW; o.TH = TH; \
-    o.tile = tile; o.rect = rect; o.h_lo = h_lo; o.h_hi = h_hi; o.thickness = thickness
+    o.tile = tile; o.rect = rect; o.h_lo = h_lo; o.h_hi = h_hi; o.f_lo = f_lo; o.f_hi = f_hi; \
+    o.thickness = thickness
 
 /* lit (H, W): 1 lit, 0 shadow. NDRange (W, H). */
 __kernel void hard_shadow(OCCLUDER_ARGS, __global const float *recv, const float4 light,
@@ -115,7 +135,8 @@ __kernel void hard_shadow(OCCLUDER_ARGS, __global const float *recv, const float
 /* lit fraction (H, W) in [0, 1]: the mean of the hard shadows of n light
  * samples, all in one launch. NDRange (W, H). */
 __kernel void soft_shadow(OCCLUDER_ARGS, __global const float *recv,
-                          __global const float4 *lights, const int n, __global float *lit)
+                          __global const float4 *lights, const int n, const int all_front,
+                          const float8 light_bounds, __global float *lit)
 {
     int j = get_global_id(0), i = get_global_id(1);
     if (j >= W || i >= H) return;
@@ -123,6 +144,9 @@ __kernel void soft_shadow(OCCLUDER_ARGS, __global const float *recv,
     float rh = recv[i * W + j];
     if (!(rh > PH_NO_SURFACE_TEST) || n <= 0) { lit[i * W + j] = 1.0f; return; }
     float ru = (float)j + 0.5f, rv = (float)i + 0.5f;
+    /* all samples s = +1 (all_front): one test rejects every sample at once for
+     * receivers whose segments to the light's bounds miss the cutout's box */
+    if (all_front && !may_hit(&o, ru, rv, rh, light_bounds)) { lit[i * W + j] = 1.0f; return; }
     int nb = 0;
     for (int l = 0; l < n; ++l)
         nb += blocked(&o, ru, rv, rh, lights[l]);

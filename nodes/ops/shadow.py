@@ -89,7 +89,8 @@ class Prepared:
     (cutout inside the mask, background outside; NO_SURFACE where non-finite);
     bg: background heights (NO_SURFACE where non-finite); rect: the cutout's
     bounding box as pixel edges (u0, v0, u1, v1); h_lo, h_hi: the ray heights
-    that can hit the cutout; empty: no cutout pixel at all.
+    that can hit the cutout, f_lo, f_hi: the same for the ray's foot v + h;
+    empty: no cutout pixel at all.
     """
 
     def __init__(self, mask, fg_height, bg_height, thickness=1.0):
@@ -111,13 +112,16 @@ class Prepared:
         self.empty = rows.size == 0
         if self.empty:
             self.rect = np.zeros(4, np.float32)
-            self.h_lo = self.h_hi = F32(0)
+            self.h_lo = self.h_hi = self.f_lo = self.f_hi = F32(0)
         else:
             cols = np.flatnonzero(occ.any(axis=0))
             self.rect = np.array([cols[0], rows[0], cols[-1] + 1, rows[-1] + 1], np.float32)
             hs = self.surf[occ]
             self.h_lo = F32(float(hs.min()) - self.thickness)
             self.h_hi = F32(hs.max())
+            f_min, f_max = M.foot_range(self.surf)
+            self.f_lo = F32(f_min - self.thickness)
+            self.f_hi = F32(f_max)
 
 
 # --------------------------------------------------------------------------
@@ -157,6 +161,7 @@ def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
     m, ok = light_march_ref(ru, rv, rh, light)
     if clip_to_cutout:
         ok &= M.march_clip_box(m, prep.rect, prep.h_lo, prep.h_hi)
+        ok &= M.march_clip_foot(m, prep.f_lo, prep.f_hi)
     else:
         ok &= M.march_clip_box(m, (0, 0, W, H), F32(-1e30), F32(1e30))
     sel = np.flatnonzero(ok)
@@ -246,7 +251,7 @@ class ShadowScene:
         p = self.prep
         self.surf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=p.surf)
         self.recv = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=p.recv)
-        tiles = M.tile_minmax(p.surf, M.TILE)
+        tiles = M.tile_bounds(p.surf, M.TILE)
         self.TH, self.TW = tiles.shape[:2]
         self.tiles = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=tiles)
         self._kernels = {}
@@ -279,7 +284,7 @@ class ShadowScene:
         p = self.prep
         return (self.surf, self.tiles, np.int32(p.W), np.int32(p.H), np.int32(self.TW),
                 np.int32(self.TH), np.int32(M.TILE), _f4(p.rect), np.float32(p.h_lo),
-                np.float32(p.h_hi), np.float32(p.thickness))
+                np.float32(p.h_hi), np.float32(p.f_lo), np.float32(p.f_hi), np.float32(p.thickness))
 
     def launch(self, name, *args):
         """Enqueue kernel `name` over (W, H) with the occluder args then `args`."""
@@ -297,10 +302,21 @@ class ShadowScene:
         out = self.out_buffer("hard", p.H * p.W * 4)
         return self.launch("hard_shadow", self.recv, _f4(light_array(light)), out), out
 
-    def launch_soft(self, samples_buf, n):
+    def launch_soft(self, samples_buf, n, samples=None):
+        """Enqueue the soft-shadow kernel for n samples already in samples_buf;
+        `samples` (host copy, (n, 4)) enables the all-samples rejection test."""
+        cl = _cl()
+        import pyopencl.cltypes as cltypes
         p = self.prep
         out = self.out_buffer("soft", p.H * p.W * 4)
-        return self.launch("soft_shadow", self.recv, samples_buf, np.int32(n), out), out
+        all_front = samples is not None and bool(np.all(samples[:, 3] > 0.5))
+        if all_front:
+            u, v, h = samples[:, 0], samples[:, 1], samples[:, 2]
+            f = v + h
+            b = cltypes.make_float8(u.min(), u.max(), v.min(), v.max(), h.min(), h.max(), f.min(), f.max())
+        else:
+            b = cltypes.make_float8(0, 0, 0, 0, 0, 0, 0, 0)
+        return self.launch("soft_shadow", self.recv, samples_buf, np.int32(n), np.int32(all_front), b, out), out
 
     def _read(self, buf, shape):
         cl = _cl()
@@ -326,7 +342,7 @@ class ShadowScene:
         samples = light_samples_array(light_samples)
         if p.empty or samples.shape[0] == 0:
             return np.ones((p.H, p.W), np.float32)
-        ev, out = self.launch_soft(self.samples_buffer(samples), samples.shape[0])
+        ev, out = self.launch_soft(self.samples_buffer(samples), samples.shape[0], samples)
         self.last_event = ev
         return self._read(out, (p.H, p.W))
 

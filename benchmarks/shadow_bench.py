@@ -1,0 +1,164 @@
+"""Benchmark of the pixel-height shadow tracers (not a test).
+
+    python benchmarks/shadow_bench.py [--device SPEC] [--runs 7] [--quick]
+
+Scene: a standing figure-like cutout (head, body, arms, legs; its bounding box
+about a quarter of the image) on a ground + back-wall background, lit by a
+point light up and to the left in front of it (soft: a disk of radius 5% of the
+image around it, stratified samples).
+
+For each OpenCL CPU/GPU device (or the one ``--device`` names) it reports the
+median of ``--runs`` runs after two warm-up runs:
+  kernel  the launch and its completion on a scene already on the device
+          (ShadowScene: inputs uploaded once, output buffer reused), no read-back;
+  e2e     the public function call from numpy arrays to numpy arrays (host
+          preparation, uploads, launch, read-back).
+It also prints the machine, the device, and the load average before and after
+(other processes share the CPU; timings on a loaded machine are pessimistic).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from pixgraph.device import Device, list_devices
+from pixgraph_nodes.ops import buffers as B
+from pixgraph_nodes.ops import shadow as S
+
+
+def figure_scene(n: int):
+    """Mask, cutout and background pixel heights (pixels) of the benchmark scene."""
+    s = n / 256.0
+    i = np.arange(n, dtype=np.float64)[:, None] + 0.5
+    j = np.arange(n, dtype=np.float64)[None, :] + 0.5
+    cu, foot = 0.5 * n, 0.88 * n
+
+    def ell(cx, cy, rx, ry):
+        return ((j - cx) / rx) ** 2 + ((i - cy) / ry) ** 2 <= 1.0
+
+    m = (ell(cu, foot - 118 * s, 14 * s, 16 * s) | ell(cu, foot - 70 * s, 26 * s, 36 * s)
+         | ell(cu - 30 * s, foot - 72 * s, 7 * s, 28 * s) | ell(cu + 30 * s, foot - 72 * s, 7 * s, 28 * s))
+    for du in (-12 * s, 12 * s):
+        m |= (np.abs(j - (cu + du)) <= 6 * s) & (i >= foot - 45 * s) & (i <= foot)
+    mask = m.astype(np.float32)
+    fg = np.where(m, np.maximum(0.0, foot - i), 0.0).astype(np.float32)   # upright, stands on v = foot
+    bg = np.broadcast_to(np.maximum(0.0, 0.45 * n - i), (n, n)).astype(np.float32)  # ground + wall
+    return mask, fg, bg
+
+
+def light_for(n: int):
+    return np.array([0.2 * n, 0.3 * n, 0.5 * n, 1.0], np.float32)
+
+
+def disk_samples(center, radius, count, seed=0):
+    """Stratified samples of a disk of `radius` pixels in the (u, h) plane."""
+    rng = np.random.default_rng(seed)
+    k = int(np.ceil(np.sqrt(count)))
+    a, b = np.meshgrid(np.arange(k), np.arange(k))
+    x = ((a.ravel() + rng.random(k * k)) / k)[:count]
+    y = ((b.ravel() + rng.random(k * k)) / k)[:count]
+    r, t = radius * np.sqrt(x), 2 * np.pi * y
+    out = np.tile(np.asarray(center, np.float64), (count, 1))
+    out[:, 0] += r * np.cos(t)
+    out[:, 2] += r * np.sin(t)
+    return out.astype(np.float32)
+
+
+def extremes(center, radius):
+    c = np.asarray(center, np.float32)
+    return np.array([c + [radius, 0, 0, 0], c - [radius, 0, 0, 0], c + [0, 0, radius, 0], c - [0, 0, radius, 0]],
+                    np.float32)
+
+
+def median_ms(fn, runs):
+    for _ in range(2):
+        fn()
+    ts = []
+    for _ in range(runs):
+        t = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t)
+    return 1e3 * statistics.median(ts)
+
+
+def machine() -> str:
+    model = platform.processor() or ""
+    try:
+        out = subprocess.run(["lscpu"], capture_output=True, text=True, timeout=5).stdout
+        for line in out.splitlines():
+            if line.startswith("Model name:"):
+                model = line.split(":", 1)[1].strip()
+    except (OSError, subprocess.SubprocessError):
+        pass
+    return f"{model} ({os.cpu_count()} logical CPUs), {platform.system()} {platform.release()}"
+
+
+def bench_device(dev: Device, runs: int, quick: bool):
+    rows = []
+    sizes = (256, 512) if quick else (256, 512, 1024)
+    for n in sizes:
+        mask, fg, bg = figure_scene(n)
+        L = light_for(n)
+        scene = S.ShadowScene(dev, mask, fg, bg)
+        k = median_ms(lambda: scene.launch_hard(L)[0].wait(), runs)
+        e = median_ms(lambda: S.hard_shadow(dev, mask, fg, bg, L), runs)
+        rows.append((f"hard shadow {n}x{n}", k, e, "<= 10 ms at 512" if n == 512 else ""))
+    for n in (256, 512):
+        mask, fg, bg = figure_scene(n)
+        scene = S.ShadowScene(dev, mask, fg, bg)
+        for count in (16, 64, 256):
+            if quick and count == 256:
+                continue
+            samples = disk_samples(light_for(n), 0.05 * n, count)
+            sbuf = scene.samples_buffer(samples)
+            k = median_ms(lambda: scene.launch_soft(sbuf, count, samples)[0].wait(), runs)
+            e = median_ms(lambda: S.soft_shadow(dev, mask, fg, bg, samples), runs)
+            rows.append((f"soft shadow {n}x{n}, {count} samples", k, e,
+                         "<= 300 ms" if (n, count) == (512, 64) else ""))
+    n = 256
+    mask, fg, bg = figure_scene(n)
+    L = light_for(n)
+    ex = extremes(L, 0.05 * n)
+    scene = S.ShadowScene(dev, mask, fg, bg)
+    lbuf = scene.samples_buffer(np.concatenate([L[None], ex]))
+    k = median_ms(lambda: B.launch_channels(scene, lbuf)[0].wait(), runs)
+    e = median_ms(lambda: B.buffer_channels(dev, mask, fg, bg, L, ex), runs)
+    rows.append((f"buffer channels {n}x{n}", k, e, "<= 30 ms"))
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--device", help="device spec (pixgraph.device.choose); default: every device")
+    ap.add_argument("--runs", type=int, default=7, help="timed runs per case (median), >= 5")
+    ap.add_argument("--quick", action="store_true", help="skip 1024x1024 and 256 samples")
+    args = ap.parse_args(argv)
+    runs = max(5, args.runs)
+    print(f"machine: {machine()}")
+    print(f"load average before: {os.getloadavg()}")
+    specs = [args.device] if args.device else [d.spec for d in list_devices()]
+    for spec in specs:
+        dev = Device.open(spec)
+        print(f"\ndevice: {dev.name}")
+        try:
+            S.program(dev)
+        except Exception as e:  # a platform that cannot compile here: report, go on
+            print(f"  cannot build the kernels: {str(e).strip().splitlines()[-3:]}")
+            continue
+        rows = bench_device(dev, runs, args.quick)
+        print(f"  {'case':38s} {'kernel ms':>10s} {'e2e ms':>10s}  goal")
+        for name, k, e, goal in rows:
+            print(f"  {name:38s} {k:10.2f} {e:10.2f}  {goal}")
+    print(f"\nload average after: {os.getloadavg()}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
