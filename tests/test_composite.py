@@ -61,3 +61,25 @@ def test_composite_node_shadow_then_over():
                                                      "shadow": None}), params)["image"]
     np.testing.assert_allclose(no_shadow[1, 2], 0.5)
     np.testing.assert_allclose(composite(bg, fg, a, dark, 0.5, (0.2, 0.2, 0.2)), out)
+
+
+def test_merge_cutouts_front_is_the_lower_foot():
+    from pixgraph_nodes.ops.cutouts import merge_cutouts
+    from pixgraph_nodes.ops.heightmaps import contact_line_height
+
+    m1 = np.zeros((40, 40), np.float32); m1[5:30, 5:20] = 1.0     # foot row 30 (behind)
+    m2 = np.zeros((40, 40), np.float32); m2[10:36, 15:25] = 1.0   # foot row 36 (in front)
+    h1, h2 = contact_line_height(m1), contact_line_height(m2)
+    c1 = np.zeros((40, 40, 3), np.float32); c1[m1 > 0] = [1, 0, 0]
+    c2 = np.zeros((40, 40, 3), np.float32); c2[m2 > 0] = [0, 0, 1]
+    mask, h, img = merge_cutouts([m1, m2], [h1, h2], [c1, c2])
+    np.testing.assert_array_equal(mask, np.maximum(m1, m2))
+    assert h[20, 17] == pytest.approx(36 - 20.5)     # overlap: the front cutout's height
+    assert h[20, 10] == pytest.approx(30 - 20.5)
+    np.testing.assert_array_equal(img[20, 17], [0, 0, 1])
+    np.testing.assert_array_equal(img[20, 10], [1, 0, 0])
+    assert h[0, 0] == 0 and np.all(img[0, 0] == 0)
+    # order of the inputs does not matter
+    mask2, hb, imgb = merge_cutouts([m2, m1], [h2, h1], [c2, c1])
+    np.testing.assert_array_equal(hb, h)
+    np.testing.assert_array_equal(imgb, img)

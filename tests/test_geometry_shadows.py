@@ -141,3 +141,74 @@ def test_buffer_channels_node_hard_channel_matches_hard_shadow(device):
     assert len({s.tobytes() for s in sparse}) == 4
     union = np.maximum.reduce(sparse)
     assert union.sum() >= out["hard_shadow"].sum()
+
+
+def test_merged_cutouts_cast_on_each_other(device):
+    from pixgraph_nodes.merge_cutouts import MergeCutouts
+
+    def billboard(depth, x, height, width):
+        f = CAM.focal
+        uf, vf, _ = CAM.project(np.array([x, 0.0, -depth]))[0]
+        u, v = CAM.pixel_grid()
+        m = (np.abs(u - uf) < f * width / 2 / depth) & (v < vf) & (v > vf - f * height / depth)
+        return m.astype(np.float32), np.where(m, vf - v, 0.0).astype(np.float32)
+
+    front_m, front_h = billboard(3.0, 0.0, 0.6, 0.08)
+    back_m, back_h = billboard(3.6, 0.0, 0.5, 0.8)       # a wide panel right behind it
+    img = lambda m: np.repeat(m[:, :, None], 3, axis=2)
+    merged = MergeCutouts().compute(Ctx(device), Namespace({
+        "mask_a": front_m, "height_a": front_h, "image_a": img(front_m),
+        "mask_b": back_m, "height_b": back_h, "image_b": img(back_m)}), Namespace({}))
+    light = L.from_controls(np.array([0.0, 0.0, -3.0]), 20.0, 30.0)  # from the camera side, right
+    ins = Namespace({"mask": merged["mask"], "fg_height": merged["height"],
+                     "bg_height": np.zeros((512, 512), np.float32), "light": light, "camera": CAM})
+    lit = HardShadow().compute(Ctx(device), ins, Namespace(HardShadow.spec.coerce_params({})))["lit"]
+    only_back = (back_m > 0) & (front_m == 0)
+    # the front pole's shadow lands on the back panel (it climbs it, like a wall): the
+    # band its top edge casts, computed in 3D and projected
+    sh = (lit < 0.5) & only_back
+    assert sh.sum() > 100
+    d = np.array(light.direction)
+    top = np.array([0.0, 0.6, -3.0])
+    hit = top - (3.6 - 3.0) / d[2] * d                  # top centre's shadow on the panel
+    u_hit, v_hit, _ = CAM.project(hit)[0]
+    half = CAM.focal * 0.04 / 3.6                        # the pole's half width on the panel
+    u, v = CAM.pixel_grid()
+    foot_row = CAM.project(np.array([0, 0, -3.6]))[0][1]
+    band = (np.abs(u - u_hit) < half - 1.5) & only_back & (v > v_hit + 1.5) & (v < foot_row - 1.5)
+    assert band.sum() > 200 and np.all(sh[band])   # the true shadow band is fully dark
+    # (spurious extra shadow next to it: see the xfail test below)
+    # without the front pole the back panel is fully lit from the front
+    ins2 = Namespace({"mask": back_m, "fg_height": back_h, "bg_height": np.zeros((512, 512), np.float32),
+                      "light": light, "camera": CAM})
+    lit2 = HardShadow().compute(Ctx(device), ins2, Namespace(HardShadow.spec.coerce_params({})))["lit"]
+    assert (lit2[only_back] < 0.5).sum() == 0
+
+
+@pytest.mark.xfail(strict=True, reason="ops/shadow.py: the side-flip rule also fires between consecutive "
+                   "in-mask samples of two different surfaces (a depth discontinuity), so a cutout in "
+                   "front of another casts a spurious wedge joining it to its true shadow")
+def test_merged_cutouts_no_shadow_outside_the_true_band(device):
+    f = CAM.focal
+    u, v = CAM.pixel_grid()
+
+    def billboard(depth, height, width):
+        vf = CAM.project(np.array([0.0, 0.0, -depth]))[0][1]
+        m = (np.abs(u - 256) < f * width / 2 / depth) & (v < vf) & (v > vf - f * height / depth)
+        return m.astype(np.float32), np.where(m, vf - v, 0.0).astype(np.float32)
+
+    from pixgraph_nodes.ops.cutouts import merge_cutouts
+    fm, fh = billboard(3.0, 0.6, 0.08)
+    bm, bh = billboard(3.6, 0.5, 0.8)
+    m, h, _ = merge_cutouts([fm, bm], [fh, bh])
+    light = L.from_controls(np.array([0.0, 0.0, -3.0]), 20.0, 30.0)
+    ins = Namespace({"mask": m, "fg_height": h, "bg_height": np.zeros((512, 512), np.float32),
+                     "light": light, "camera": CAM})
+    lit = HardShadow().compute(Ctx(device), ins, Namespace(HardShadow.spec.coerce_params({})))["lit"]
+    d = np.array(light.direction)
+    hit = np.array([0.0, 0.6, -3.0]) - 0.6 / d[2] * d
+    u_hit, v_hit, _ = CAM.project(hit)[0]
+    half = f * 0.04 / 3.6
+    true_band = (np.abs(u - u_hit) < half + 1.5) & (v > v_hit - 1.5)
+    wrong = (lit < 0.5) & (bm > 0) & (fm == 0) & ~true_band
+    assert wrong.sum() == 0, wrong.sum()
