@@ -228,3 +228,19 @@ def test_load_pixel_height_npy_exr_png16(tmp_path):
     out.close()
     got = hm.load_pixel_height(tmp_path / "h.png", scale=float(h.max()))
     np.testing.assert_allclose(got, h, atol=h.max() / 65535)
+
+
+def test_camera_node_value_and_load_pixel_height_node(tmp_path):
+    from pixgraph_nodes.camera import Camera as CameraNode
+    from pixgraph_nodes.load_pixel_height import LoadPixelHeight
+
+    cam = CameraNode().compute(Ctx(), Namespace({}), params_of(CameraNode, width=300, height=200, hfov=60.0,
+                                                               horizon=-10.0, cam_height=1.7))["camera"]
+    assert cam == Camera(300, 200, 60.0, -10.0, 1.7)
+    assert cam.focal == pytest.approx(150.0 / math.tan(math.radians(30.0)))
+    np.save(tmp_path / "bg.npy", np.full((4, 6), 2.5, np.float32))
+    ctx = Ctx()
+    ctx.graph_dir = str(tmp_path)
+    out = LoadPixelHeight().compute(ctx, Namespace({}), params_of(LoadPixelHeight, path="bg.npy", scale=2.0))
+    np.testing.assert_array_equal(out["height"], np.full((4, 6), 5.0, np.float32))
+    assert LoadPixelHeight.spec.param("path").required

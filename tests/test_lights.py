@@ -211,3 +211,17 @@ def test_light_node_targets_the_mask_foot():
                                [2 * math.cos(math.pi / 4), 2 * math.sin(math.pi / 4), 0], atol=1e-12)
     with pytest.raises(ValueError, match="mask"):
         LightNode().compute(Ctx(), Namespace({"camera": CAM, "mask": None}), params)
+
+
+def test_light_node_shadow_tip_placement():
+    foot_uv = CAM.project(FOOT)[0][:2]
+    top_uvh = CAM.project(FOOT + [0, 0.7, 0])[0]
+    truth = L.from_controls(FOOT, 120.0, 40.0)
+    d = np.array(truth.direction)
+    tip_uv = CAM.project(FOOT + [0, 0.7, 0] - d * (0.7 / d[1]))[0][:2]
+    params = Namespace(LightNode.spec.coerce_params({
+        "kind": "directional", "placement": "shadow_tip", "tip_uv": [float(x) for x in tip_uv],
+        "top_uvh": [float(x) for x in top_uvh]}))
+    light = LightNode().compute(Ctx(), Namespace({"camera": CAM, "mask": None}), params)["light"]
+    np.testing.assert_allclose(light.direction, truth.direction, atol=1e-9)
+    assert light.kind == "directional" and foot_uv[1] > CAM.horizon
