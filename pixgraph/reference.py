@@ -74,31 +74,38 @@ def _cell(s: str) -> str:
     return s.replace("|", "\\|").replace("\n", " ")
 
 
+def markdown_section(spec: NodeSpec) -> str:
+    """The Markdown section of one node type, from its ``## type_id`` heading on."""
+    out = [f"## {spec.type_id}", "",
+           f"Version {spec.version}, impl_version {spec.impl_version}."
+           + (" Sink: runs whenever requested, never cached." if spec.side_effects else ""), ""]
+    if spec.doc:
+        out += [inspect.cleandoc(spec.doc), ""]
+    for title, ports in (("Inputs", spec.inputs), ("Outputs", spec.outputs)):
+        if not ports:
+            continue
+        out += [f"**{title}**", "", "| name | type | doc |", "|---|---|---|"]
+        for p in ports:
+            opt = " (optional)" if p.optional else ""
+            out.append(f"| `{p.name}` | {p.type.type_name()}{opt} | {_cell(p.doc or p.type.describe)} |")
+        out.append("")
+    if spec.params:
+        out += ["**Params**", "", "| name | kind | default | range / choices | unit | doc |",
+                "|---|---|---|---|---|---|"]
+        for p in spec.params:
+            out.append(f"| `{p.name}` | {p.kind} | {_cell(_default(p))} | {_cell(_constraints(p))} | "
+                       f"{_cell(p.unit)} | {_cell(p.doc)} |")
+        out.append("")
+    return "\n".join(out).rstrip("\n") + "\n"
+
+
 def markdown(registry: Registry) -> str:
     """The whole node reference as Markdown (``docs/nodes.md``)."""
     out = ["# Node reference", "",
            "Generated from the node declarations by `pixgraph nodes --markdown`; do not edit by hand.", ""]
     for spec in registry.specs():
         out.append(f"- [`{spec.type_id}`](#{spec.type_id.lower().replace('.', '')}) - {spec.summary}")
+    text = "\n".join(out) + "\n"
     for spec in registry.specs():
-        out += ["", f"## {spec.type_id}", "",
-                f"Version {spec.version}, impl_version {spec.impl_version}."
-                + (" Sink: runs whenever requested, never cached." if spec.side_effects else ""), ""]
-        if spec.doc:
-            out += [inspect.cleandoc(spec.doc), ""]
-        for title, ports in (("Inputs", spec.inputs), ("Outputs", spec.outputs)):
-            if not ports:
-                continue
-            out += [f"**{title}**", "", "| name | type | doc |", "|---|---|---|"]
-            for p in ports:
-                opt = " (optional)" if p.optional else ""
-                out.append(f"| `{p.name}` | {p.type.type_name()}{opt} | {_cell(p.doc or p.type.describe)} |")
-            out.append("")
-        if spec.params:
-            out += ["**Params**", "", "| name | kind | default | range / choices | unit | doc |",
-                    "|---|---|---|---|---|---|"]
-            for p in spec.params:
-                out.append(f"| `{p.name}` | {p.kind} | {_cell(_default(p))} | {_cell(_constraints(p))} | "
-                           f"{_cell(p.unit)} | {_cell(p.doc)} |")
-            out.append("")
-    return "\n".join(out).rstrip("\n") + "\n"
+        text += "\n" + markdown_section(spec)
+    return text
