@@ -148,3 +148,11 @@ def test_march_h_matches_march_py(device):
     close = np.isclose(hs[both, 0], sh[both], atol=1e-3, rtol=1e-5)
     assert close.mean() > 0.99
     assert np.allclose(hs[both, 1], m.ray_height(k)[both], atol=1e-3, rtol=1e-5)
+
+
+def test_tile_bounds_limited_to_the_box_are_the_same():
+    import _shadow_scenes as sc
+    for seed in range(4):
+        m, fg = sc.blobs(77, 93, seed)
+        p = S.Prepared(m, fg, np.zeros_like(fg))
+        assert np.array_equal(M.tile_bounds(p.surf, 8), M.tile_bounds(p.surf, 8, p.rect))

@@ -252,33 +252,54 @@ def foot_range(surf: np.ndarray):
     return float(f.min()) - float(FOOT_MARGIN), float(f.max()) + float(FOOT_MARGIN)
 
 
-def tile_bounds(surf: np.ndarray, tile: int = TILE) -> np.ndarray:
+def tile_bounds(surf: np.ndarray, tile: int = TILE, rect=None) -> np.ndarray:
     """Coarse foot bounds of a surface buffer for exact skipping in the kernels.
 
     Returns float32 (TH, TW, 2): for each tile of ``tile`` x ``tile`` pixels the
     (min, max) of the foot ``(i + 0.5) + surf[i, j]`` (pixels) over the tile and
     its 8 neighbours, widened by FOOT_MARGIN; (+1e30, -1e30) where there is no
-    surface. ``TH = ceil(H / tile)``."""
+    surface. ``TH = ceil(H / tile)``. ``rect`` (u0, v0, u1, v1), the surface's
+    bounding box in pixel edges, only limits the work (tiles outside it are empty).
+    """
     H, W = surf.shape
     TH, TW = -(-H // tile), -(-W // tile)
-    pad = np.full((TH * tile, TW * tile), NO_SURFACE, np.float32)
-    pad[:H, :W] = surf
+    big = np.float32(1e30)
+    out = np.empty((TH, TW, 2), np.float32)
+    out[..., 0] = big
+    out[..., 1] = -big
+    if rect is None:
+        t0, t1, s0, s1 = 0, TH, 0, TW
+    else:
+        t0, t1 = int(rect[1]) // tile, -(-int(rect[3]) // tile)
+        s0, s1 = int(rect[0]) // tile, -(-int(rect[2]) // tile)
+    if t1 <= t0 or s1 <= s0:
+        return out
+    nh, nw = t1 - t0, s1 - s0
+    pad = np.full((nh * tile, nw * tile), NO_SURFACE, np.float32)
+    part = surf[t0 * tile:t1 * tile, s0 * tile:s1 * tile]
+    pad[:part.shape[0], :part.shape[1]] = part
     present = pad > NO_SURFACE_TEST
-    foot = pad.astype(np.float64) + (np.arange(TH * tile) + 0.5)[:, None]
-    blocks = foot.reshape(TH, tile, TW, tile).transpose(0, 2, 1, 3).reshape(TH, TW, -1)
-    pres = present.reshape(TH, tile, TW, tile).transpose(0, 2, 1, 3).reshape(TH, TW, -1)
-    big = 1e30
+    foot = pad + (np.arange(t0 * tile, t1 * tile, dtype=np.float32) + np.float32(0.5))[:, None]
+    blocks = foot.reshape(nh, tile, nw, tile).transpose(0, 2, 1, 3).reshape(nh, nw, -1)
+    pres = present.reshape(nh, tile, nw, tile).transpose(0, 2, 1, 3).reshape(nh, nw, -1)
     tmin = np.where(pres, blocks, big).min(axis=2)
     tmax = np.where(pres, blocks, -big).max(axis=2)
-    pmin = np.pad(tmin, 1, constant_values=big)
-    pmax = np.pad(tmax, 1, constant_values=-big)
-    dmin = np.full((TH, TW), big)
-    dmax = np.full((TH, TW), -big)
+    # dilate by one tile into a frame one tile wider on each side
+    pmin = np.pad(tmin, 2, constant_values=big)
+    pmax = np.pad(tmax, 2, constant_values=-big)
+    dmin = np.full((nh + 2, nw + 2), big, np.float32)
+    dmax = np.full((nh + 2, nw + 2), -big, np.float32)
     for a in range(3):
         for b in range(3):
-            dmin = np.minimum(dmin, pmin[a:a + TH, b:b + TW])
-            dmax = np.maximum(dmax, pmax[a:a + TH, b:b + TW])
+            dmin = np.minimum(dmin, pmin[a:a + nh + 2, b:b + nw + 2])
+            dmax = np.maximum(dmax, pmax[a:a + nh + 2, b:b + nw + 2])
     some = dmax > -big / 2
-    dmin = np.where(some, dmin - float(FOOT_MARGIN), big)
-    dmax = np.where(some, dmax + float(FOOT_MARGIN), -big)
-    return np.ascontiguousarray(np.stack([dmin, dmax], axis=-1), dtype=np.float32)
+    dmin = np.where(some, dmin - FOOT_MARGIN, big)
+    dmax = np.where(some, dmax + FOOT_MARGIN, -big)
+    # place the frame (tile rows t0-1 .. t1, cols s0-1 .. s1), clipped to the map
+    r0, c0 = t0 - 1, s0 - 1
+    rr0, cc0 = max(r0, 0), max(c0, 0)
+    rr1, cc1 = min(t1 + 1, TH), min(s1 + 1, TW)
+    out[rr0:rr1, cc0:cc1, 0] = dmin[rr0 - r0:rr1 - r0, cc0 - c0:cc1 - c0]
+    out[rr0:rr1, cc0:cc1, 1] = dmax[rr0 - r0:rr1 - r0, cc0 - c0:cc1 - c0]
+    return out

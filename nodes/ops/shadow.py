@@ -38,6 +38,8 @@ mask.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from pixgraph.device import load_kernel_source
@@ -222,9 +224,28 @@ def soft_shadow_ref(mask, fg_height, bg_height, light_samples, thickness=1.0) ->
 BUILD_OPTIONS: tuple[str, ...] = ("-cl-fast-relaxed-math",)
 
 
+@functools.lru_cache(maxsize=1)
+def kernel_source() -> str:
+    """shadow.cl with march.h inlined (read once per process)."""
+    return load_kernel_source(__file__, "shadow.cl")
+
+
 def program(device):
     """The built shadow program (cached per device by ``device.program``)."""
-    return device.program(load_kernel_source(__file__, "shadow.cl"), BUILD_OPTIONS)
+    return device.program(kernel_source(), BUILD_OPTIONS)
+
+
+def _kernel(prg, name):
+    """A kernel object of `prg`, created once per program and thread (creating
+    one costs ~1 ms on PoCL; set_args on a shared one would race between threads)."""
+    import threading
+    cl = _cl()
+    cache = prg.__dict__.setdefault("_pixgraph_kernels", {})
+    key = (name, threading.get_ident())
+    kern = cache.get(key)
+    if kern is None:
+        kern = cache[key] = cl.Kernel(prg, name)
+    return kern
 
 
 def _f4(x):
@@ -251,10 +272,9 @@ class ShadowScene:
         p = self.prep
         self.surf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=p.surf)
         self.recv = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=p.recv)
-        tiles = M.tile_bounds(p.surf, M.TILE)
+        tiles = M.tile_bounds(p.surf, M.TILE, p.rect if not p.empty else None)
         self.TH, self.TW = tiles.shape[:2]
         self.tiles = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=tiles)
-        self._kernels = {}
         self._bg = None
         self._out = {}
         self.last_event = None
@@ -288,13 +308,10 @@ class ShadowScene:
 
     def launch(self, name, *args):
         """Enqueue kernel `name` over (W, H) with the occluder args then `args`."""
-        cl = _cl()
-        kern = self._kernels.get(name)
-        if kern is None:
-            kern = self._kernels[name] = cl.Kernel(self.prg, name)
+        kern = _kernel(self.prg, name)
         kern.set_args(*self.occluder_args(), *args)
         p = self.prep
-        return cl.enqueue_nd_range_kernel(self.device.queue, kern, (p.W, p.H), None)
+        return _cl().enqueue_nd_range_kernel(self.device.queue, kern, (p.W, p.H), None)
 
     def launch_hard(self, light):
         """Enqueue the hard-shadow kernel; returns (event, output buffer)."""
