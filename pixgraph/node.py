@@ -25,6 +25,11 @@ progress and cancellation (see ``pixgraph.engine.NodeContext``).
 Param value types: ``float``, ``int``, ``bool``, ``str`` (optionally with
 ``choices``), ``list[float]`` (fixed ``length`` optional) and ``Path`` (a file;
 its *content* is part of the cache key, so editing the file reruns the node).
+A ``Path`` param with default ``None`` is required; ``param(None, writes=True)``
+declares a file the node writes (its path, not its content, is hashed).
+
+A node that writes files (a sink) sets ``side_effects = True``: it runs whenever
+one of its outputs is requested and is never served from cache.
 """
 from __future__ import annotations
 

@@ -47,9 +47,8 @@ class Session:
         (``"0:0"``, ``"cpu"``, a name substring), or a ``pixgraph.device.Device``
         (e.g. ``Device.from_cl(host_context, host_queue)``). Opened lazily.
     cache_bytes: memory cache limit in bytes (default ``PIXGRAPH_CACHE_BYTES`` or 2 GiB).
-    disk_cache: folder of a persistent cache, or ``None`` for none
-        (``PIXGRAPH_DISK_CACHE`` is used when ``None`` is not passed explicitly
-        and the variable is set).
+    disk_cache: folder of a persistent cache, or ``None`` for none (the CLI
+        passes ``--disk-cache``, ``PIXGRAPH_DISK_CACHE`` or ``~/.cache/pixgraph``).
     disk_cache_bytes: disk cache limit (default ``PIXGRAPH_DISK_CACHE_BYTES`` or 20 GiB).
     registry: node types; default ``Registry.discover()``.
     """

@@ -199,7 +199,18 @@ def make_nodes(calls: list):
             calls.append(ctx.node_id)
             return {"name": ctx.device.name}
 
-    return [Source, Add, Scale, ToMask, NeedsMask, FileLen, MakePose, Opaque, WrongType, Boom, Slow,
+    @node("t.Where", version=1)
+    class Where:
+        """Logs, and outputs the folder relative paths resolve against."""
+        class Outputs:
+            folder: T.Any = port()
+
+        def compute(self, ctx, inputs, params):
+            calls.append(ctx.node_id)
+            ctx.log(f"resolving against {ctx.graph_dir}")
+            return {"folder": ctx.graph_dir}
+
+    return [Where, Source, Add, Scale, ToMask, NeedsMask, FileLen, MakePose, Opaque, WrongType, Boom, Slow,
             Touch, UsesDevice]
 
 

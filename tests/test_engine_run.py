@@ -271,3 +271,13 @@ def test_long_chain_does_not_recurse(calls):
         b.connect(f"n{i - 1}.out", f"n{i}.a")
     b.output("end", "n2999.out")
     assert s.run(b.build())["end"][0, 0] == 2999.0
+
+
+def test_context_log_and_graph_dir(session, calls, tmp_path):
+    b = session.builder(base_dir=str(tmp_path))
+    b.add("t.Where", "w")
+    b.output("f", "w.folder")
+    seen = []
+    assert session.run(b.build(), on_event=seen.append)["f"] == str(tmp_path)
+    logs = [e for e in seen if isinstance(e, E.NodeLog)]
+    assert logs == [E.NodeLog("w", f"resolving against {tmp_path}")]
