@@ -121,3 +121,22 @@ def test_soft_shadow_error_falls_like_inverse_sqrt_n(device):
     strat = np.mean([np.sqrt(np.mean((scene.soft_shadow(sc.jitter_samples(center, radius, 64, rng, stratified=True))
                                       - ref)[penumbra] ** 2)) for _ in range(6)])
     assert strat < 0.8 * errs[2], (strat, errs[2])
+
+
+def test_upright_cutout_front_lit_has_no_self_shadow_acne_and_back_lit_is_dark(device):
+    """All pixels of an upright cutout lie in one vertical plane (the same foot
+    row). A light in front of that plane (its foot nearer the camera) lights all
+    of them -- no acne from rays running along their own surface --; a light
+    behind it leaves the visible side in the cutout's own shadow."""
+    mask, fg = sc.pole(H, W, 50, 20, TOP, BOTTOM)
+    bg = np.zeros((H, W), np.float32)
+    inside = mask > 0.5
+    for light in [(10.0, 20.0, 120.0, 1.0), (150.0, 60.0, 75.0, 1.0), (60.0, 150.0, 10.0, 1.0)]:
+        assert light[1] + light[2] > BOTTOM + 0.5          # in front
+        lit = S.hard_shadow(device, mask, fg, bg, light)
+        assert np.all(lit[inside] == 1.0), light
+    for light in [(10.0, 10.0, 60.0, 1.0), (150.0, -20.0, 90.0, 1.0)]:
+        assert light[1] + light[2] < BOTTOM + 0.5          # behind
+        lit = S.hard_shadow(device, mask, fg, bg, light)
+        # all but the rows the light's rays leave through the top edge
+        assert np.mean(lit[inside] == 0.0) > 0.9, light

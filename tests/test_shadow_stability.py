@@ -42,6 +42,8 @@ def test_odd_lights(device, name):
     assert (lit != ref).mean() <= 0.01
     if name in ("nan", "inf", "zero-direction"):
         assert np.all(lit == 1.0)            # documented: invalid lights occlude nothing
+    if name == "on-a-pixel-centre":
+        assert lit[30, 40] == 1.0            # the receiver on the light's image point is lit
 
 
 def test_empty_mask_is_all_lit_without_launch(device):

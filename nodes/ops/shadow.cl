@@ -98,15 +98,23 @@ inline float8 point_bounds(float4 L)
     return (float8)(L.x, L.x, L.y, L.y, L.z, L.z, f, f);
 }
 
-/* 1 when receiver (ru, rv, rh) is blocked from light L. */
-inline int blocked(const occluder *o, float ru, float rv, float rh, float4 L)
+/* 1 when receiver (ru, rv, rh) is blocked from light L; then *m is its march,
+ * *hit_k the first blocking sample and *hit_s the cutout height there. */
+inline int trace_light(const occluder *o, float ru, float rv, float rh, float4 L,
+                       ph_march *m, int *hit_k, float *hit_s)
 {
     /* cheap exact rejection of segments that miss the cutout's box (s = +1) */
     if (L.w > 0.5f && !may_hit(o, ru, rv, rh, point_bounds(L))) return 0;
+    if (!light_march(ru, rv, rh, L, m)) return 0;
+    return shadow_trace(o, m, hit_k, hit_s);
+}
+
+/* 1 when receiver (ru, rv, rh) is blocked from light L. */
+inline int blocked(const occluder *o, float ru, float rv, float rh, float4 L)
+{
     ph_march m;
-    if (!light_march(ru, rv, rh, L, &m)) return 0;
     int k; float s;
-    return shadow_trace(o, &m, &k, &s);
+    return trace_light(o, ru, rv, rh, L, &m, &k, &s);
 }
 
 #define OCCLUDER_ARGS \
@@ -200,8 +208,7 @@ __kernel void buffer_channels(OCCLUDER_ARGS, __global const float *recv,
     if (rh > PH_NO_SURFACE_TEST) {
         ph_march m;
         int k; float hs;
-        if (light_march(ru, rv, rh, lights[0], &m)
-            && shadow_trace(&o, &m, &k, &hs)) {
+        if (trace_light(&o, ru, rv, rh, lights[0], &m, &k, &hs)) {
             dark0 = 1.0f;
             float du = (float)k * m.su, dv = (float)k * m.sv, dh = hs - rh;
             dist = sqrt(du * du + dv * dv + dh * dh);
