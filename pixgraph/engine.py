@@ -18,6 +18,8 @@ import os
 import time
 from typing import Any, Callable, Mapping
 
+import numpy as np
+
 from . import events as E
 from .device import DeviceError
 from .cache import MISS, DiskCache, MemoryCache, Unstorable
@@ -355,6 +357,7 @@ class Engine:
         if self.disk is not None:
             value = self.disk.get(key)
             if value is not MISS:
+                _freeze(value)
                 self.memory.put(key, value)
                 return value, "disk"
         return MISS, ""
@@ -382,6 +385,7 @@ class Engine:
                 p.type.validate(out[p.name])
             except TypeError as e:
                 raise NodeError(nid, spec.type_id, f"output {p.name!r} is not a valid {p.type.type_name()}: {e}") from None
+            _freeze(out[p.name])
         return out
 
     def _store(self, spec: NodeSpec, key: str, value: dict) -> str:
@@ -398,6 +402,19 @@ class Engine:
                 self.memory_only[spec.type_id] = str(e)
                 where += f"; memory only: {e}"
         return where
+
+
+def _freeze(value) -> None:
+    """Make output arrays read-only: one cached value feeds every consumer, so a
+    node that wrote into its input would silently change other nodes' results."""
+    if isinstance(value, np.ndarray):
+        value.flags.writeable = False
+    elif isinstance(value, dict):
+        for v in value.values():
+            _freeze(v)
+    elif isinstance(value, (list, tuple)):
+        for v in value:
+            _freeze(v)
 
 
 def _record_name(file: str) -> str:

@@ -16,12 +16,13 @@ TESTS = os.path.dirname(__file__)
 
 def test_round_trip_of_supported_values(tmp_path):
     from pixgraph_nodes.ops.camera import Camera
+    from pixgraph_nodes.ops.lights import disk_light
 
     d = DiskCache(tmp_path, 1 << 30)
     value = {"img": np.arange(12, dtype=np.float32).reshape(3, 4), "n": 3, "x": 0.5, "s": "hi", "none": None,
              "nan": float("nan"), "list": [1, (2.0, "b")], "flag": True, "np_scalar": np.float32(1.5),
              "cam": Camera(640, 480, hfov=50.0, horizon=100.0), "pose": Pose(1.0, 2.0, np.ones(3, np.float32)),
-             "buffers": {"a": np.zeros((2, 2), np.float32)}}
+             "buffers": {"a": np.zeros((2, 2), np.float32)}, "light": disk_light((1.0, 2.0, 3.0), 0.5)}
     d.put("ab" * 32, value)
     back = d.get("ab" * 32)
     np.testing.assert_array_equal(back["img"], value["img"])
@@ -30,6 +31,7 @@ def test_round_trip_of_supported_values(tmp_path):
     assert back["np_scalar"] == np.float32(1.5) and back["np_scalar"].dtype == np.float32
     assert back["cam"] == value["cam"] and back["cam"].focal == value["cam"].focal
     assert back["pose"].azimuth == 1.0 and np.array_equal(back["pose"].weights, np.ones(3))
+    assert back["light"] == value["light"] and back["light"].radius == 0.5
     assert d.get("cd" * 32) is MISS
 
 

@@ -281,3 +281,10 @@ def test_context_log_and_graph_dir(session, calls, tmp_path):
     assert session.run(b.build(), on_event=seen.append)["f"] == str(tmp_path)
     logs = [e for e in seen if isinstance(e, E.NodeLog)]
     assert logs == [E.NodeLog("w", f"resolving against {tmp_path}")]
+
+
+def test_outputs_are_read_only_so_cached_values_cannot_be_corrupted(session, calls):
+    g = diamond(session)
+    out = session.run(g, outputs=["a.out"])["a.out"]
+    with pytest.raises(ValueError, match="read-only"):
+        out[0, 0] = 99.0
