@@ -37,23 +37,26 @@ def array_key(array: np.ndarray) -> str:
 
 
 class FileHasher:
-    """sha256 of file contents, remembered per (path, size, mtime) so an unchanged
-    file is not read again on every plan."""
+    """sha256 of file contents, remembered per path and stat signature (size,
+    mtime, ctime, inode) so an unchanged file is not read again on every plan.
+    A file rewritten in place with the same size within one timestamp tick is
+    not noticed (as with make); replacing it by rename changes the inode."""
 
     def __init__(self):
-        self._seen: dict[str, tuple[int, int, str]] = {}
+        self._seen: dict[str, tuple[tuple, str]] = {}
 
     def __call__(self, path: str) -> str:
         st = os.stat(path)
+        sig = (st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino)
         hit = self._seen.get(path)
-        if hit is not None and hit[0] == st.st_size and hit[1] == st.st_mtime_ns:
-            return hit[2]
+        if hit is not None and hit[0] == sig:
+            return hit[1]
         h = hashlib.sha256()
         with open(path, "rb") as f:
             for chunk in iter(lambda: f.read(1 << 20), b""):
                 h.update(chunk)
         digest = h.hexdigest()
-        self._seen[path] = (st.st_size, st.st_mtime_ns, digest)
+        self._seen[path] = (sig, digest)
         return digest
 
 
