@@ -35,6 +35,20 @@ Several cutouts: pass one mask and one ``fg_height`` that already merge them
 (e.g. ``mask = max(m_i)``, ``fg_height`` = the height of the front-most cutout at
 each pixel); merging is the caller's job. The bounding box is that of the merged
 mask.
+
+``thickness`` is in pixels like everything else: when an image is resized by s,
+scale it by s too (tests/test_shadow_analytic.py: at a fixed 1 px the shadow of
+the same scene at 128 and 256 px overlaps only 0.90-0.95 IoU; scaled, > 0.97).
+A larger thickness makes thin (pixel-height) cutouts cast fuller shadows.
+
+Speed (kernels only; the numpy reference walks every sample of the image
+segment, so tests compare the two): each march is clipped to the cutout's box,
+its height band and its foot band (v + h) with Liang-Barsky; segments that
+cannot reach that box are rejected without a division; inside, runs of samples
+whose ray foot is provably in front of or far behind every cutout pixel of an
+8x8 tile neighbourhood are skipped (march.h: ph_span_skippable). All three are
+exact up to float rounding: the kernels give the reference's result
+(tests/test_shadow_ref.py).
 """
 from __future__ import annotations
 
@@ -119,10 +133,14 @@ class Prepared:
             cols = np.flatnonzero(occ.any(axis=0))
             self.rect = np.array([cols[0], rows[0], cols[-1] + 1, rows[-1] + 1], np.float32)
             hs = self.surf[occ]
-            self.h_lo = F32(float(hs.min()) - self.thickness)
+            # below min height - reach a sample is behind every surface beyond the
+            # thickness; reach >= BEHIND_EPS because a sample up to BEHIND_EPS below
+            # a surface still counts as in front (and can start a side flip)
+            reach = max(self.thickness, float(M.BEHIND_EPS))
+            self.h_lo = F32(float(hs.min()) - reach)
             self.h_hi = F32(hs.max())
             f_min, f_max = M.foot_range(self.surf)
-            self.f_lo = F32(f_min - self.thickness)
+            self.f_lo = F32(f_min - reach)
             self.f_hi = F32(f_max)
 
 
