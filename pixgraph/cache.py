@@ -155,6 +155,8 @@ class DiskCache:
         self.root = os.path.abspath(os.fspath(root))
         self.limit_bytes = int(limit_bytes)
         self.before_commit = before_commit
+        #: running total of committed bytes; None until first needed (a scan)
+        self._bytes: int | None = None
         os.makedirs(self.root, exist_ok=True)
         self._sweep_temporaries()
 
@@ -199,11 +201,15 @@ class DiskCache:
                 os.fsync(f.fileno())
             if self.before_commit is not None:
                 self.before_commit(tmp, final)
+            size = os.path.getsize(tmp)
             os.replace(tmp, final)
         except BaseException:
             self._remove(tmp)
             raise
-        self.evict()
+        # scan the folder only when the running total says the limit is passed
+        self._bytes = (self._bytes + size) if self._bytes is not None else None
+        if self._bytes is None or self._bytes > self.limit_bytes:
+            self.evict()
 
     def save_record(self, name: str, data: dict) -> None:
         """Keep a small JSON document (e.g. last-run key parts) next to the entries."""
@@ -251,6 +257,7 @@ class DiskCache:
             self._remove(p)
             total -= size
             removed += 1
+        self._bytes = total
         return removed
 
     def stats(self) -> dict:
@@ -260,6 +267,7 @@ class DiskCache:
 
     def clear(self) -> int:
         n = len(self.entries())
+        self._bytes = None
         for name in os.listdir(self.root):
             p = os.path.join(self.root, name)
             if os.path.isdir(p) and (len(name) == 2 or name == "records"):

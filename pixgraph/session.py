@@ -134,14 +134,16 @@ class Session:
         cancel: a ``CancelToken``; cancelling raises ``events.Cancelled``.
         on_event: called with each ``pixgraph.events`` event.
         """
-        plan = self.plan(graph_or_path, outputs, params, bind)
-        if bind:
-            for nid, value in bind.items():
-                port = self.registry.get(plan.graph.nodes[nid].type).outputs[0]
-                try:
-                    port.type.validate(value)
-                except TypeError as e:
-                    raise GraphError(f"bound value does not fit output {port.name!r}: {e}", node=nid) from None
+        graph = self.graph(graph_or_path, params)
+        for nid, value in (bind or {}).items():
+            if nid not in graph.nodes:
+                raise GraphError("cannot bind: no such node in the graph", file=graph.file, node=nid)
+            port = self.registry.get(graph.nodes[nid].type).outputs[0]
+            try:
+                port.type.validate(value)
+            except TypeError as e:
+                raise GraphError(f"bound value does not fit output {port.name!r}: {e}", node=nid) from None
+        plan = self.engine.plan(graph, outputs, bind)
         self.last_run = self.engine.run(plan, cancel, on_event)
         return self.last_run.values
 
