@@ -153,3 +153,17 @@ def test_subprocess_unknown_param_on_a_builtin_node(tmp_path):
     p = _cli("run", str(g), "--no-disk-cache")
     assert p.returncode == 2 and p.stderr.startswith(f"{g}:5: node 'blur': param 'colour': unknown param")
     assert p.stderr.count("\n") == 1
+
+
+def test_progress_bar_only_on_a_terminal_and_not_with_quiet(monkeypatch):
+    import io
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    good = os.path.join(FIXTURES, "good", "format1.yaml")
+    for stream, args, bar in ((Terminal(), [], True), (Terminal(), ["-q"], False), (io.StringIO(), [], False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        assert main(["run", good, "--no-disk-cache", *args], registry=make_registry()) == 0
+        assert ("node/s" in stream.getvalue()) == bar, stream.getvalue()
