@@ -124,3 +124,9 @@ def test_works_when_home_is_not_writable(tmp_path):
                        text=True, timeout=300, cwd=tmp_path)
     assert p.returncode == 0, p.stderr
     assert "o: array float32 (4, 4, 4)" in p.stdout
+
+
+def test_program_builds_are_cached_per_device(device):
+    src = "__kernel void twice(__global float *x) { x[get_global_id(0)] *= 2.0f; }"
+    assert device.program(src) is device.program(src)
+    assert device.program(src) is not device.program(src, ("-cl-fast-relaxed-math",))
