@@ -41,6 +41,19 @@ inline float rt_rand(uint seed, uint pix, uint sample, uint dim)
     return (float)(x >> 8) * (1.0f / 16777216.0f);
 }
 
+/* 2D low-discrepancy sample n of a pixel: the R2 sequence (Roberts 2018,
+ * additive recurrence by the plastic number) shifted by a per-pixel random
+ * offset (Cranley-Patterson rotation), so each pixel's estimate stays unbiased
+ * and independent of its neighbours while its samples fill the square evenly. */
+inline float2 rt_sample2(uint seed, uint pix, uint n)
+{
+    float2 off = (float2)(rt_rand(seed, pix, 0u, 0u), rt_rand(seed, pix, 0u, 1u));
+    /* n * alpha mod 1 in 32-bit fixed point: exact, no float drift for large n */
+    uint a1 = n * 3242174889u, a2 = n * 2447445413u;
+    float2 r = (float2)((float)(a1 >> 8), (float)(a2 >> 8)) * (1.0f / 16777216.0f) + off;
+    return r - floor(r);
+}
+
 /* ---- 3D ray -> (u, v, h) ray ---- */
 /* e (pixel-height space direction per unit s) and s_max of the ray from the image
  * point p0 = (u0, v0, h0) along world direction d. */
@@ -255,9 +268,10 @@ __kernel void rt_reflect(int W, int H, int y0, float f, float horizon,
         int nmax = alpha > 0.0f ? max_spp : 1;
         while (n < nmax) {
             float3 ml = (float3)(0.0f, 0.0f, 1.0f);
-            if (alpha > 0.0f)
-                ml = rt_sample_vndf(wol, alpha, rt_rand(seed, (uint)idx, (uint)n, 0u),
-                                   rt_rand(seed, (uint)idx, (uint)n, 1u));
+            if (alpha > 0.0f) {
+                float2 xi = rt_sample2(seed, (uint)idx, (uint)n);
+                ml = rt_sample_vndf(wol, alpha, xi.x, xi.y);
+            }
             float cm = dot(wol, ml);
             float3 wil = 2.0f * cm * ml - wol;
             float4 c = (float4)(0.0f);

@@ -70,6 +70,25 @@ def rand(seed, pix, sample, dim) -> np.ndarray:
     return ((x >> _U32(8)).astype(np.float32) * F32(1.0 / 16777216.0)).astype(np.float32)
 
 
+#: R2 sequence increments (1/g, 1/g^2), g the plastic number, as 32-bit fixed point
+R2_STEP = (_U32(3242174889), _U32(2447445413))
+
+
+def sample2(seed, pix, n):
+    """Low-discrepancy 2D sample ``n`` of each pixel (mirror of ``rt_sample2``): the R2
+    sequence with a per-pixel random shift (Cranley-Patterson rotation). Returns
+    two float32 arrays in [0, 1)."""
+    pix = np.asarray(pix, _U32)
+    n = np.asarray(n, _U32)
+    off = (rand(seed, pix, 0, 0), rand(seed, pix, 0, 1))
+    out = []
+    with np.errstate(over="ignore"):
+        for a, o in zip(R2_STEP, off):
+            r = ((n * a) >> _U32(8)).astype(np.float32) * F32(1.0 / 16777216.0) + o
+            out.append((r - np.floor(r)).astype(np.float32))
+    return out[0], out[1]
+
+
 # ---------------------------------------------------------------------------
 # 3D ray -> (u, v, h) ray
 # ---------------------------------------------------------------------------
@@ -444,8 +463,7 @@ def reflection_numpy(camera: Camera, cutout: np.ndarray, fg_height: np.ndarray,
     nsamp = spp if alpha > 0 else 1
     acc = np.zeros((idx.size, 4))
     for s in range(nsamp):
-        u1 = rand(seed, idx, s, 0).astype(np.float64)
-        u2 = rand(seed, idx, s, 1).astype(np.float64)
+        u1, u2 = (x.astype(np.float64) for x in sample2(seed, idx, s))
         wil, w = ggx_sample_weight(wol, alpha, u1, u2, eta, conductor, f0)
         wi = wil[:, :1] * b1 + wil[:, 1:2] * b2 + wil[:, 2:] * nn
         e, s_max = uvh_direction(camera, p0, wi)
