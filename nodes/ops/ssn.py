@@ -45,6 +45,11 @@ RESOLUTION = 256
 # network. Pixel heights and distances are divided by the image size, so the
 # same scene at another resolution gives the same input (heights scale with s).
 _SCALE_BY_SIZE = {"cutout_height", "relative_distance"}
+# The background gradient is a slope (pixels per pixel): about 0 on the ground,
+# -1 on a wall. Beyond +-2 it marks a depth discontinuity (a step's edge), where
+# its size says nothing more, so it is clipped.
+_GRADIENT = {"bg_gradient_x", "bg_gradient_y"}
+_GRADIENT_CLIP = 2.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -162,7 +167,7 @@ def stack_channels(buffers: dict[str, np.ndarray], channels: tuple[str, ...]) ->
 
     Pixel-height-like channels are divided by the image height so that a
     resized scene gives the same input; shadows are already in [0, 1]; the
-    background gradient is dimensionless.
+    background gradient is dimensionless and clipped to +-2.
     """
     H = next(iter(buffers.values())).shape[0]
     out = []
@@ -170,6 +175,8 @@ def stack_channels(buffers: dict[str, np.ndarray], channels: tuple[str, ...]) ->
         x = np.nan_to_num(np.asarray(buffers[name], dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
         if name in _SCALE_BY_SIZE:
             x = x / float(H)
+        elif name in _GRADIENT:
+            x = np.clip(x, -_GRADIENT_CLIP, _GRADIENT_CLIP)
         out.append(x)
     return np.stack(out)
 
