@@ -156,3 +156,59 @@ def test_tile_bounds_limited_to_the_box_are_the_same():
         m, fg = sc.blobs(77, 93, seed)
         p = S.Prepared(m, fg, np.zeros_like(fg))
         assert np.array_equal(M.tile_bounds(p.surf, 8), M.tile_bounds(p.surf, 8, p.rect))
+
+
+def test_span_skipping_and_segment_rejection_are_conservative():
+    """Whenever a span is declared skippable, no sample in it occludes and its
+    samples are all on one side (or have no surface); whenever segments are
+    rejected, no sample of the full march occludes."""
+    import _shadow_scenes as sc
+    rng = np.random.default_rng(5)
+    checked = skipped = rejected = 0
+    for seed in range(4):
+        H, W = 70, 90
+        mask, fg = sc.blobs(H, W, seed)
+        fg = (fg + rng.normal(0, 2, fg.shape) * (seed % 2)).astype(np.float32)
+        surf = M.surface_buffer(mask, fg)
+        tiles = M.tile_bounds(surf, M.TILE)
+        rect = (0, 0, W, H)
+        n = 1200
+        ru = rng.integers(0, W, n) + 0.5
+        rv = rng.integers(0, H, n) + 0.5
+        rh = rng.uniform(0, 40, n)
+        L = np.stack([rng.uniform(-W, 2 * W, n), rng.uniform(-H, 2 * H, n), rng.uniform(-20, 80, n)], 1)
+        m, ok = M.march_setup(ru, rv, rh, L[:, 0] - ru, L[:, 1] - rv, L[:, 2] - rh, 1.0)
+        M.march_clip_box(m, rect, -1e30, 1e30)
+        thickness = 1.0
+        occ = surf > M.NO_SURFACE_TEST
+        f = (np.nonzero(occ)[0] + 0.5) + surf[occ]
+        hs = surf[occ]
+        may = M.segments_may_hit(ru, rv, rh, np.stack([L[:, 0], L[:, 0], L[:, 1], L[:, 1], L[:, 2], L[:, 2],
+                                                        L[:, 1] + L[:, 2], L[:, 1] + L[:, 2]]),
+                                 (0, 0, W, H), hs.min() - 1.0, hs.max(), f.min() - 1.5, f.max() + 0.5)
+        for r in np.flatnonzero(ok):
+            mr = M.March(*(getattr(m, a)[r] for a in ("u", "v", "h", "su", "sv", "sh", "k_lo", "k_hi",
+                                                        "major_u")))
+            ks = np.arange(mr.k_lo, mr.k_hi + 1)
+            if ks.size == 0:
+                continue
+            s = M.surface_height(surf, mr.sample_u(ks), mr.sample_v(ks), mr.major_u)
+            h = mr.ray_height(ks)
+            sd = M.side(h, s)
+            prev = np.concatenate([[0], sd[:-1]])
+            hit = M.occludes(h, s, thickness, sd, prev)
+            if not may[r]:
+                rejected += 1
+                assert not hit.any()
+            k = mr.k_lo
+            while k <= mr.k_hi:
+                e = min(int(M.span_end(mr, k)), mr.k_hi)
+                if e > k + 1 and M.span_skippable(tiles, mr, k, e, thickness):
+                    skipped += 1
+                    a, b = k - mr.k_lo, e - mr.k_lo
+                    sides = set(sd[a:b + 1].tolist()) - {0}
+                    assert len(sides) <= 1
+                    assert not M.occludes(h[a:b + 1], s[a:b + 1], thickness, sd[a:b + 1], 0).any()
+                checked += 1
+                k = e + 1
+    assert checked > 1000 and skipped > 200 and rejected > 200, (checked, skipped, rejected)

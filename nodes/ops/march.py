@@ -303,3 +303,41 @@ def tile_bounds(surf: np.ndarray, tile: int = TILE, rect=None) -> np.ndarray:
     out[rr0:rr1, cc0:cc1, 0] = dmin[rr0 - r0:rr1 - r0, cc0 - c0:cc1 - c0]
     out[rr0:rr1, cc0:cc1, 1] = dmax[rr0 - r0:rr1 - r0, cc0 - c0:cc1 - c0]
     return out
+
+
+def segments_may_hit(ru, rv, rh, lb, rect, h_lo, h_hi, f_lo, f_hi) -> np.ndarray:
+    """Mirror of ph_segments_may_hit: False where no segment from receiver
+    (ru, rv, rh) to a light point within ``lb = (u_min, u_max, v_min, v_max,
+    h_min, h_max, foot_min, foot_max)`` can meet the box ``rect x [h_lo, h_hi]``
+    with feet in ``[f_lo, f_hi]`` (all pixels)."""
+    ru, rv, rh = (np.asarray(x, np.float32) for x in (ru, rv, rh))
+    rf = rv + rh
+    return ((np.minimum(ru, lb[0]) <= rect[2]) & (np.maximum(ru, lb[1]) >= rect[0])
+            & (np.minimum(rv, lb[2]) <= rect[3]) & (np.maximum(rv, lb[3]) >= rect[1])
+            & (np.minimum(rh, lb[4]) <= h_hi) & (np.maximum(rh, lb[5]) >= h_lo)
+            & (np.minimum(rf, lb[6]) <= f_hi) & (np.maximum(rf, lb[7]) >= f_lo))
+
+
+def span_end(m: March, k, tile: int = TILE) -> np.ndarray:
+    """Mirror of ph_span_end: the last sample index of the span starting at k
+    (the run of samples in the same major-axis tile column)."""
+    k = np.asarray(k, np.int64)
+    j = np.floor(m.sample_u(k)).astype(np.int64)
+    i = np.floor(m.sample_v(k)).astype(np.int64)
+    tj, ti = (j // tile) * tile, (i // tile) * tile
+    end_u = k + np.where(m.su > 0, tj + tile - 1 - j, j - tj)
+    end_v = k + np.where(m.sv > 0, ti + tile - 1 - i, i - ti)
+    return np.where(m.major_u, end_u, end_v)
+
+
+def span_skippable(tiles: np.ndarray, m: March, k, e, thickness, tile: int = TILE) -> np.ndarray:
+    """Mirror of ph_span_skippable: True where no sample of k..e can occlude or
+    flip side (the ray's foot is beyond every surface foot of the tile
+    neighbourhood, or short of all of them by more than max(thickness, BEHIND_EPS))."""
+    TH, TW = tiles.shape[:2]
+    ti = np.clip(np.floor(m.sample_v(k)).astype(np.int64) // tile, 0, TH - 1)
+    tj = np.clip(np.floor(m.sample_u(k)).astype(np.int64) // tile, 0, TW - 1)
+    b = tiles[ti, tj]
+    fa, fb = ray_foot(m, k), ray_foot(m, e)
+    lo, hi = np.minimum(fa, fb), np.maximum(fa, fb)
+    return (lo >= b[..., 1]) | (hi < b[..., 0] - max(float(thickness), float(BEHIND_EPS)))
