@@ -390,7 +390,15 @@ def planar_mirror(camera: Camera, surf: np.ndarray, thickness: float) -> np.ndar
         rep = np.repeat(np.arange(n.size), n)
         offs = np.arange(rep.size) - np.repeat(np.cumsum(n) - n, n)
         rr = r0[rep] + offs
-        np.maximum.at(best, (rr, cc[rep]), qq[rep])
+        key = rr * W + cc[rep]
+        val = qq[rep]
+        # largest q per receiver: sort by (key, q) and keep each key's last entry
+        order = np.lexsort((val, key))
+        key, val = key[order], val[order]
+        last = np.ones(key.size, bool)
+        last[:-1] = key[1:] != key[:-1]
+        flat = best.reshape(-1)
+        flat[key[last]] = np.maximum(flat[key[last]], val[last])
 
     # within the thickness at q itself (the first sample is q = r - 1)
     lo = np.maximum.reduce([q + 2.0 * fg - 2.0 * thickness, q + 1.0, r_vp])
@@ -717,25 +725,32 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
     spp = np.zeros((H, W), np.int32)
     steps = np.zeros((H, W), np.int32)
     done = np.zeros((H, W), bool)
-    S = _Surface(cl, ctx, surf, thickness, hiz)
-    if S.empty:
+    if surface_box(surf, thickness) is None:
         return {"layer": layer, "spp": spp, "steps": steps, "planar": done}
-    geo = reconstruct(camera, bg_height)
+    # receivers: the foot below the horizon (as camera.back_project decides)
+    v_centre = np.arange(H, dtype=np.float64)[:, None] + 0.5
+    bgh = np.asarray(bg_height, np.float64)
+    valid = np.isfinite(bgh) & (v_centre + bgh - camera.horizon > 1e-9)
     alpha = float(roughness) ** 2
     if alpha == 0.0 and planar:
-        done = flat_ground(bg_height, geo["valid"])
+        done = flat_ground(bg_height, valid)
         hit = planar_mirror(camera, surf, thickness)
-        view = view_directions(camera)
-        cos_o = np.clip(-view[..., 1], 0.0, 1.0)            # n = +Y
+        got = np.flatnonzero((done & (hit >= 0)).ravel())
+        # n = +Y on flat ground: cos_o = -view_y = (v - horizon) / |view|
+        u = (got % W).astype(np.float64) + 0.5
+        v = (got // W).astype(np.float64) + 0.5
+        f = camera.focal
+        cos_o = (v - camera.horizon) / np.sqrt((u - W / 2.0) ** 2 + (camera.horizon - v) ** 2 + f * f)
         w = (fresnel_schlick(cos_o, f0) if conductor
              else np.repeat(fresnel_dielectric(cos_o, eta)[..., None], 3, -1))
-        got = done & (hit >= 0) & (cos_o > 1e-4)
-        col = cutout.reshape(-1, 4)[np.where(got, hit, 0)]
-        c = np.concatenate([w * col[..., :3], w.mean(-1, keepdims=True) * col[..., 3:]], -1)
-        layer = np.where(got[..., None], strength * c, 0.0).astype(np.float32)
-        spp = np.where(done & (geo["valid"] > 0.5), 1, 0).astype(np.int32)
-        if done.all():
+        col = cutout.reshape(-1, 4)[hit.ravel()[got]]
+        c = np.concatenate([w * col[:, :3], w.mean(-1, keepdims=True) * col[:, 3:]], -1)
+        layer.reshape(-1, 4)[got] = np.where((cos_o > 1e-4)[:, None], strength * c, 0.0)
+        spp = (done & valid).astype(np.int32)
+        if (done | ~valid).all():
             return {"layer": layer, "spp": spp, "steps": steps, "planar": done}
+    geo = reconstruct(camera, bg_height)
+    S = _Surface(cl, ctx, surf, thickness, hiz)
     prg = _program(device)
     mf = cl.mem_flags
     d_out = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 16)
