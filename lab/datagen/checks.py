@@ -80,6 +80,54 @@ def iou(a: np.ndarray, b: np.ndarray, valid: np.ndarray) -> float:
     return float((a & b).sum() / union) if union else 1.0
 
 
+def noise_floor(files) -> list[str]:
+    """Render each sample's soft shadow again with independent light samples and
+    compare: metrics(render2, render1) is what a perfect method would score
+    against this ground truth (two noisy copies; RMSE between them / sqrt(2) is
+    the noise of one)."""
+    from ..metrics import shadow_metrics
+    from .generate import make_sample
+    rows = []
+    for f in files:
+        s = load_sample(f)
+        c = s["meta"]["index"]
+        cfg = s["meta"]
+        arrays, _ = make_sample(cfg["benchmark"], cfg["split"], c, cfg["rng"][0], s["shadow"].shape[0],
+                                int(s["light_samples"]), soft_rng=np.random.default_rng([12345, c]))
+        if not np.array_equal(arrays["hard_shadow"], s["hard_shadow"]):
+            raise RuntimeError(f"{f}: regenerated scene differs from the stored one")
+        valid = ~s["mask"] & s["bg_valid"]
+        rows.append(shadow_metrics(arrays["shadow"], s["shadow"], valid))
+    m = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+    return [f"noise floor over {len(rows)} samples (second render vs stored): RMSE {m['rmse']:.4f} "
+            f"(one render: {m['rmse'] / np.sqrt(2):.4f}), RMSE-s {m['rmse_s']:.4f}, SSIM {m['ssim']:.4f}, "
+            f"ZNCC {m['zncc']:.4f}"]
+
+
+def dataset_summary(metas) -> list[str]:
+    """Lines describing a benchmark from its per-sample metadata: kinds, light
+    ranges, Monte-Carlo noise and generation time."""
+    st = [m["stats"] for m in metas]
+    kinds = collections.Counter(m["scene"]["background"] for m in metas)
+    objs = collections.Counter(m["scene"]["object"].split(":")[0] for m in metas)
+    rel = np.array([m["light"]["relative_radius"] for m in metas])
+    el = np.array([m["light"]["elevation_deg"] for m in metas])
+    wall_frac = np.array([s["shadow_wall_px"] / max(1, s["shadow_px"]) for s in st])
+    return [
+        f"backgrounds {dict(kinds)}; objects {dict(objs)} ({len({m['scene']['object'] for m in metas})} distinct)",
+        f"light radius/distance {rel.min():.3f}..{rel.max():.3f} (median {np.median(rel):.3f}); "
+        f"elevation {el.min():.1f}..{el.max():.1f} deg; lights behind the camera "
+        f"{sum(m['light_uvhs'][3] < 0 for m in metas)}",
+        f"light samples/pixel {sorted({m['light_samples'] for m in metas})}; MC std error in the penumbra: "
+        f"mean {np.mean([s['stderr_mean_penumbra'] for s in st]):.4f}, max pixel {max(s['stderr_max'] for s in st):.4f}",
+        f"shadow pixels (darkness > 0.01) per sample: median {np.median([s['shadow_px'] for s in st]):.0f}; "
+        f"fraction on walls: median {np.median(wall_frac):.2f}",
+        f"time per sample: ray casting {np.mean([s['render_seconds'] for s in st]):.2f} s, total incl. rejected "
+        f"scenes/lights {np.mean([s['total_seconds'] for s in st]):.2f} s; light tries mean "
+        f"{np.mean([s['light_tries'] for s in st]):.1f}, scene tries mean {np.mean([s['scene_tries'] for s in st]):.2f}",
+    ]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m pixgraph_lab.datagen.checks", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -87,6 +135,9 @@ def main(argv=None) -> int:
     ap.add_argument("--limit", type=int, default=0)
     ap.add_argument("--thickness", type=float, nargs="+", default=[1.0])
     ap.add_argument("--no-tracer", action="store_true", help="skip the OpenCL tracer comparison")
+    ap.add_argument("--noise", type=int, default=0,
+                    help="re-render the soft shadow of the first N samples with independent light samples "
+                         "(needs Mitsuba) and report the ground truth's own RMSE/SSIM noise floor")
     a = ap.parse_args(argv)
     files = sample_files(a.data)
     if a.limit:
@@ -110,11 +161,16 @@ def main(argv=None) -> int:
                 ious[(kind, t)].append(iou(ours, ref, valid))
                 ious[("all", t)].append(iou(ours, ref, valid))
     print(f"{len(files)} samples from {a.data}")
+    for line in dataset_summary([load_sample(f)["meta"] for f in files]):
+        print(line)
     print("reconstruction (world units; camera height = 1):")
     for part, es in rec.items():
         print(f"  {part:10s} max {max(e['max'] for e in es):.3e}  mean {np.mean([e['mean'] for e in es]):.3e}"
               f"  rel max {max(e['rel_max'] for e in es):.3e}  rel mean {np.mean([e['rel_mean'] for e in es]):.3e}"
               f"  invalid px {sum(e['invalid'] for e in es)}")
+    if a.noise:
+        for line in noise_floor(files[:a.noise]):
+            print(line)
     if ious:
         print("hard shadow IoU, renderer vs pixel-height tracer (mean / median over samples):")
         print("  | background | thickness [px] | n | mean IoU | median IoU |")

@@ -38,11 +38,14 @@ def sample_rng(seed: int, benchmark: str, split: str, index: int) -> np.random.G
 
 
 def make_sample(benchmark: str, split: str, index: int, seed: int = 0, res: int = 256,
-                light_samples: int = 256, min_shadow_frac: float = 0.002):
+                light_samples: int = 256, min_shadow_frac: float = 0.002, soft_rng=None):
     """Build and ray-cast one sample. Returns ``(arrays, meta)``.
 
     min_shadow_frac: the visible hard shadow (and for ``wall`` its part on walls)
     must cover at least this fraction of the image (0.2 % = 131 px at 256^2).
+    soft_rng: a separate generator for the soft shadow's light samples only (the
+    scene stays the same); used to measure the Monte-Carlo noise by rendering a
+    sample twice (checks.py --noise).
     """
     from .render import SampleRenderer, render
     rng = sample_rng(seed, benchmark, split, index)
@@ -83,7 +86,8 @@ def make_sample(benchmark: str, split: str, index: int, seed: int = 0, res: int 
             if hard.sum() < min_px or (benchmark == "wall" and wall_px < min_px):
                 continue
             albedo = rng.uniform(0.2, 0.9, 3)
-            arrays = render(spec, light, light_samples, rng, renderer=rend, albedo=albedo)
+            arrays = render(spec, light, light_samples, rng if soft_rng is None else soft_rng,
+                            renderer=rend, albedo=albedo)
             shadow, err = arrays["shadow"], arrays["shadow_stderr"].astype(np.float32)
             pen = (shadow > 0.01) & (shadow < 0.99) & ~m
             meta = {
