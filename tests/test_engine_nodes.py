@@ -77,3 +77,32 @@ def test_load_image_colorspace_param(session, tmp_path):
     out = session.run(b.build())
     np.testing.assert_allclose(out["a"], 0.21404, atol=1e-4)  # decoded to linear
     np.testing.assert_allclose(out["b"], 0.5, atol=1e-4)      # file values as they are
+
+
+def test_example_graph_blur_over(tmp_path):
+    """graphs/blur_over.yaml, through the CLI: the cutout over the photo, and its sink."""
+    import pathlib
+    import shutil
+
+    from pixgraph.cli import main
+
+    src = pathlib.Path(__file__).resolve().parents[1] / "graphs"
+    (tmp_path / "assets").mkdir()
+    for f in ("figure.png", "room_ground.jpg"):
+        shutil.copy(src / "assets" / f, tmp_path / "assets" / f)
+    shutil.copy(src / "blur_over.yaml", tmp_path / "g.yaml")
+    (tmp_path / "out").mkdir()
+    assert main(["run", str(tmp_path / "g.yaml"), "--no-disk-cache", "-q", "-o",
+                 f"final={tmp_path / 'final.exr'}"]) == 0
+    assert not (tmp_path / "out" / "blur_over.png").exists()  # -o asks for 'final' only
+    assert main(["run", str(tmp_path / "g.yaml"), "--no-disk-cache", "-q"]) == 0
+    png, alpha = io.read_image(tmp_path / "out" / "blur_over.png")
+    final, _ = io.read_image(tmp_path / "final.exr")
+    photo, _ = io.read_image(tmp_path / "assets" / "room_ground.jpg")
+    cut, cut_alpha = io.read_image(tmp_path / "assets" / "figure.png")
+    assert png.shape[:2] == final.shape[:2] == photo.shape[:2] and np.all(alpha == 1.0)
+    far = cut_alpha == 0  # far from the figure (before blurring) the photo shows through
+    from scipy.ndimage import binary_erosion
+    far = binary_erosion(far, iterations=8)
+    np.testing.assert_allclose(final[far][:, :3], photo[far], atol=1e-5)
+    np.testing.assert_allclose(png[..., :3], final[..., :3], atol=0.01)  # 8-bit sRGB quantisation
