@@ -137,3 +137,19 @@ def test_graph_value_equality_ignores_location(reg):
     b = fileio.loads("pixgraph: 1\nnodes:\n\n\n  s: {type: t.Source}\n", reg, file="b.yaml")
     assert a == b and a.lines != b.lines
     assert isinstance(a, Graph)
+
+
+def test_random_graphs_round_trip_through_text(reg):
+    import random
+
+    from pixgraph.session import Session
+    from test_engine_cache_equivalence import random_edit, random_graph
+
+    rng = random.Random(5)
+    s = Session(registry=reg)
+    for _ in range(100):
+        g = random_graph(rng, s)
+        g = s.graph(g, random_edit(rng, g))
+        text = fileio.dumps(g)
+        back = fileio.loads(text, reg)
+        assert back == g and fileio.dumps(back) == text
