@@ -126,21 +126,24 @@ inline void rt_basis(float3 n, float3 *b1, float3 *b2)
 
 /* ---- closest hit against a pixel-height surface, with a max-height pyramid ---- */
 /* surf: (H, W) heights (pixels) with PH_NO_SURFACE where there is no surface.
- * pyr: levels 1..nlev-1 of the max of surf dilated by one pixel (the minor-axis
- * interpolation of ph_surface_height reads the neighbour pixel) over 2^l x 2^l
- * tiles; lvl[3 l + 0..2] = width, height, offset of level l in pyr.
+ * pyr: levels 1..nlev-1 of the (min, max) of surf dilated by one pixel (the
+ * minor-axis interpolation of ph_surface_height reads the neighbour pixel) over
+ * 2^l x 2^l tiles, two floats per tile ((+1e30, -1e30) when empty);
+ * lvl[3 l + 0..2] = width, height, offset (in tiles) of level l in pyr.
  * Returns the hit pixel index (i W + j) or -1; *last = the last in-image sample
  * pixel visited (or left unchanged); *steps counts loop iterations.
  *
  * Hierarchical skipping (screen-space Hi-Z): at level l the samples of the march
  * that fall in the current 2^l tile are found in closed form (the march is
  * linear); if the ray height at both ends of that run (h is linear, so its
- * minimum is at an end) is above the tile's maximum, every sample in the run is
- * in front of the surface (side -1 or 0): none can hit, and the side after the
- * run is that of its last sample. Then we jump past the run and climb a level;
- * otherwise we descend. The side after a skip is exact, so the result is the
- * same as plain marching (a skip is never tried while the previous side is
- * "behind": the next sample could be a crossing). */
+ * extremes are at the ends) is above the tile's maximum, every sample in the run
+ * is in front of the surface (side -1 or 0); if it is below the tile's minimum by
+ * more than the thickness, every sample is behind it out of reach (side 1 or 0).
+ * Either way none can hit, and the side after the run is that of its last
+ * sample. Then we jump past the run and climb a level; otherwise we descend.
+ * The side after a skip is exact, so the result is the same as plain marching
+ * (a front skip is never tried while the previous side is "behind", nor a
+ * behind skip while it is "in front": the next sample could be a crossing). */
 inline int rt_trace(const ph_march *m, __global const float *surf,
                     __global const float *pyr, __global const int *lvl, int nlev,
                     int W, int H, float thickness, int *last, int *steps)
@@ -153,10 +156,11 @@ inline int rt_trace(const ph_march *m, __global const float *surf,
         float u = ph_sample_u(m, k), v = ph_sample_v(m, k);
         int j = (int)floor(u), i = (int)floor(v);
         int inside = j >= 0 && j < W && i >= 0 && i < H;
-        if (level >= 1 && prev != 1 && inside) {
+        if (level >= 1 && inside) {
             int T = 1 << level;
             int tj = j >> level, ti = i >> level;
-            float tmax = pyr[lvl[3 * level + 2] + ti * lvl[3 * level] + tj];
+            int t = lvl[3 * level + 2] + ti * lvl[3 * level] + tj;
+            float tmin = pyr[2 * t], tmax = pyr[2 * t + 1];
             /* last sample of the run inside this tile, from each axis */
             /* the tile clipped to the image: samples outside it are never skipped */
             float u_lo = (float)(tj * T), u_hi = (float)min(tj * T + T, W);
@@ -174,10 +178,16 @@ inline int rt_trace(const ph_march *m, __global const float *surf,
                     && jj < W && ii < H) break;
                 kend -= 1;
             }
-            if (kend > k && fmin(ph_ray_height(m, k), ph_ray_height(m, kend)) > tmax) {
+            float ha = ph_ray_height(m, k), hb = ph_ray_height(m, kend);
+            /* in front of every surface sample of the run (needs prev != behind:
+             * sample k could be a crossing), or behind all of them beyond the
+             * thickness (needs prev != in front) */
+            int front = prev != 1 && fmin(ha, hb) > tmax;
+            int behind = prev != -1 && fmax(ha, hb) < tmin - fmax(thickness, PH_BEHIND_EPS);
+            if (kend > k && (front || behind)) {
                 int jj = (int)floor(ph_sample_u(m, kend)), ii = (int)floor(ph_sample_v(m, kend));
                 *last = ii * W + jj;
-                prev = surf[ii * W + jj] > PH_NO_SURFACE_TEST ? -1 : 0;
+                prev = surf[ii * W + jj] > PH_NO_SURFACE_TEST ? (front ? -1 : 1) : 0;
                 k = kend + 1;
                 if (level + 1 < nlev) level += 1;
                 continue;

@@ -246,35 +246,40 @@ def ggx_sample_weight(wol, alpha, u1, u2, eta=1.5, conductor=False, f0=(1.0, 1.0
 # ---------------------------------------------------------------------------
 
 def max_pyramid(surf: np.ndarray):
-    """Max-height pyramid of a surface buffer (``march.surface_buffer``).
+    """Min/max-height pyramid of a surface buffer (``march.surface_buffer``).
 
     Level 0 is ``surf`` itself (not stored). Level ``l >= 1`` holds, per 2^l x 2^l
-    tile, the max of ``surf`` dilated by one pixel (the march interpolates the
-    surface between minor-axis neighbours, which may lie in the next tile) —
-    NO_SURFACE for empty tiles. Levels go up to a single tile.
-    Returns ``(pyr, lvl, nlev)``: flat float32 levels, int32 (nlev, 3) rows of
-    (width, height, offset) (row 0 describes level 0, offset unused), and the
-    level count.
+    tile, the (min, max) of ``surf`` dilated by one pixel (the march interpolates
+    the surface between minor-axis neighbours, which may lie in the next tile);
+    (+1e30, -1e30) for empty tiles. Levels go up to a single tile.
+    Returns ``(pyr, lvl, nlev)``: float32 (tiles, 2) levels one after another,
+    int32 (nlev, 3) rows of (width, height, offset in tiles) (row 0 describes
+    level 0, offset unused), and the level count.
     """
     surf = np.asarray(surf, np.float32)
     H, W = surf.shape
-    dil = surf.copy()
-    pad = np.pad(surf, 1, constant_values=march.NO_SURFACE)
+    present = surf > march.NO_SURFACE_TEST
+    hi = surf.copy()
+    lo = np.where(present, surf, -march.NO_SURFACE).astype(np.float32)
+    phi = np.pad(hi, 1, constant_values=march.NO_SURFACE)
+    plo = np.pad(lo, 1, constant_values=-march.NO_SURFACE)
     for di in (0, 1, 2):
         for dj in (0, 1, 2):
-            np.maximum(dil, pad[di:di + H, dj:dj + W], out=dil)
+            np.maximum(hi, phi[di:di + H, dj:dj + W], out=hi)
+            np.minimum(lo, plo[di:di + H, dj:dj + W], out=lo)
     levels = [(W, H, 0)]
     chunks = []
-    cur = dil
     off = 0
-    while max(cur.shape) > 1:
-        h, w = cur.shape
-        p = np.pad(cur, ((0, h % 2), (0, w % 2)), constant_values=march.NO_SURFACE)
-        cur = np.maximum(np.maximum(p[0::2, 0::2], p[0::2, 1::2]), np.maximum(p[1::2, 0::2], p[1::2, 1::2]))
-        levels.append((cur.shape[1], cur.shape[0], off))
-        chunks.append(cur.ravel())
-        off += cur.size
-    pyr = np.concatenate(chunks).astype(np.float32) if chunks else np.zeros(1, np.float32)
+    while max(hi.shape) > 1:
+        h, w = hi.shape
+        ph = np.pad(hi, ((0, h % 2), (0, w % 2)), constant_values=march.NO_SURFACE)
+        pl = np.pad(lo, ((0, h % 2), (0, w % 2)), constant_values=-march.NO_SURFACE)
+        hi = np.maximum(np.maximum(ph[0::2, 0::2], ph[0::2, 1::2]), np.maximum(ph[1::2, 0::2], ph[1::2, 1::2]))
+        lo = np.minimum(np.minimum(pl[0::2, 0::2], pl[0::2, 1::2]), np.minimum(pl[1::2, 0::2], pl[1::2, 1::2]))
+        levels.append((hi.shape[1], hi.shape[0], off))
+        chunks.append(np.stack([lo.ravel(), hi.ravel()], -1))
+        off += hi.size
+    pyr = np.concatenate(chunks).astype(np.float32) if chunks else np.zeros((1, 2), np.float32)
     return pyr, np.asarray(levels, np.int32), len(levels)
 
 
