@@ -289,3 +289,18 @@ def test_low_discrepancy_samples_fill_the_square():
         counts = np.histogram2d(u1, u2, bins=8, range=[[0, 1], [0, 1]])[0]
         assert counts.min() >= 13 and counts.max() <= 19
         assert abs(u1.mean() - 0.5) < 2e-3 and abs(u2.mean() - 0.5) < 2e-3
+
+
+def test_hiz_skips_runs_far_behind_the_surface(device):
+    """A ray passing behind a wide, tall wall (beyond its thickness) skips it in
+    coarse tiles too, and hits a surface it reaches afterwards at the same pixel."""
+    W, H = 1024, 64
+    surf = np.full((H, W), march.NO_SURFACE, np.float32)
+    surf[:, 100:900] = 200.0                     # far above the ray: it passes behind
+    surf[30:34, 1000:1004] = 5.0
+    p0 = np.array([[0.5, 32.5, 4.5]])
+    e = np.array([[1.0, 0.0, 0.0]])
+    plain = R.trace_rays_cl(device, surf, p0, e, [R.UNBOUNDED], 1.0, hiz=False, clip_box=False)
+    hiz = R.trace_rays_cl(device, surf, p0, e, [R.UNBOUNDED], 1.0, hiz=True, clip_box=False)
+    assert plain[0][0] == hiz[0][0] == 32 * W + 1000
+    assert hiz[2][0] < 100 < plain[2][0]
