@@ -275,3 +275,30 @@ def test_tracer_hard_shadow_agrees_with_renderer_on_box(variant, device):
         only_ref.append(int((ref & ~ours & valid).sum()))
         only_ours.append(int((ours & ~ref & valid).sum()))
     assert only_ref == sorted(only_ref, reverse=True) and only_ours == sorted(only_ours)
+
+
+def test_scalar_fallback_gives_the_same_sample(variant, tmp_path):
+    """Without LLVM the generator falls back to scalar_rgb (a Python loop over rays);
+    run it in a subprocess (the variant is process-global) and compare."""
+    import os
+    import subprocess
+    import sys
+    if variant != "llvm_ad_rgb":
+        pytest.skip("this machine has no LLVM variant to compare against")
+    code = ("import numpy as np, sys; from pixgraph_lab.datagen.generate import make_sample; "
+            "from pixgraph_lab.datagen.raycast import select_variant; "
+            "a, m = make_sample('ground', 'test', 0, seed=3, res=24, light_samples=4); "
+            "np.savez(sys.argv[1], variant=select_variant(), **{k: a[k] for k in "
+            "('fg_height', 'bg_height', 'mask', 'hard_shadow', 'shadow')})")
+    out = tmp_path / "scalar.npz"
+    env = dict(os.environ, PIXGRAPH_MITSUBA_VARIANT="scalar_rgb")
+    subprocess.run([sys.executable, "-c", code, str(out)], check=True, env=env, timeout=600)
+    from pixgraph_lab.datagen.generate import make_sample
+    ref, _ = make_sample("ground", "test", 0, seed=3, res=24, light_samples=4)
+    with np.load(out) as z:
+        assert str(z["variant"]) == "scalar_rgb"
+        np.testing.assert_array_equal(z["mask"], ref["mask"])
+        np.testing.assert_allclose(z["fg_height"], ref["fg_height"], atol=1e-3)
+        np.testing.assert_allclose(z["bg_height"], ref["bg_height"], atol=1e-3)
+        assert np.mean(z["hard_shadow"] != ref["hard_shadow"]) < 0.01
+        assert np.mean(np.abs(z["shadow"] - ref["shadow"])) < 0.01
