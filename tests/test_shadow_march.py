@@ -62,9 +62,13 @@ def test_occlusion_rule():
 
 def test_surface_height_interpolates_minor_axis_only_inside_the_surface():
     surf = np.full((4, 4), M.NO_SURFACE, np.float32)
-    surf[1, 2], surf[2, 2] = 5.0, 7.0
+    surf[1, 2], surf[2, 2] = 5.0, 5.5          # feet 6.5 and 8.0: one slanted surface
     # u-major sample at column 2, v = 2.0 (half way between row centres 1.5 and 2.5)
-    assert M.surface_height(surf, 2.5, 2.0, True) == pytest.approx(6.0)
+    assert M.surface_height(surf, 2.5, 2.0, True) == pytest.approx(5.25)
+    # a depth discontinuity (feet 6.5 and 32.5) is not blended: the containing pixel
+    surf[2, 2] = 30.0
+    assert M.surface_height(surf, 2.5, 2.1, True) == pytest.approx(30.0)
+    assert M.surface_height(surf, 2.5, 1.9, True) == pytest.approx(5.0)
     # v = 1.2: pixel row 1 contains it, neighbour row 0 has no surface -> row 1's height
     assert M.surface_height(surf, 2.5, 1.2, True) == pytest.approx(5.0)
     # outside the surface / image

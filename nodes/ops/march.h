@@ -29,6 +29,11 @@
  * extent: the receiver sits on the light's image point. Marches refuse it. */
 #define PH_MIN_IMAGE_LENGTH 1.0e-4f
 
+/* Largest foot difference (pixels) between two neighbouring pixels that
+ * ph_surface_height still blends: upright surfaces have equal feet, slanted
+ * and horizontal ones differ by about 1-2 px per pixel. */
+#define PH_INTERP_JUMP 2.0f
+
 /* A ray point is "behind" a surface only when it is lower than the surface by
  * more than this (pixels). Rays that run along their own surface (coplanar)
  * then count as in front consistently, which avoids self-shadow acne from
@@ -146,7 +151,11 @@ inline float ph_lerp_height(float rh, float lh, float t) { return rh + t * (lh -
  * outside the image or has no surface). Along the minor axis the height is
  * interpolated linearly between the two nearest pixel centres when both carry
  * a surface, so planar surfaces are reproduced exactly (no acne on tilted
- * marches); otherwise the containing pixel's height is used. */
+ * marches); otherwise the containing pixel's height is used. Nor does it
+ * interpolate across a depth discontinuity -- neighbours whose feet (row centre
+ * + height) differ by more than PH_INTERP_JUMP pixels, e.g. the edge of a cutout
+ * in front of another: a blend of the two would be a surface that exists
+ * nowhere (and casts phantom shadows). */
 inline float ph_surface_height(__global const float *surf, int W, int H,
                                float u, float v, int major_u)
 {
@@ -161,6 +170,7 @@ inline float ph_surface_height(__global const float *surf, int W, int H,
         if (i0 < 0 || i0 + 1 >= H) return s;
         float a = surf[i0 * W + j], b = surf[(i0 + 1) * W + j];
         if (a <= PH_NO_SURFACE_TEST || b <= PH_NO_SURFACE_TEST) return s;
+        if (fabs(1.0f + b - a) > PH_INTERP_JUMP) return s;   /* feet (i0+.5)+a, (i0+1.5)+b */
         return a + f * (b - a);
     } else {
         float x = u - 0.5f;
@@ -169,6 +179,7 @@ inline float ph_surface_height(__global const float *surf, int W, int H,
         if (j0 < 0 || j0 + 1 >= W) return s;
         float a = surf[i * W + j0], b = surf[i * W + j0 + 1];
         if (a <= PH_NO_SURFACE_TEST || b <= PH_NO_SURFACE_TEST) return s;
+        if (fabs(b - a) > PH_INTERP_JUMP) return s;          /* same row: feet differ by b - a */
         return a + f * (b - a);
     }
 }
@@ -182,6 +193,17 @@ inline int ph_side(float ray_h, float surf_h)
 {
     if (surf_h <= PH_NO_SURFACE_TEST) return 0;
     return (ray_h < surf_h - PH_BEHIND_EPS) ? 1 : -1;
+}
+
+/* 1 when two consecutive surface samples with feet (v + surf_h, pixels)
+ * foot_prev and foot can belong to one continuous surface: the feet differ by
+ * at most `jump` pixels. A larger jump is a depth discontinuity -- the edge of a
+ * cutout in front of another, or of a part in front of the rest -- and a ray
+ * that changes side there passes through the gap between the two surfaces
+ * rather than crossing one: tracers pass prev_side = 0 to ph_occludes then. */
+inline int ph_continuous(float foot_prev, float foot, float jump)
+{
+    return fabs(foot - foot_prev) <= jump;
 }
 
 /* Occlusion test against a pixel-height surface with thickness (pixels).

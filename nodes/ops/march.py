@@ -27,6 +27,9 @@ NO_SURFACE_TEST = F32(-1.0e29)
 #: Rays whose image direction is shorter than this (pixels) are refused: the
 #: receiver sits on the light's image point.
 MIN_IMAGE_LENGTH = F32(1.0e-4)
+#: Largest foot difference (pixels) between neighbouring pixels that
+#: surface_height still blends (larger: a depth discontinuity).
+INTERP_JUMP = F32(2.0)
 #: A ray point is behind a surface only when lower by more than this (pixels).
 BEHIND_EPS = F32(1.0e-3)
 #: k bound of a ray without a far end (before clipping to a finite box).
@@ -156,7 +159,9 @@ def surface_height(surf: np.ndarray, u, v, major_u) -> np.ndarray:
     containing (u, v) decides presence (NO_SURFACE outside the image or where it
     has none); along the minor axis the height is interpolated linearly between
     the two nearest pixel centres when both have a surface, else the containing
-    pixel's height is used."""
+    pixel's height is used; nor across a depth discontinuity (neighbour feet
+    differing by more than INTERP_JUMP pixels), where a blend would be a surface
+    that exists nowhere."""
     H, W = surf.shape
     u = np.asarray(u, np.float32)
     v = np.asarray(v, np.float32)
@@ -179,11 +184,15 @@ def surface_height(surf: np.ndarray, u, v, major_u) -> np.ndarray:
     a_u = surf[np.clip(i0, 0, H - 1), jc]
     b_u = surf[np.clip(i0 + 1, 0, H - 1), jc]
     oku &= (a_u > NO_SURFACE_TEST) & (b_u > NO_SURFACE_TEST)
+    with np.errstate(invalid="ignore", over="ignore"):
+        oku &= np.abs(F32(1.0) + b_u - a_u) <= INTERP_JUMP
     # v-major: columns j0, j0 + 1 in row i
     okv = (j0 >= 0) & (j0 + 1 < W)
     a_v = surf[ic, np.clip(j0, 0, W - 1)]
     b_v = surf[ic, np.clip(j0 + 1, 0, W - 1)]
     okv &= (a_v > NO_SURFACE_TEST) & (b_v > NO_SURFACE_TEST)
+    with np.errstate(invalid="ignore", over="ignore"):
+        okv &= np.abs(b_v - a_v) <= INTERP_JUMP
     with np.errstate(invalid="ignore", over="ignore"):
         interp_u = (a_u + fy * (b_u - a_u)).astype(np.float32)
         interp_v = (a_v + fx * (b_v - a_v)).astype(np.float32)
@@ -199,6 +208,15 @@ def side(ray_h, surf_h) -> np.ndarray:
     present = surf_h > NO_SURFACE_TEST
     behind = ray_h < surf_h - BEHIND_EPS
     return np.where(present, np.where(behind, 1, -1), 0).astype(np.int8)
+
+
+def continuous(foot_prev, foot, jump) -> np.ndarray:
+    """Mirror of ph_continuous: True where two consecutive surface samples with
+    feet (v + surf_h, pixels) differ by at most ``jump`` pixels (one continuous
+    surface); a larger jump is a depth discontinuity, where a side change is the
+    ray passing through the gap, not a crossing (pass prev_side = 0 then)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        return np.abs(np.asarray(foot, np.float32) - np.asarray(foot_prev, np.float32)) <= np.float32(jump)
 
 
 def occludes(ray_h, surf_h, thickness, side_now, prev_side) -> np.ndarray:

@@ -23,6 +23,11 @@
  */
 #include "march.h"
 
+/* A side flip between consecutive cutout samples counts as a crossing only when
+ * their surface feet differ by at most thickness + PH_FLIP_JUMP pixels
+ * (ph_continuous): 1 px of slack for slanted surfaces and minor-axis steps. */
+#define PH_FLIP_JUMP 1.0f
+
 /* The march from receiver (ru, rv, rh) to light point L. Returns 0 when the ray
  * has no image extent (receiver on the light's image point, or an invalid
  * light): then the receiver is lit -- the only possible occluder would sit on
@@ -44,6 +49,7 @@ typedef struct {
     int W, H, TW, TH, tile;
     float4 rect;
     float h_lo, h_hi, f_lo, f_hi, thickness;
+    float jump; /* largest surface-foot change between samples of one surface */
 } occluder;
 
 /* Trace one shadow ray. Returns 1 when blocked, with *hit_k the first blocking
@@ -56,6 +62,7 @@ inline int shadow_trace(const occluder *o, ph_march *m, int *hit_k, float *hit_s
     if (!ph_march_clip_box(m, o->rect, o->h_lo, o->h_hi)) return 0;
     if (!ph_march_clip_foot(m, o->f_lo, o->f_hi)) return 0;
     int prev = 0;
+    float prev_foot = 0.0f;
     int k = m->k_lo;
     int next_test = k;
     while (k <= m->k_hi) {
@@ -63,12 +70,16 @@ inline int shadow_trace(const occluder *o, ph_march *m, int *hit_k, float *hit_s
                                     m->major_u);
         float rh = ph_ray_height(m, k);
         int sd = ph_side(rh, s);
+        float foot = ph_sample_v(m, k) + s;
+        /* a side change across a depth discontinuity is no crossing */
+        if (prev != 0 && !ph_continuous(prev_foot, foot, o->jump)) prev = 0;
         if (ph_occludes(rh, s, o->thickness, sd, prev)) {
             *hit_k = k;
             *hit_s = s;
             return 1;
         }
         prev = sd;
+        prev_foot = foot;
         if (k == next_test) {
             int e = min(m->k_hi, ph_span_end(m, k, o->tile));
             if (e > k + 1 && ph_span_skippable(o->tiles, o->TW, o->TH, o->tile, m, k, e, o->thickness)) {
@@ -124,7 +135,7 @@ inline int blocked(const occluder *o, float ru, float rv, float rh, float4 L)
 #define OCCLUDER_INIT(o) \
     occluder o; o.surf = surf; o.tiles = tiles; o.W = W; o.H = H; o.TW = TW; o.TH = TH; \
     o.tile = tile; o.rect = rect; o.h_lo = h_lo; o.h_hi = h_hi; o.f_lo = f_lo; o.f_hi = f_hi; \
-    o.thickness = thickness
+    o.thickness = thickness; o.jump = thickness + PH_FLIP_JUMP
 
 /* lit (H, W): 1 lit, 0 shadow. NDRange (W, H). */
 __kernel void hard_shadow(OCCLUDER_ARGS, __global const float *recv, const float4 light,

@@ -61,6 +61,10 @@ from pixgraph.device import load_kernel_source
 from . import march as M
 
 F32 = np.float32
+#: A side flip between consecutive cutout samples counts only when their surface
+#: feet (v + h) differ by at most thickness + FLIP_JUMP pixels (march.h:
+#: ph_continuous); mirrors PH_FLIP_JUMP in shadow.cl.
+FLIP_JUMP = 1.0
 #: Stand-in for "no far end" of a march (s = -1 or 0), in units of t.
 _T_FAR = F32(1.0e30)
 
@@ -186,11 +190,13 @@ def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
         ok &= M.march_clip_box(m, (0, 0, W, H), F32(-1e30), F32(1e30))
     sel = np.flatnonzero(ok)
     prev = np.zeros(sel.size, np.int8)
+    prev_foot = np.zeros(sel.size, np.float32)
+    jump = F32(prep.thickness + FLIP_JUMP)
     n = 0
     while sel.size:
         k = m.k_lo[sel] + n
         live = k <= m.k_hi[sel]
-        sel, prev, k = sel[live], prev[live], k[live]
+        sel, prev, prev_foot, k = sel[live], prev[live], prev_foot[live], k[live]
         if not sel.size:
             break
         kf = k.astype(np.float32)
@@ -199,6 +205,9 @@ def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
         s = M.surface_height(prep.surf, u, v, m.major_u[sel])
         h = (m.h[sel] + kf * m.sh[sel]).astype(np.float32)
         sd = M.side(h, s)
+        foot = (v + s).astype(np.float32)
+        # a side change across a depth discontinuity is no crossing
+        prev = np.where(M.continuous(prev_foot, foot, jump), prev, 0).astype(np.int8)
         occ = M.occludes(h, s, prep.thickness, sd, prev)
         if occ.any():
             b = sel[occ]
@@ -206,7 +215,7 @@ def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
             hit[0, ii[b], jj[b]] = u[occ]
             hit[1, ii[b], jj[b]] = v[occ]
             hit[2, ii[b], jj[b]] = s[occ]
-        sel, prev = sel[~occ], sd[~occ]
+        sel, prev, prev_foot = sel[~occ], sd[~occ], foot[~occ]
         n += 1
     return blocked, hit[0], hit[1], hit[2]
 
