@@ -92,15 +92,46 @@ def _rank(info: DeviceInfo) -> tuple:
             info.platform_index, info.device_index)
 
 
+_PROBE_SOURCE = "__kernel void probe(__global float *a) { a[get_global_id(0)] *= 2.0f; }"
+
+
+def build_problem(info: DeviceInfo) -> str | None:
+    """Why ``info`` cannot build a trivial kernel, or None when it can.
+
+    Seen in practice: the PoCL bundled with pip wheels (LLVM 14) does not know
+    recent CPUs and fails every build with "unknown target CPU 'generic'".
+    """
+    cl = _cl()
+    try:
+        dev = cl.get_platforms()[info.platform_index].get_devices()[info.device_index]
+        cl.Program(cl.Context([dev]), _PROBE_SOURCE).build()
+    except Exception as exc:  # any failure means: do not pick this device by default
+        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+        return next((ln for ln in lines if "error" in ln.lower()), lines[0] if lines else type(exc).__name__)
+    return None
+
+
 def choose(spec: str | None = None) -> DeviceInfo:
-    """Pick a device by spec, ``PIXGRAPH_DEVICE``, or the default order."""
+    """Pick a device by spec, ``PIXGRAPH_DEVICE``, or the default order.
+
+    By default the best-ranked device that can actually build a kernel wins;
+    devices that cannot are skipped (and named if none can). An explicit spec
+    is taken as given.
+    """
     devices = list_devices()
     if not devices:
-        raise DeviceError("no OpenCL device found (install pocl-binary-distribution, "
-                          "and make sure XDG_CACHE_HOME is writable)")
+        raise DeviceError("no OpenCL device found (install pocl-binary-distribution or Debian's "
+                          "pocl-opencl-icd, and make sure XDG_CACHE_HOME is writable)")
     spec = spec if spec is not None else os.environ.get("PIXGRAPH_DEVICE") or None
     if spec is None:
-        return min(devices, key=_rank)
+        problems = []
+        for d in sorted(devices, key=_rank):
+            problem = build_problem(d)
+            if problem is None:
+                return d
+            problems.append(f"{d.describe()}: {problem}")
+        raise DeviceError("no OpenCL device can build kernels (on Debian/Ubuntu: apt-get install "
+                          "pocl-opencl-icd): " + "; ".join(problems))
     if ":" in spec and all(part.isdigit() for part in spec.split(":", 1)):
         pi, di = (int(x) for x in spec.split(":", 1))
         for d in devices:

@@ -13,9 +13,12 @@ def device():
 @pytest.fixture(scope="session", params=["pip", "debian"])
 def each_pocl(request):
     """Each installed PoCL platform in turn (skipped when that one is absent)."""
-    from pixgraph.device import list_devices
+    from pixgraph.device import build_problem, list_devices
     want_debian = request.param == "debian"
     for d in list_devices():
         if d.kind == "CPU" and ("debian" in d.platform_version.lower()) == want_debian:
+            problem = build_problem(d)
+            if problem:
+                pytest.skip(f"the {request.param} PoCL platform cannot build kernels here: {problem}")
             return Device.open(d.spec)
     pytest.skip(f"no {request.param} PoCL platform installed")
