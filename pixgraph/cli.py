@@ -272,16 +272,20 @@ def _cmd_schema(args, registry) -> int:
 
 
 def _cmd_devices(args, registry) -> int:
-    from .device import choose, list_devices
+    from .device import DeviceError, build_problem, choose, list_devices
 
     devices = list_devices()
     if not devices:
         print("no OpenCL device found", file=sys.stderr)
         return EXIT_INTERNAL
-    default = choose().spec
+    try:
+        default = choose().spec
+    except DeviceError:
+        default = None
     for d in devices:
         mark = "*" if d.spec == default else " "
-        print(f"{mark} {d.describe()}")
+        problem = build_problem(d)
+        print(f"{mark} {d.describe()}" + (f"  [cannot build kernels: {problem}]" if problem else ""))
     if not args.quiet:
         print("(* = default; choose with --device SPEC or PIXGRAPH_DEVICE)", file=sys.stderr)
     return EXIT_OK
