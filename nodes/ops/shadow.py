@@ -6,7 +6,12 @@ point, one pixel along the major axis; at each step q on the cutout, the ray's
 height is the linear interpolation of r.h and L.h ((u, v, h) space keeps lines);
 the receiver is in shadow when the ray passes behind the cutout surface by at
 most ``thickness`` pixels, or changes side of the surface between two
-consecutive cutout samples. Each walk is clipped to the cutout's bounding box
+consecutive cutout samples of one continuous surface. Where the surface's foot
+(v + h) jumps by more than ``thickness + FLIP_JUMP`` pixels between the two
+samples -- the outline of a cutout in front of another, or of a part in front
+of the rest -- a side change is the ray passing through the gap, not a
+crossing, and does not count (SSG's rule counts it and draws a phantom wedge
+joining the front cutout to its shadow on the one behind). Each walk is clipped to the cutout's bounding box
 and to the band of heights the cutout spans (march.h), so receivers whose ray
 never meets the cutout cost a few flops.
 
