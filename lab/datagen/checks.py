@@ -80,6 +80,75 @@ def iou(a: np.ndarray, b: np.ndarray, valid: np.ndarray) -> float:
     return float((a & b).sum() / union) if union else 1.0
 
 
+def explain_disagreement(files, device, thickness: float = 1.0) -> list[str]:
+    """Classify the pixels where the renderer's hard shadow and our tracer's differ.
+
+    renderer-only pixels (3D shadow the tracer misses): the shadow ray from the
+    receiver to the light's centre is followed through every object surface it
+    crosses; when none of those crossing points is visible from the camera (no
+    pixel shows that point at that depth, within 2 % in a 3x3 neighbourhood) the
+    occluder is **hidden** (back faces, parts behind other parts) — information
+    pixel height cannot have. Otherwise the pixel is a *seen-occluder* miss
+    (thickness too small, discretisation of the march, silhouette pixels).
+    tracer-only pixels are shadow the 3D object does not cast: the ray passes
+    behind the visible surface where the real object is thinner than the
+    ``thickness`` band (or at the silhouette). Needs Mitsuba (re-casts the scene).
+    """
+    from .generate import make_sample
+    tot = collections.Counter()
+    for f in files:
+        s = load_sample(f)
+        m = s["meta"]
+        arrays, _, rend, light = make_sample(m["benchmark"], m["split"], m["index"], m["rng"][0],
+                                             s["shadow"].shape[0], 1, return_scene=True)
+        if not np.array_equal(arrays["hard_shadow"], s["hard_shadow"]):
+            raise RuntimeError(f"{f}: regenerated scene differs from the stored one")
+        cam = s["camera"]
+        valid = ~s["mask"] & s["bg_valid"]
+        ref = s["hard_shadow"] > 0
+        ours = tracer_hard_darkness(device, s, thickness) > 0.5
+        ref_only = np.nonzero((ref & ~ours & valid).ravel())[0]
+        tot["ref_px"] += int((ref & valid).sum())
+        tot["both"] += int((ref & ours & valid).sum())
+        tot["tracer_only"] += int((ours & ~ref & valid).sum())
+        tot["renderer_only"] += len(ref_only)
+        if not len(ref_only):
+            continue
+        pr = rend.primary()
+        P = pr["bg_points"][ref_only] + pr["bg_normals"][ref_only] * 1e-4
+        w = light.center - P
+        dist = np.linalg.norm(w, axis=1)
+        w /= dist[:, None]
+        seen = np.zeros(len(P), bool)
+        o, left = P.copy(), dist.copy()
+        H, W = cam.height, cam.width
+        for _ in range(12):                      # walk through successive surface crossings
+            t, X, _ = rend.obj.intersect(o, w, left)
+            hit = np.isfinite(t) & (t < left)
+            if not hit.any():
+                break
+            uvh, D = cam.project(X[hit])
+            iu, iv = np.floor(uvh[:, 0]).astype(int), np.floor(uvh[:, 1]).astype(int)
+            vis = np.zeros(hit.sum(), bool)
+            for dv in (-1, 0, 1):
+                for du in (-1, 0, 1):
+                    u2, v2 = iu + du, iv + dv
+                    ok = (u2 >= 0) & (u2 < W) & (v2 >= 0) & (v2 < H)
+                    u2, v2 = np.clip(u2, 0, W - 1), np.clip(v2, 0, H - 1)
+                    vis |= ok & s["mask"][v2, u2] & (np.abs(s["fg_depth"][v2, u2] - D) < 0.02 * D)
+            idx = np.nonzero(hit)[0]
+            seen[idx[vis]] = True
+            o[hit] = X[hit] + w[hit] * 1e-4
+            left = np.where(hit, left - t - 1e-4, 0.0)
+        tot["renderer_only_hidden"] += int((~seen).sum())
+        tot["renderer_only_seen"] += int(seen.sum())
+    ro = max(1, tot["renderer_only"])
+    return [f"hard-shadow disagreement over {len(files)} samples, thickness {thickness:g} px: "
+            f"{tot['ref_px']} renderer shadow px, {tot['both']} shared; renderer-only {tot['renderer_only']} "
+            f"({tot['renderer_only_hidden'] / ro:.0%} with the occluder hidden from the camera, "
+            f"{tot['renderer_only_seen'] / ro:.0%} seen); tracer-only {tot['tracer_only']}"]
+
+
 def noise_floor(files) -> list[str]:
     """Render each sample's soft shadow again with independent light samples and
     compare: metrics(render2, render1) is what a perfect method would score
@@ -135,6 +204,8 @@ def main(argv=None) -> int:
     ap.add_argument("--limit", type=int, default=0)
     ap.add_argument("--thickness", type=float, nargs="+", default=[1.0])
     ap.add_argument("--no-tracer", action="store_true", help="skip the OpenCL tracer comparison")
+    ap.add_argument("--explain", type=int, default=0,
+                    help="classify renderer/tracer hard-shadow differences on the first N samples (needs Mitsuba)")
     ap.add_argument("--noise", type=int, default=0,
                     help="re-render the soft shadow of the first N samples with independent light samples "
                          "(needs Mitsuba) and report the ground truth's own RMSE/SSIM noise floor")
@@ -168,6 +239,10 @@ def main(argv=None) -> int:
         print(f"  {part:10s} max {max(e['max'] for e in es):.3e}  mean {np.mean([e['mean'] for e in es]):.3e}"
               f"  rel max {max(e['rel_max'] for e in es):.3e}  rel mean {np.mean([e['rel_mean'] for e in es]):.3e}"
               f"  invalid px {sum(e['invalid'] for e in es)}")
+    if a.explain:
+        for t in a.thickness:
+            for line in explain_disagreement(files[:a.explain], device, t):
+                print(line)
     if a.noise:
         for line in noise_floor(files[:a.noise]):
             print(line)

@@ -38,7 +38,8 @@ def sample_rng(seed: int, benchmark: str, split: str, index: int) -> np.random.G
 
 
 def make_sample(benchmark: str, split: str, index: int, seed: int = 0, res: int = 256,
-                light_samples: int = 256, min_shadow_frac: float = 0.002, soft_rng=None):
+                light_samples: int = 256, min_shadow_frac: float = 0.002, soft_rng=None,
+                return_scene: bool = False):
     """Build and ray-cast one sample. Returns ``(arrays, meta)``.
 
     min_shadow_frac: the visible hard shadow (and for ``wall`` its part on walls)
@@ -46,6 +47,8 @@ def make_sample(benchmark: str, split: str, index: int, seed: int = 0, res: int 
     soft_rng: a separate generator for the soft shadow's light samples only (the
     scene stays the same); used to measure the Monte-Carlo noise by rendering a
     sample twice (checks.py --noise).
+    return_scene: also return the ``SampleRenderer`` and ``DiskLight`` (for checks
+    that cast more rays into the same scene).
     """
     from .render import SampleRenderer, render
     rng = sample_rng(seed, benchmark, split, index)
@@ -106,6 +109,8 @@ def make_sample(benchmark: str, split: str, index: int, seed: int = 0, res: int 
                           "render_seconds": float(arrays["render_seconds"]),
                           "total_seconds": float(time.perf_counter() - t0)},
             }
+            if return_scene:
+                return arrays, meta, rend, light
             return arrays, meta
         # no light worked for this scene: draw a new scene
 
