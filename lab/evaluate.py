@@ -206,6 +206,11 @@ def speed_accuracy_chart(summary, path: str, title: str) -> None:
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6, 4))
     for r in summary:
+        if r["method"] == "renderer_hard":     # read from file: no meaningful time, draw a level
+            ax.axhline(r["rmse"], color="gray", ls="--", lw=1)
+            ax.annotate("renderer hard shadow", (0.01, r["rmse"]), xycoords=("axes fraction", "data"),
+                        textcoords="offset points", xytext=(0, 3), fontsize=8, color="gray")
+            continue
         base = r["method"] in BASELINES
         ax.scatter(max(r["ms"], 1e-3), r["rmse"], marker="o" if base else "*", s=40 if base else 120)
         ax.annotate(r["method"], (max(r["ms"], 1e-3), r["rmse"]), textcoords="offset points", xytext=(4, 4),
