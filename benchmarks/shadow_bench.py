@@ -13,6 +13,9 @@ median of ``--runs`` runs after two warm-up runs:
           (ShadowScene: inputs uploaded once, output buffer reused), no read-back;
   e2e     the public function call from numpy arrays to numpy arrays (host
           preparation, uploads, launch, read-back).
+Each with the CPU time the process used meanwhile (all threads): on a machine
+shared with other work the wall time grows, the CPU time much less; with the
+device's cores free, kernel wall time is about CPU time / cores.
 It also prints the machine, the device, and the load average before and after
 (other processes share the CPU; timings on a loaded machine are pessimistic).
 """
@@ -21,6 +24,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import resource
 import statistics
 import subprocess
 import sys
@@ -77,15 +81,24 @@ def extremes(center, radius):
                     np.float32)
 
 
+def _cpu_s():
+    """CPU time of this process (all threads, PoCL's workers included), seconds."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
 def median_ms(fn, runs):
+    """(median wall ms, median CPU ms) of `runs` calls after two warm-up calls."""
     for _ in range(2):
         fn()
-    ts = []
+    ts, cs = [], []
     for _ in range(runs):
+        c = _cpu_s()
         t = time.perf_counter()
         fn()
         ts.append(time.perf_counter() - t)
-    return 1e3 * statistics.median(ts)
+        cs.append(_cpu_s() - c)
+    return 1e3 * statistics.median(ts), 1e3 * statistics.median(cs)
 
 
 def machine() -> str:
@@ -153,9 +166,9 @@ def main(argv=None):
             print(f"  cannot build the kernels: {str(e).strip().splitlines()[-3:]}")
             continue
         rows = bench_device(dev, runs, args.quick)
-        print(f"  {'case':38s} {'kernel ms':>10s} {'e2e ms':>10s}  goal")
+        print(f"  {'case':38s} {'kernel ms':>10s} {'(cpu ms)':>9s} {'e2e ms':>10s} {'(cpu ms)':>9s}  goal")
         for name, k, e, goal in rows:
-            print(f"  {name:38s} {k:10.2f} {e:10.2f}  {goal}")
+            print(f"  {name:38s} {k[0]:10.2f} {k[1]:9.1f} {e[0]:10.2f} {e[1]:9.1f}  {goal}")
     print(f"\nload average after: {os.getloadavg()}")
     return 0
 

@@ -59,6 +59,20 @@ typedef struct {
  * the numpy reference. */
 inline int shadow_trace(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
 {
+    /* Fast path for receivers on the cutout that shade themselves (back-lit
+     * parts): the first sample, by the thickness rule alone, before any
+     * clipping. It is also the first sample of the full march (prev_side 0),
+     * so a hit here is the march's first hit. */
+    if (m->k_hi >= 1) {
+        float s1 = ph_surface_height(o->surf, o->W, o->H, ph_sample_u(m, 1), ph_sample_v(m, 1),
+                                     m->major_u);
+        float r1 = ph_ray_height(m, 1);
+        if (ph_occludes(r1, s1, o->thickness, ph_side(r1, s1), 0)) {
+            *hit_k = 1;
+            *hit_s = s1;
+            return 1;
+        }
+    }
     if (!ph_march_clip_box(m, o->rect, o->h_lo, o->h_hi)) return 0;
     if (!ph_march_clip_foot(m, o->f_lo, o->f_hi)) return 0;
     int prev = 0;
