@@ -45,9 +45,13 @@ inline float rt_rand(uint seed, uint pix, uint sample, uint dim)
  * additive recurrence by the plastic number) shifted by a per-pixel random
  * offset (Cranley-Patterson rotation), so each pixel's estimate stays unbiased
  * and independent of its neighbours while its samples fill the square evenly. */
-inline float2 rt_sample2(uint seed, uint pix, uint n)
+inline float2 rt_sample2_offset(uint seed, uint pix)
 {
-    float2 off = (float2)(rt_rand(seed, pix, 0u, 0u), rt_rand(seed, pix, 0u, 1u));
+    return (float2)(rt_rand(seed, pix, 0u, 0u), rt_rand(seed, pix, 0u, 1u));
+}
+
+inline float2 rt_sample2(float2 off, uint n)
+{
     /* n * alpha mod 1 in 32-bit fixed point: exact, no float drift for large n */
     uint a1 = n * 3242174889u, a2 = n * 2447445413u;
     float2 r = (float2)((float)(a1 >> 8), (float)(a2 >> 8)) * (1.0f / 16777216.0f) + off;
@@ -274,12 +278,13 @@ __kernel void rt_reflect(int W, int H, int y0, float f, float horizon,
         float3 wol = (float3)(dot(wo, b1), dot(wo, b2), cos_o);
         float3 p0 = (float3)((float)x + 0.5f, (float)y + 0.5f, bg_h[idx]);
         float4 s1 = (float4)(0.0f), s2 = (float4)(0.0f);
-        float g1 = 1.0f / (1.0f + rt_smith_lambda(cos_o, alpha));
+        float lambda_o = rt_smith_lambda(cos_o, alpha);
+        float2 off = rt_sample2_offset(seed, (uint)idx);
         int nmax = alpha > 0.0f ? max_spp : 1;
         while (n < nmax) {
             float3 ml = (float3)(0.0f, 0.0f, 1.0f);
             if (alpha > 0.0f) {
-                float2 xi = rt_sample2(seed, (uint)idx, (uint)n);
+                float2 xi = rt_sample2(off, (uint)n);
                 ml = rt_sample_vndf(wol, alpha, xi.x, xi.y);
             }
             float cm = dot(wol, ml);
@@ -289,14 +294,15 @@ __kernel void rt_reflect(int W, int H, int y0, float f, float horizon,
                 float3 w3 = conductor ? rt_fresnel_schlick(cm, f0)
                                       : (float3)(rt_fresnel_dielectric(cm, eta));
                 if (alpha > 0.0f)
-                    w3 *= (1.0f + rt_smith_lambda(cos_o, alpha))
-                          / (1.0f + rt_smith_lambda(cos_o, alpha) + rt_smith_lambda(wil.z, alpha));
+                    w3 *= (1.0f + lambda_o) / (1.0f + lambda_o + rt_smith_lambda(wil.z, alpha));
                 float3 wi = wil.x * b1 + wil.y * b2 + wil.z * nn;
                 float s_max;
                 float3 e = rt_uvh_direction(p0, wi, (float)W, horizon, f, &s_max);
                 ph_march m;
                 int lst = -1;
-                if (rt_setup(p0, e, s_max, W, H, box, h_lo, h_hi, &m)) {
+                /* the cutout's box lies inside the image: clipping to it alone is enough */
+                if (ph_march_setup(p0.x, p0.y, p0.z, e.x, e.y, e.z, s_max, &m)
+                    && ph_march_clip_box(&m, box, h_lo, h_hi)) {
                     int hit = rt_trace(&m, surf, pyr, lvl, nlev, W, H, thickness, &lst, &steps);
                     if (hit >= 0) {
                         float4 col = cutout[hit];
@@ -315,7 +321,6 @@ __kernel void rt_reflect(int W, int H, int y0, float f, float horizon,
                 if (v <= target_se * target_se * (float)n) break;
             }
         }
-        (void)g1;
         mean = s1 / (float)max(n, 1);
     }
     out[idx] = mean;
