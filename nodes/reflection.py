@@ -52,7 +52,7 @@ class Reflection:
         layer: T.Image = port(doc="reflection, premultiplied linear RGBA")
         stats: T.Buffers = port(doc="per pixel: spp (samples used), steps (march iterations)")
 
-    impl_version = "1"
+    impl_version = "2"   # 2: low-discrepancy (R2) samples
 
     def compute(self, ctx, inputs, params):
         r = reflection_cl(ctx.device, inputs.camera, inputs.cutout, inputs.fg_height, inputs.bg_height,

@@ -11,7 +11,9 @@ from .ops.composite import apply_shadow, over
 
 @node("pixgraph.ReflectionComposite", version=1)
 class ReflectionComposite:
-    """Layer the effects in linear light, in the order light reaches the eye:
+    """Background, shadow, reflection, cutout and refraction layered in linear light.
+
+    Layers the effects in the order light reaches the eye:
     the background darkened by the shadow (``bg (1 - opacity darkness (1 - tint))``),
     the reflection layer over it (premultiplied *over*: the floor's own reflection of
     what the cutout now hides is replaced), then the cutout, and the refraction layer

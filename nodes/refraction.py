@@ -9,16 +9,17 @@ from .ops.reflection import refraction_cl
 
 @node("pixgraph.Refraction", version=1)
 class Refraction:
-    """Refract each view ray at the front surface of a transparent cutout (a glass
-    ball, a bottle) by Snell's law, with normals reconstructed from its pixel height,
+    """The background seen through a transparent cutout (glass ball, bottle), traced in pixel-height space.
+
+    Refracts each view ray at the front surface of the object by Snell's law, with normals reconstructed from its pixel height,
     and trace it in pixel-height space to the background surface (ground, walls),
     whose colour it takes. Total internal reflection (possible for ``eta < 1``, e.g.
     an air bubble) reflects instead. With ``fresnel`` the front-surface reflection is
     added with the exact dielectric Fresnel weight. A single pixel-height map has no
     back surface: ``local_sphere`` takes it from the sphere of the front surface's
     local curvature (exact for a ball, an approximation for other solids), ``none``
-    keeps one interface. Output: a
-    premultiplied layer covering the object, to put over the background.
+    keeps one interface. Output: a premultiplied layer covering the object, to put
+    over the background.
     """
 
     class Inputs:
