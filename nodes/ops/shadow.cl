@@ -73,8 +73,9 @@ inline int shadow_trace(const occluder *o, ph_march *m, int *hit_k, float *hit_s
             return 1;
         }
     }
-    if (!ph_march_clip_box(m, o->rect, o->h_lo, o->h_hi)) return 0;
+    /* the foot band first: one slab, and the most selective for upright cutouts */
     if (!ph_march_clip_foot(m, o->f_lo, o->f_hi)) return 0;
+    if (!ph_march_clip_box(m, o->rect, o->h_lo, o->h_hi)) return 0;
     int prev = 0;
     float prev_foot = 0.0f;
     int k = m->k_lo;
