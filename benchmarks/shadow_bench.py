@@ -38,8 +38,9 @@ from pixgraph_nodes.ops import shadow as S
 
 
 def figure_scene(n: int):
-    """Mask, cutout and background pixel heights (pixels) of the benchmark scene."""
-    s = n / 256.0
+    """Mask, cutout and background pixel heights (pixels) of the benchmark scene:
+    the figure's bounding box covers about a quarter of the image."""
+    s = 1.3 * n / 256.0
     i = np.arange(n, dtype=np.float64)[:, None] + 0.5
     j = np.arange(n, dtype=np.float64)[None, :] + 0.5
     cu, foot = 0.5 * n, 0.88 * n
@@ -130,8 +131,8 @@ def bench_device(dev: Device, runs: int, quick: bool):
             if quick and count == 256:
                 continue
             samples = disk_samples(light_for(n), 0.05 * n, count)
-            sbuf = scene.samples_buffer(samples)
-            k = median_ms(lambda: scene.launch_soft(sbuf, count, samples)[0].wait(), runs)
+            inputs = scene.soft_inputs(samples)
+            k = median_ms(lambda: scene.launch_soft(inputs)[0].wait(), runs)
             e = median_ms(lambda: S.soft_shadow(dev, mask, fg, bg, samples), runs)
             rows.append((f"soft shadow {n}x{n}, {count} samples", k, e,
                          "<= 300 ms" if (n, count) == (512, 64) else ""))
@@ -165,6 +166,10 @@ def main(argv=None):
         except Exception as e:  # a platform that cannot compile here: report, go on
             print(f"  cannot build the kernels: {str(e).strip().splitlines()[-3:]}")
             continue
+        mask = figure_scene(256)[0]
+        rr, cc = np.nonzero(mask)
+        print(f"  scene: cutout {mask.mean():.1%} of the image, its bounding box "
+              f"{(np.ptp(rr) + 1) * (np.ptp(cc) + 1) / mask.size:.1%}")
         rows = bench_device(dev, runs, args.quick)
         print(f"  {'case':38s} {'kernel ms':>10s} {'(cpu ms)':>9s} {'e2e ms':>10s} {'(cpu ms)':>9s}  goal")
         for name, k, e, goal in rows:

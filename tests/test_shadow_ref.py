@@ -80,8 +80,10 @@ def test_on_each_pocl_platform(each_pocl):
 def test_soft_shadow_matches_reference(device):
     _, mask, fg, bg, light = CASES[3]
     rng = np.random.default_rng(1)
-    samples = np.concatenate([sc.jitter_samples(light, 8.0, 12, rng),
-                              sc.jitter_samples(CASES[5][4], 8.0, 4, rng)])  # mixed s = +1 / -1
+    # mixed s = +1 / -1 / 0, and 19 samples: not a multiple of the kernel's 8 lanes
+    samples = np.concatenate([sc.jitter_samples(light, 8.0, 13, rng),
+                              sc.jitter_samples(CASES[5][4], 8.0, 5, rng),
+                              [CASES[9][4]]]).astype(np.float32)
     ref = S.soft_shadow_ref(mask, fg, bg, samples)
     out = S.soft_shadow(built(device), mask, fg, bg, samples)
     assert out.min() >= 0.0 and out.max() <= 1.0

@@ -52,6 +52,8 @@ typedef struct {
     float jump; /* largest surface-foot change between samples of one surface */
 } occluder;
 
+inline int march_loop(const occluder *o, ph_march *m, int *hit_k, float *hit_s);
+
 /* Trace one shadow ray. Returns 1 when blocked, with *hit_k the first blocking
  * sample (nearest the receiver) and *hit_s the cutout height there (pixels).
  * Runs of samples that provably cannot occlude are skipped a tile span at a
@@ -76,6 +78,12 @@ inline int shadow_trace(const occluder *o, ph_march *m, int *hit_k, float *hit_s
     /* the foot band first: one slab, and the most selective for upright cutouts */
     if (!ph_march_clip_foot(m, o->f_lo, o->f_hi)) return 0;
     if (!ph_march_clip_box(m, o->rect, o->h_lo, o->h_hi)) return 0;
+    return march_loop(o, m, hit_k, hit_s);
+}
+
+/* The sample loop of shadow_trace over m's (clipped) range k_lo .. k_hi. */
+inline int march_loop(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
+{
     int prev = 0;
     float prev_foot = 0.0f;
     int k = m->k_lo;
@@ -166,11 +174,101 @@ __kernel void hard_shadow(OCCLUDER_ARGS, __global const float *recv, const float
     lit[i * W + j] = out;
 }
 
-/* lit fraction (H, W) in [0, 1]: the mean of the hard shadows of n light
- * samples, all in one launch. NDRange (W, H). */
+/* ---- soft shadow, 8 samples at a time -------------------------------------
+ * The lit fraction (H, W) in [0, 1]: the mean of the hard shadows of n light
+ * samples, all in one launch. The set-up and clipping of 8 sample rays run as
+ * float8 arithmetic (the same operations as ph_march_setup, ph_march_clip_foot
+ * and ph_march_clip_box, lane by lane), then each ray that survives marches
+ * alone (march_loop). About 20% less CPU than one sample at a time on PoCL.
+ * Exact IEEE division matters here: -cl-fast-relaxed-math turns the vector
+ * 1/x into an approximation (1/1 = 0.99999994), which moves ties. Samples come as structure of arrays
+ * soa[0..3][n8] = u, v, h, s, padded to n8 = 8 * ceil(n / 8) with (0, 0, 0, 0)
+ * (a march every set-up refuses). */
+
+/* Vector Liang-Barsky slab, the semantics of ph_clip_slab per lane; ok: -1 true. */
+inline void vclip_slab(float8 o, float8 d, float lo, float hi, float8 *t0, float8 *t1, int8 *ok)
+{
+    int8 zero = d == (float8)(0.0f);
+    float8 inv = (float8)(1.0f) / select(d, (float8)(1.0f), zero);
+    float8 ta = ((float8)(lo) - o) * inv, tb = ((float8)(hi) - o) * inv;
+    float8 a = fmin(ta, tb), b = fmax(ta, tb);
+    int8 inside = (o >= (float8)(lo)) & (o <= (float8)(hi));
+    *t0 = select(fmax(*t0, a), *t0, zero);
+    *t1 = select(fmin(*t1, b), *t1, zero);
+    *ok &= select((int8)(-1), inside, zero) & (*t0 <= *t1);
+}
+
+/* Integer sample range with one margin sample each side (as ph_march_clip_*). */
+inline void vrange(float8 t0, float8 t1, int8 ok, int8 *k_lo, int8 *k_hi)
+{
+    int8 a = convert_int8(ceil(select((float8)(0.0f), t0, ok))) - 1;
+    int8 b = convert_int8(floor(select((float8)(0.0f), t1, ok))) + 1;
+    *k_lo = select(*k_lo, max(*k_lo, a), ok);
+    *k_hi = select(*k_lo - 1, min(*k_hi, b), ok);
+}
+
+/* Number of the 8 sample rays (lanes) from receiver r that the cutout blocks. */
+inline int blocked_x8(const occluder *o, float ru, float rv, float rh,
+                      float8 lu, float8 lv, float8 lh, float8 ls)
+{
+    int8 front = ls > (float8)(0.5f), back = ls < (float8)(-0.5f);
+    float8 Ru = (float8)(ru), Rv = (float8)(rv), Rh = (float8)(rh);
+    /* light_march */
+    float8 du = select(select(lu, Ru - lu, back), lu - Ru, front);
+    float8 dv = select(select(lv, Rv - lv, back), lv - Rv, front);
+    float8 dh = select(select(lh, Rh - lh, back), lh - Rh, front);
+    float8 t_max = select((float8)(1.0e30f), (float8)(1.0f), front);
+    /* per-sample segment rejection (s = +1), as ph_segments_may_hit */
+    float8 lf = lv + lh;
+    float rf = rv + rh;
+    int8 may = (fmin(Ru, lu) <= (float8)(o->rect.z)) & (fmax(Ru, lu) >= (float8)(o->rect.x))
+             & (fmin(Rv, lv) <= (float8)(o->rect.w)) & (fmax(Rv, lv) >= (float8)(o->rect.y))
+             & (fmin(Rh, lh) <= (float8)(o->h_hi)) & (fmax(Rh, lh) >= (float8)(o->h_lo))
+             & (fmin((float8)(rf), lf) <= (float8)(o->f_hi)) & (fmax((float8)(rf), lf) >= (float8)(o->f_lo));
+    int8 ok = ~front | may;
+    /* ph_march_setup */
+    float8 adu = fabs(du), adv = fabs(dv);
+    float8 major = fmax(adu, adv);
+    ok &= major >= (float8)(PH_MIN_IMAGE_LENGTH);
+    float8 inv = (float8)(1.0f) / select((float8)(1.0f), major, ok);
+    float8 su = du * inv, sv = dv * inv, sh = dh * inv;
+    float8 kmax = t_max * major;
+    int8 big = kmax >= (float8)((float)PH_K_UNBOUNDED);
+    int8 k_hi = select(convert_int8(floor(select(kmax, (float8)(0.0f), big))), (int8)(PH_K_UNBOUNDED), big);
+    int8 k_lo = (int8)(1);
+    ok &= k_hi >= k_lo;
+    /* ph_march_clip_foot */
+    float8 t0 = convert_float8(k_lo - 1), t1 = convert_float8(k_hi + 1);
+    vclip_slab((float8)(rf), sv + sh, o->f_lo, o->f_hi, &t0, &t1, &ok);
+    vrange(t0, t1, ok, &k_lo, &k_hi);
+    ok &= k_lo <= k_hi;
+    /* ph_march_clip_box: rect and height band, one margin */
+    t0 = convert_float8(k_lo - 1);
+    t1 = convert_float8(k_hi + 1);
+    vclip_slab(Ru, su, o->rect.x, o->rect.z, &t0, &t1, &ok);
+    vclip_slab(Rv, sv, o->rect.y, o->rect.w, &t0, &t1, &ok);
+    vclip_slab(Rh, sh, o->h_lo, o->h_hi, &t0, &t1, &ok);
+    vrange(t0, t1, ok, &k_lo, &k_hi);
+    ok &= k_lo <= k_hi;
+    int8 major_u = adu >= adv;
+    int nb = 0;
+    for (int q = 0; q < 8; ++q) {
+        if (!((int *)&ok)[q]) continue;
+        ph_march m;
+        m.u = ru; m.v = rv; m.h = rh;
+        m.su = ((float *)&su)[q]; m.sv = ((float *)&sv)[q]; m.sh = ((float *)&sh)[q];
+        m.k_lo = ((int *)&k_lo)[q]; m.k_hi = ((int *)&k_hi)[q];
+        m.major_u = ((int *)&major_u)[q] != 0;
+        int k; float s;
+        nb += march_loop(o, &m, &k, &s);
+    }
+    return nb;
+}
+
+/* Soft shadow, samples 8 at a time (see above). NDRange (W, H). */
 __kernel void soft_shadow(OCCLUDER_ARGS, __global const float *recv,
-                          __global const float4 *lights, const int n, const int all_front,
-                          const float8 light_bounds, __global float *lit)
+                             __global const float *soa, const int n, const int n8,
+                             const int all_front, const float8 light_bounds, __global float *lit)
 {
     int j = get_global_id(0), i = get_global_id(1);
     if (j >= W || i >= H) return;
@@ -178,12 +276,11 @@ __kernel void soft_shadow(OCCLUDER_ARGS, __global const float *recv,
     float rh = recv[i * W + j];
     if (!(rh > PH_NO_SURFACE_TEST) || n <= 0) { lit[i * W + j] = 1.0f; return; }
     float ru = (float)j + 0.5f, rv = (float)i + 0.5f;
-    /* all samples s = +1 (all_front): one test rejects every sample at once for
-     * receivers whose segments to the light's bounds miss the cutout's box */
     if (all_front && !may_hit(&o, ru, rv, rh, light_bounds)) { lit[i * W + j] = 1.0f; return; }
     int nb = 0;
-    for (int l = 0; l < n; ++l)
-        nb += blocked(&o, ru, rv, rh, lights[l]);
+    for (int g = 0; g < n8 / 8; ++g)
+        nb += blocked_x8(&o, ru, rv, rh, vload8(g, soa), vload8(g, soa + n8), vload8(g, soa + 2 * n8),
+                         vload8(g, soa + 3 * n8));
     lit[i * W + j] = 1.0f - (float)nb / (float)n;
 }
 
