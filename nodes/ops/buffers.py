@@ -128,5 +128,5 @@ def channels_on(scene: "S.ShadowScene", light_center, light_extremes) -> dict[st
     lights = _lights(light_center, light_extremes)
     ev, out = launch_channels(scene, scene.samples_buffer(lights))
     scene.last_event = ev
-    host = scene._read(out, (len(CHANNELS), scene.prep.H, scene.prep.W))
+    host = scene._read(out, (len(CHANNELS), scene.prep.H, scene.prep.W), ev)
     return {name: host[c] for c, name in enumerate(CHANNELS)}

@@ -296,7 +296,9 @@ class ShadowScene:
 
     The module functions :func:`hard_shadow`, :func:`soft_shadow` and
     ``buffers.buffer_channels`` build one per call; keep one yourself to trace
-    many lights (interactive light dragging) or for benchmarks.
+    many lights (interactive light dragging) or for benchmarks. One scene
+    reuses its output buffers between launches: use it from one thread at a
+    time (the module functions are safe to call from several threads).
     """
 
     def __init__(self, device, mask, fg_height, bg_height, thickness=1.0):
@@ -383,10 +385,12 @@ class ShadowScene:
         out = self.out_buffer("soft", p.H * p.W * 4)
         return self.launch("soft_shadow", self.recv, *inputs, out), out
 
-    def _read(self, buf, shape):
+    def _read(self, buf, shape, after=None):
+        """Blocking read of a device buffer, after event `after` (so an
+        out-of-order queue a host hands in is safe too)."""
         cl = _cl()
         host = np.empty(shape, np.float32)
-        cl.enqueue_copy(self.device.queue, host, buf)
+        cl.enqueue_copy(self.device.queue, host, buf, wait_for=[after] if after is not None else None)
         return host
 
     def samples_buffer(self, samples: np.ndarray):
@@ -400,7 +404,7 @@ class ShadowScene:
             return np.ones((p.H, p.W), np.float32)
         ev, out = self.launch_hard(light)
         self.last_event = ev
-        return self._read(out, (p.H, p.W))
+        return self._read(out, (p.H, p.W), ev)
 
     def soft_shadow(self, light_samples) -> np.ndarray:
         p = self.prep
@@ -409,7 +413,7 @@ class ShadowScene:
             return np.ones((p.H, p.W), np.float32)
         ev, out = self.launch_soft(self.soft_inputs(samples))
         self.last_event = ev
-        return self._read(out, (p.H, p.W))
+        return self._read(out, (p.H, p.W), ev)
 
 
 def hard_shadow(device, mask, fg_height, bg_height, light, thickness=1.0) -> np.ndarray:
