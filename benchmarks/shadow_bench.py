@@ -14,8 +14,8 @@ median of ``--runs`` runs after two warm-up runs:
   e2e     the public function call from numpy arrays to numpy arrays (host
           preparation, uploads, launch, read-back).
 Each with the CPU time the process used meanwhile (all threads): on a machine
-shared with other work the wall time grows, the CPU time much less; with the
-device's cores free, kernel wall time is about CPU time / cores.
+shared with other work the wall time grows, the CPU time much less (wall time
+is at least CPU time / number of cores).
 It also prints the machine, the device, and the load average before and after
 (other processes share the CPU; timings on a loaded machine are pessimistic).
 """

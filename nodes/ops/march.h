@@ -12,8 +12,20 @@
  * so that a receiver at a pixel centre visits the pixel centres of the major
  * axis exactly (step.u or step.v is exactly +-1).
  *
- * Nothing here depends on -cl-fast-relaxed-math: there are no NaN or inf tests;
- * callers replace non-finite data by sentinels on the host (PH_NO_SURFACE).
+ * Contents, in order of use:
+ *   ph_march_setup          DDA set-up of a ray (one pixel per major-axis step)
+ *   ph_clip_slab/_rect      Liang-Barsky clipping (image, cutout bounding box)
+ *   ph_march_clip_box       clip a march to a box x height band (+1 margin sample)
+ *   ph_march_clip_foot      ... to a band of feet v + h (+1 margin sample)
+ *   ph_segments_may_hit     division-free rejection of segments missing a box
+ *   ph_sample_u/_v, ph_ray_height, ph_ray_foot, ph_lerp_height
+ *   ph_surface_height       surface height at a sample (minor-axis blend)
+ *   ph_side, ph_continuous, ph_occludes   the occlusion test with thickness
+ *   ph_span_end, ph_span_skippable        exact skipping with a tile map
+ *
+ * Nothing here needs -cl-fast-relaxed-math or breaks under it: there are no NaN
+ * or inf tests; callers replace non-finite data by sentinels on the host
+ * (PH_NO_SURFACE). (Our shadow kernels build without it: see shadow.py.)
  */
 #ifndef PIXGRAPH_MARCH_H
 #define PIXGRAPH_MARCH_H
