@@ -130,12 +130,14 @@ class Prepared:
                              f"{mask.shape}, {fg.shape}, {bg.shape}")
         self.thickness = _check_thickness(thickness)
         self.H, self.W = mask.shape
-        self.surf = M.surface_buffer(mask, fg)
         inside = mask > 0.5
-        recv = np.where(inside, fg, bg)
-        self.recv = np.where(np.isfinite(recv), recv, M.NO_SURFACE).astype(np.float32)
-        self.bg = np.where(np.isfinite(bg), bg, M.NO_SURFACE).astype(np.float32)
-        occ = self.surf > M.NO_SURFACE_TEST
+        occ = inside & np.isfinite(fg)
+        self.surf = np.where(occ, fg, M.NO_SURFACE).astype(np.float32, copy=False)
+        recv = np.where(inside, fg, bg).astype(np.float32, copy=False)
+        recv[~np.isfinite(recv)] = M.NO_SURFACE
+        self.recv = recv
+        self._bg_in = bg
+        self._bg = None
         rows = np.flatnonzero(occ.any(axis=1))
         self.empty = rows.size == 0
         if self.empty:
@@ -143,17 +145,31 @@ class Prepared:
             self.h_lo = self.h_hi = self.f_lo = self.f_hi = F32(0)
         else:
             cols = np.flatnonzero(occ.any(axis=0))
-            self.rect = np.array([cols[0], rows[0], cols[-1] + 1, rows[-1] + 1], np.float32)
-            hs = self.surf[occ]
+            r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+            self.rect = np.array([c0, r0, c1, r1], np.float32)
+            crop, present = self.surf[r0:r1, c0:c1], occ[r0:r1, c0:c1]
+            big = np.float32(3e38)
+            h_min = float(np.where(present, crop, big).min())
+            h_max = float(np.where(present, crop, -big).max())
+            foot = crop.astype(np.float64) + (np.arange(r0, r1) + 0.5)[:, None]
+            f_min = float(np.where(present, foot, np.inf).min()) - float(M.FOOT_MARGIN)
+            f_max = float(np.where(present, foot, -np.inf).max()) + float(M.FOOT_MARGIN)
             # below min height - reach a sample is behind every surface beyond the
             # thickness; reach >= BEHIND_EPS because a sample up to BEHIND_EPS below
             # a surface still counts as in front (and can start a side flip)
             reach = max(self.thickness, float(M.BEHIND_EPS))
-            self.h_lo = F32(float(hs.min()) - reach)
-            self.h_hi = F32(hs.max())
-            f_min, f_max = M.foot_range(self.surf)
+            self.h_lo = F32(h_min - reach)
+            self.h_hi = F32(h_max)
             self.f_lo = F32(f_min - reach)
             self.f_hi = F32(f_max)
+
+    @property
+    def bg(self) -> np.ndarray:
+        """Background heights, NO_SURFACE where non-finite (computed on first use)."""
+        if self._bg is None:
+            bg = self._bg_in
+            self._bg = np.where(np.isfinite(bg), bg, M.NO_SURFACE).astype(np.float32)
+        return self._bg
 
 
 # --------------------------------------------------------------------------
