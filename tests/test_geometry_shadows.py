@@ -177,7 +177,7 @@ def test_merged_cutouts_cast_on_each_other(device):
     foot_row = CAM.project(np.array([0, 0, -3.6]))[0][1]
     band = (np.abs(u - u_hit) < half - 1.5) & only_back & (v > v_hit + 1.5) & (v < foot_row - 1.5)
     assert band.sum() > 200 and np.all(sh[band])   # the true shadow band is fully dark
-    # (spurious extra shadow next to it: see the xfail test below)
+    # (and no spurious extra shadow next to it: see the test below)
     # without the front pole the back panel is fully lit from the front
     ins2 = Namespace({"mask": back_m, "fg_height": back_h, "bg_height": np.zeros((512, 512), np.float32),
                       "light": light, "camera": CAM})
@@ -185,9 +185,6 @@ def test_merged_cutouts_cast_on_each_other(device):
     assert (lit2[only_back] < 0.5).sum() == 0
 
 
-@pytest.mark.xfail(strict=True, reason="ops/shadow.py: the side-flip rule also fires between consecutive "
-                   "in-mask samples of two different surfaces (a depth discontinuity), so a cutout in "
-                   "front of another casts a spurious wedge joining it to its true shadow")
 def test_merged_cutouts_no_shadow_outside_the_true_band(device):
     f = CAM.focal
     u, v = CAM.pixel_grid()
