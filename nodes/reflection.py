@@ -17,8 +17,10 @@ class Reflection:
     pixel height). Isotropic GGX (``alpha = roughness^2``) sampled by visible
     normals, never below the surface; Fresnel is the exact dielectric reflectance
     with IOR ``eta``, or Schlick with a coloured ``f0`` for a conductor. Each pixel
-    takes samples until the standard error of its estimate is below ``noise``
-    (between ``min_spp`` and ``max_spp``); roughness 0 is a mirror traced with one
+    near the reflection takes samples until the standard error of its estimate is
+    below ``noise`` (between ``min_spp`` and ``max_spp``; estimated from four
+    interleaved low-discrepancy sub-sequences), pixels whose 4-sample probe finds
+    no hit within 4 pixels stay empty; roughness 0 is a mirror traced with one
     sample, and on flat ground it uses the exact planar closed form (the cutout
     flipped about its foot line). Output: a premultiplied linear RGBA layer to put
     over the background.
@@ -40,10 +42,11 @@ class Reflection:
                                 doc="normal-incidence reflectance per channel (conductor)")
         strength: float = param(1.0, min=0.0, max=10.0, doc="multiplier of the reflection")
         thickness: float = param(4.0, min=0.0, max=10000.0, unit="px", doc="cutout thickness")
-        noise: float = param(0.002, min=1e-5, max=1.0,
+        noise: float = param(0.005, min=1e-5, max=1.0,
                              doc="target standard error of each pixel's estimate (linear RGBA)")
-        min_spp: int = param(16, min=1, max=65536, doc="samples before the noise test")
-        max_spp: int = param(256, min=1, max=65536, doc="sample cap per pixel")
+        min_spp: int = param(16, min=1, max=65536,
+                             doc="samples before the noise test (min_spp = max_spp: fixed count)")
+        max_spp: int = param(128, min=1, max=65536, doc="sample cap per pixel")
         seed: int = param(0, min=0, max=2**31 - 1, doc="random seed")
         accelerate: bool = param(True, cache=False,
                                  doc="max-height pyramid skipping (same result, fewer steps)")

@@ -246,7 +246,10 @@ def test_adaptive_sampling_spends_samples_where_needed(device):
     valid = np.arange(64)[:, None] + 0.5 > cam.horizon
     far = np.zeros((64, 64), bool)
     far[:, :6] = True                                   # far from the reflection: nothing to find
-    assert np.all(loose["spp"][valid & far & (ref["layer"][..., 3] == 0)] == 8)
+    # far from any hit: only the probe's samples
+    empty = loose["spp"][valid & far & (ref["layer"][..., 3] == 0)]
+    assert (empty == 4).mean() > 0.9 and empty.max() <= 8
+    assert np.all(loose["spp"][~valid] == 0)
     assert tight["spp"].sum() > 2 * loose["spp"].sum()
     assert tight["spp"].max() <= 512
     rmse = lambda a: float(np.sqrt(np.mean((a["layer"] - ref["layer"]) ** 2)))

@@ -253,7 +253,13 @@ __kernel void rt_trace_rays(int W, int H, int n_rays,
  * strength * (weight * rgb, mean(weight) * alpha) of the cutout pixel the
  * reflected ray hits (premultiplied linear RGBA), 0 on a miss.
  * Adaptive: stop once n >= min_spp and the standard error of the mean of every
- * channel is <= target_se (or n = max_spp). */
+ * channel is <= target_se (or n = max_spp). The samples are a low-discrepancy
+ * sequence, whose error falls faster than sigma / sqrt(n): that formula
+ * overestimates it severalfold and spends samples where none are needed. So the
+ * error is estimated as in randomized QMC from replicates: the four interleaved
+ * sub-sequences n = 0, 1, 2, 3 (mod 4) are each a shifted R2 sequence, and the
+ * standard error of the full mean is taken as the spread of their four means
+ * over sqrt(4) (checked when n is a multiple of 4). */
 __kernel void rt_reflect(int W, int H, int y0, float f, float horizon,
                          __global const float *bg_h, __global const float *normal,
                          __global const float *valid, __global const uchar *skip,
@@ -277,7 +283,8 @@ __kernel void rt_reflect(int W, int H, int y0, float f, float horizon,
         rt_basis(nn, &b1, &b2);
         float3 wol = (float3)(dot(wo, b1), dot(wo, b2), cos_o);
         float3 p0 = (float3)((float)x + 0.5f, (float)y + 0.5f, bg_h[idx]);
-        float4 s1 = (float4)(0.0f), s2 = (float4)(0.0f);
+        float4 s1 = (float4)(0.0f);
+        float4 q0 = (float4)(0.0f), q1 = (float4)(0.0f), q2 = (float4)(0.0f), q3 = (float4)(0.0f);
         float lambda_o = rt_smith_lambda(cos_o, alpha);
         float2 off = rt_sample2_offset(seed, (uint)idx);
         int nmax = alpha > 0.0f ? max_spp : 1;
@@ -311,14 +318,22 @@ __kernel void rt_reflect(int W, int H, int y0, float f, float horizon,
                     }
                 }
             }
+            switch (n & 3) {
+                case 0: q0 += c; break;
+                case 1: q1 += c; break;
+                case 2: q2 += c; break;
+                default: q3 += c; break;
+            }
             n += 1;
             s1 += c;
-            s2 += c * c;
-            if (n >= min_spp && n >= 2) {
+            if (n >= min_spp && (n & 3) == 0) {
+                float inv_q = 4.0f / (float)n;              /* 1 / samples per sub-sequence */
                 float4 mu = s1 / (float)n;
-                float4 var = fmax(s2 / (float)n - mu * mu, (float4)(0.0f)) * ((float)n / (float)(n - 1));
-                float v = fmax(fmax(var.x, var.y), fmax(var.z, var.w));
-                if (v <= target_se * target_se * (float)n) break;
+                float4 d0 = q0 * inv_q - mu, d1 = q1 * inv_q - mu, d2 = q2 * inv_q - mu, d3 = q3 * inv_q - mu;
+                /* variance of the sub-means (3 dof) / 4 = squared standard error */
+                float4 se2 = (d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3) * (1.0f / 12.0f);
+                float v = fmax(fmax(se2.x, se2.y), fmax(se2.z, se2.w));
+                if (v <= target_se * target_se) break;
             }
         }
         mean = s1 / (float)max(n, 1);
