@@ -243,7 +243,7 @@ def test_adaptive_sampling_spends_samples_where_needed(device):
     loose = R.reflection_cl(device, cam, cut, fg, bg, roughness=0.4, min_spp=8, max_spp=512, target_se=0.01)
     tight = R.reflection_cl(device, cam, cut, fg, bg, roughness=0.4, min_spp=8, max_spp=512, target_se=0.002)
     ref = R.reflection_cl(device, cam, cut, fg, bg, roughness=0.4, min_spp=2048, max_spp=2048, seed=99)
-    valid = np.arange(64)[:, None] + 0.5 > cam.horizon
+    valid = np.broadcast_to(np.arange(64)[:, None] + 0.5 > cam.horizon, (64, 64))
     far = np.zeros((64, 64), bool)
     far[:, :6] = True                                   # far from the reflection: nothing to find
     # far from any hit: only the probe's samples
