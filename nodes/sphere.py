@@ -9,9 +9,11 @@ from .ops.sphere import sphere_cutout
 
 @node("pixgraph.Sphere", version=1)
 class Sphere:
-    """A sphere resting on the ground, rendered as a cutout: premultiplied colour,
-    coverage and the exact pixel height of its front surface (from a ray cast through
-    the camera). Use it as the glass object of pixgraph.Refraction.
+    """A procedural ball resting on the ground, as a cutout with exact pixel height.
+
+    Premultiplied colour, coverage (4x4 samples per pixel) and the pixel height of
+    the visible front surface from a ray cast through the camera. Use it as the
+    glass object of pixgraph.Refraction.
     """
 
     class Inputs:
