@@ -307,3 +307,36 @@ def test_hiz_skips_runs_far_behind_the_surface(device):
     hiz = R.trace_rays_cl(device, surf, p0, e, [R.UNBOUNDED], 1.0, hiz=True, clip_box=False)
     assert plain[0][0] == hiz[0][0] == 32 * W + 1000
     assert hiz[2][0] < 100 < plain[2][0]
+
+
+@pytest.mark.parametrize("case", ["border", "tall", "nan", "wall", "horizon_low", "grazing"])
+def test_reflection_stays_finite_in_hard_cases(device, case):
+    """Cutouts touching the image border, taller than the image, NaN heights,
+    walls, a horizon inside the floor and grazing views: finite, premultiplied
+    (colour <= alpha for white cutouts), and the kernel agrees with the reference."""
+    cam, cut, fg, bg = upright_scene()
+    if case == "border":
+        cut[:, :, :] = 0
+        cut[0:40, 0:30, :] = 1.0
+        fg[:] = 0
+        fg[0:40, 0:30] = 40.25 - (np.arange(0, 40)[:, None] + 0.5)
+    elif case == "tall":
+        fg = np.where(cut[..., 3] > 0, fg + 500.0, 0).astype(np.float32)
+    elif case == "nan":
+        fg[25:30, 25:30] = np.nan
+        bg[50:52, 10:20] = np.nan
+    elif case == "wall":
+        bg = np.maximum(0.0, 35.0 - np.arange(64))[:, None].repeat(64, 1).astype(np.float32)
+    elif case == "horizon_low":
+        cam = Camera(64, 64, hfov=50.0, horizon=45.0)
+    elif case == "grazing":
+        cam = Camera(64, 64, hfov=170.0, horizon=8.0)
+    cut[..., :3] = cut[..., 3:]                       # white: colour == alpha
+    for rough in (0.0, 0.5):
+        r = R.reflection_cl(device, cam, cut, fg, bg, roughness=rough, min_spp=8, max_spp=8, planar=False)
+        L = r["layer"]
+        assert np.isfinite(L).all()
+        assert L.min() >= 0 and L[..., 3].max() <= 1.0
+        assert np.all(L[..., :3] <= L[..., 3:] + 1e-6)
+        ref = R.reflection_numpy(cam, cut, fg, bg, roughness=rough, spp=8)
+        assert (np.abs(L - ref).max(-1) > 1e-4).mean() < 0.01

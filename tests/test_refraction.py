@@ -150,3 +150,24 @@ def test_ball_inverts_the_image_behind_it(device):
     # the floor is grey (r = g up to the red ramp), the wall stripes green
     assert wall_green(two, bottom) > wall_green(two, top)
     assert wall_green(one, bottom) <= wall_green(one, top)
+
+
+@pytest.mark.parametrize("case", ["border", "nan_glass", "nan_bg", "tiny"])
+def test_refraction_stays_finite_in_hard_cases(device, case):
+    cam, glass, gh, bg, bgh = ball_scene()
+    if case == "border":
+        glass, gh = sphere_cutout(cam, 2.0, 94.0, 0.2)      # cut by the left and bottom edges
+    elif case == "nan_glass":
+        gh = gh.copy()
+        gh[70:72, 45:50] = np.nan
+    elif case == "nan_bg":
+        bgh = bgh.copy()
+        bgh[60:70, 40:60] = np.nan
+    elif case == "tiny":
+        glass, gh = sphere_cutout(cam, 48.0, 80.0, 0.004)   # about a pixel
+    for back in ("none", "local_sphere"):
+        r = R.refraction_cl(device, cam, glass, gh, bg, bgh, eta=1.5, back_surface=back)
+        L = r["layer"]
+        assert np.isfinite(L).all()
+        assert L.min() >= 0 and np.all(L[..., :3] <= L[..., 3:] * bg.max() + 1e-6)
+        assert np.all(L[glass[..., 3] == 0] == 0)
