@@ -243,9 +243,43 @@ __kernel void rt_trace_rays(int W, int H, int n_rays,
     steps[r] = st;
 }
 
+/* ---- receiver geometry (mirror of camera.reconstruct) ---- */
+/* 3D point (world units) of pixel (x, y) with pixel height h: Eq. 3-4 with the
+ * no-pitch camera, w = H_cam / (v + h - horizon). */
+inline float3 rt_back_project(int x, int y, float h, float W, float f, float horizon, float cam_height)
+{
+    float u = (float)x + 0.5f, v = (float)y + 0.5f;
+    float w = cam_height / (v + h - horizon);
+    return (float3)(w * (u - 0.5f * W), cam_height + w * (horizon - v), -f * w);
+}
+
+/* Unit normal normalize(dP/dv x dP/du) at pixel (x, y), differences over valid
+ * neighbours only: central where both exist, one-sided otherwise, 0 when none
+ * (as camera.surface_normals, in float32). */
+inline float3 rt_normal(__global const float *hh, __global const float *valid, int x, int y,
+                        int W, int H, float f, float horizon, float cam_height)
+{
+    int idx = y * W + x;
+    float3 P = rt_back_project(x, y, hh[idx], (float)W, f, horizon, cam_height);
+    float3 d[2];
+    for (int axis = 0; axis < 2; ++axis) {
+        int dx = axis == 0, dy = axis == 1;
+        int xf = x + dx, yf = y + dy, xb = x - dx, yb = y - dy;
+        int okf = xf < W && yf < H && valid[yf * W + xf] > 0.5f;
+        int okb = xb >= 0 && yb >= 0 && valid[yb * W + xb] > 0.5f;
+        float3 pf = okf ? rt_back_project(xf, yf, hh[yf * W + xf], (float)W, f, horizon, cam_height) : P;
+        float3 pb = okb ? rt_back_project(xb, yb, hh[yb * W + xb], (float)W, f, horizon, cam_height) : P;
+        d[axis] = (okf && okb) ? 0.5f * (pf - pb) : (pf - pb);
+    }
+    float3 n = cross(d[1], d[0]);
+    float len = length(n);
+    return len > 0.0f ? n / len : (float3)(0.0f);
+}
+
 /* ---- glossy reflection of the cutout on the background ---- */
 /* One work item per receiver pixel (rows y0 .. y0 + rows - 1). Receiver: the
- * background surface at the pixel centre, normal n (world, from reconstruct).
+ * background surface at the pixel centre, normal n (world, rt_normal: the same
+ * differences as reconstruct, computed here instead of on the host).
  * Estimator per sample (VNDF importance sampling): m ~ D_v(wo), wi = reflect(wo, m),
  *     weight = F(wo . m) G2(wo, wi) / G1(wo)
  * and 0 when wi is below the surface (rejected, never traced). Roughness 0: the
@@ -260,8 +294,8 @@ __kernel void rt_trace_rays(int W, int H, int n_rays,
  * sub-sequences n = 0, 1, 2, 3 (mod 4) are each a shifted R2 sequence, and the
  * standard error of the full mean is taken as the spread of their four means
  * over sqrt(4) (checked when n is a multiple of 4). */
-__kernel void rt_reflect(int W, int H, int y0, float f, float horizon,
-                         __global const float *bg_h, __global const float *normal,
+__kernel void rt_reflect(int W, int H, int y0, float f, float horizon, float cam_height,
+                         __global const float *bg_h,
                          __global const float *valid, __global const uchar *skip,
                          __global const float *surf, __global const float *pyr,
                          __global const int *lvl, int nlev, float4 box, float h_lo, float h_hi,
@@ -275,10 +309,11 @@ __kernel void rt_reflect(int W, int H, int y0, float f, float horizon,
     int idx = y * W + x;
     float4 mean = (float4)(0.0f);
     int n = 0, steps = 0;
-    float3 nn = (float3)(normal[3 * idx], normal[3 * idx + 1], normal[3 * idx + 2]);
+    int receive = valid[idx] > 0.5f && skip[idx] == 0;
+    float3 nn = receive ? rt_normal(bg_h, valid, x, y, W, H, f, horizon, cam_height) : (float3)(0.0f);
     float3 wo = -normalize((float3)((float)x + 0.5f - 0.5f * (float)W, horizon - ((float)y + 0.5f), -f));
     float cos_o = dot(nn, wo);
-    if (valid[idx] > 0.5f && skip[idx] == 0 && cos_o > 1e-4f) {
+    if (receive && cos_o > 1e-4f) {
         float3 b1, b2;
         rt_basis(nn, &b1, &b2);
         float3 wol = (float3)(dot(wo, b1), dot(wo, b2), cos_o);

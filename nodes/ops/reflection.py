@@ -761,15 +761,15 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
         spp = (done & valid).astype(np.int32)
         if (done | ~valid).all():
             return {"layer": layer, "spp": spp, "steps": steps, "planar": done}
-    geo = reconstruct(camera, bg_height)
     S = _Surface(cl, ctx, surf, thickness, hiz)
     prg = _program(device)
     mf = cl.mem_flags
     d_out = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 16)
     d_spp = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 4)
     d_steps = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 4)
-    common = [_buf(cl, ctx, np.asarray(bg_height, np.float32)), _buf(cl, ctx, geo["normal"]),
-              _buf(cl, ctx, geo["valid"])]
+    # receiver normals are computed in the kernel (rt_normal) from the heights
+    common = [_buf(cl, ctx, np.where(valid, bgh, 0.0).astype(np.float32)),
+              _buf(cl, ctx, valid.astype(np.float32))]
     rest = [S.d_surf, S.d_pyr, S.d_lvl, np.int32(S.nlev), S.box, np.float32(S.h_lo), np.float32(S.h_hi),
             _buf(cl, ctx, cutout), np.float32(thickness), np.float32(alpha), np.int32(bool(conductor)),
             np.float32(eta), np.asarray(tuple(f0) + (0.0,), np.float32), np.float32(strength)]
@@ -786,7 +786,8 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
             if not (~skip[y0:y0 + rows]).any():
                 continue
             prg.rt_reflect(queue, (W, rows), None, np.int32(W), np.int32(H), np.int32(y0),
-                           np.float32(camera.focal), np.float32(camera.horizon), *args)
+                           np.float32(camera.focal), np.float32(camera.horizon),
+                           np.float32(camera.cam_height), *args)
             queue.finish()
             if progress is not None:
                 progress(p0 + (p1 - p0) * (y0 + rows) / H, "reflection")
@@ -800,6 +801,8 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
         return out, s_out, st_out
 
     skip = done | ~valid
+    if alpha == 0.0:
+        band_rows = H
     if alpha > 0.0 and max_spp > min_spp and probe_spp < min_spp:
         # Adaptive: a pixel whose first few samples all miss has standard error 0,
         # yet its lobe may reach the cutout with a small probability (measured: 86 %
