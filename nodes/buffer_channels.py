@@ -4,6 +4,7 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
+from ._checks import same_size
 from .ops.buffers import buffer_channels
 from .ops.lights import disk_extremes, light_point
 
@@ -32,6 +33,7 @@ class BufferChannels:
     impl_version = "1"
 
     def compute(self, ctx, inputs, params):
+        same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
         cam, light = inputs.camera, inputs.light
         return {"buffers": buffer_channels(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height,
                                            light_point(light, cam), disk_extremes(light, cam),

@@ -4,6 +4,7 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
+from ._checks import same_size
 from .ops.composite import composite
 
 
@@ -33,5 +34,6 @@ class Composite:
     impl_version = "1"
 
     def compute(self, ctx, inputs, params):
+        same_size(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha, shadow=inputs.shadow)
         return {"image": composite(inputs.background, inputs.cutout, inputs.alpha, inputs.shadow,
                                    params.opacity, params.tint)}

@@ -4,6 +4,7 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
+from ._checks import same_size
 from .ops.lights import light_point
 from .ops.shadow import hard_shadow
 
@@ -31,6 +32,7 @@ class HardShadow:
     impl_version = "1"
 
     def compute(self, ctx, inputs, params):
+        same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
         lp = light_point(inputs.light, inputs.camera)
         lit = hard_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, lp, params.thickness)
         return {"lit": lit, "darkness": (1.0 - lit).astype(lit.dtype)}

@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import InputError, node, param, port
 
 from .ops import lights
 
@@ -62,13 +62,15 @@ class Light:
             return {"light": light}
         if params.target_mode == "mask_foot":
             if inputs.mask is None:
-                raise ValueError("target_mode mask_foot needs the mask input (or use target_mode pixel)")
+                raise InputError("target_mode mask_foot needs the mask input (or use target_mode pixel)")
+            if not (np.asarray(inputs.mask) > 0.5).any():
+                raise InputError("target_mode mask_foot needs a non-empty mask (or use target_mode pixel)")
             uv = lights.foot_of_mask(inputs.mask)
         else:
             uv = tuple(params.target_uv)
         P, ok = cam.back_project(uv[0], uv[1], 0.0)
         if not ok:
-            raise ValueError(f"light target {uv} is at or above the horizon ({cam.horizon}): "
+            raise InputError(f"light target {uv} is at or above the horizon ({cam.horizon}): "
                              "it has no point on the ground")
         light = lights.from_controls(np.asarray(P), params.azimuth, params.elevation, dist, params.kind,
                                      params.radius, params.angular_radius, params.facing)

@@ -4,6 +4,7 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
+from ._checks import same_size
 from .ops.lights import disk_samples, light_point
 from .ops.shadow import soft_shadow
 
@@ -34,6 +35,7 @@ class SoftShadow:
     impl_version = "1"
 
     def compute(self, ctx, inputs, params):
+        same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
         light, cam = inputs.light, inputs.camera
         if light.is_area:
             samples = disk_samples(light, cam, params.samples, params.seed)

@@ -15,6 +15,7 @@ from typing import Any
 
 import yaml
 
+from .engine import NodeInputError
 from .graph import GraphError
 from .registry import Registry
 
@@ -101,6 +102,9 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         return _COMMANDS[args.command](args, registry)
     except (GraphError, UsageError) as e:
         _fail(args, e)
+        return EXIT_BAD_INPUT
+    except NodeInputError as e:
+        _fail(args, e, prefix="error: ")
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("pixgraph: cancelled", file=sys.stderr)

@@ -188,9 +188,25 @@ class Device:
             prg = self._programs.get(key)
             if prg is None:
                 cl = _cl()
-                prg = cl.Program(self.context, source).build(options=list(options))
+                prg = cl.Program(self.context, source)
+                try:
+                    prg.build(options=list(options))
+                except cl.RuntimeError as exc:
+                    raise DeviceError(f"{self.name}: cannot build OpenCL program: "
+                                      f"{_first_error(prg, self.queue.device) or exc}") from exc
                 self._programs[key] = prg
             return prg
+
+
+def _first_error(program, device) -> str:
+    """The compiler's first error line from a failed build, or ''."""
+    try:
+        import pyopencl as cl
+        log = program.get_build_info(device, cl.program_build_info.LOG)
+    except Exception:
+        return ""
+    lines = [ln.strip() for ln in str(log).splitlines() if ln.strip()]
+    return next((ln for ln in lines if "error" in ln.lower()), lines[0] if lines else "")
 
 
 def load_kernel_source(module_file: str, name: str) -> str:

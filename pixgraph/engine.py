@@ -25,7 +25,7 @@ from .device import DeviceError
 from .cache import MISS, DiskCache, MemoryCache, Unstorable
 from .graph import Graph, GraphError, Ref
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
-from .node import Namespace, NodeSpec
+from .node import InputError, Namespace, NodeSpec
 from .registry import Registry
 from .types import nbytes
 
@@ -37,6 +37,10 @@ class NodeError(RuntimeError):
         super().__init__(f"node {node_id!r} ({type_id}): {message}")
         self.node_id = node_id
         self.type_id = type_id
+
+
+class NodeInputError(NodeError):
+    """A node rejected inputs that do not fit together (``node.InputError``): bad input."""
 
 
 class NodeContext:
@@ -371,6 +375,8 @@ class Engine:
             out = spec.cls().compute(ctx, Namespace(inputs), Namespace(plan.params[nid]))
         except (E.Cancelled, DeviceError):
             raise  # not the node's fault: no device could be opened
+        except InputError as exc:
+            raise NodeInputError(nid, spec.type_id, str(exc).splitlines()[0]) from exc
         except Exception as exc:
             raise NodeError(nid, spec.type_id, f"failed: {type(exc).__name__}: {exc}".splitlines()[0]) from exc
         if not isinstance(out, dict):

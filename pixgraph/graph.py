@@ -159,8 +159,10 @@ def validate(graph: Graph, registry: Registry) -> Graph:
             spec = registry.get(inst.type)
         except UnknownNodeType:
             hint = registry.suggest(inst.type)
-            raise graph.error(f"unknown node type {inst.type!r}" + (f" (did you mean {hint!r}?)" if hint else ""),
-                              node=nid, field="type") from None
+            broken = (f"; {len(registry.errors)} node pack(s) failed to load, see 'pixgraph nodes --errors'"
+                      if registry.errors else "")
+            raise graph.error(f"unknown node type {inst.type!r}" + (f" (did you mean {hint!r}?)" if hint else "")
+                              + broken, node=nid, field="type") from None
         params = _check_params(graph, nid, spec, inst.params)
         _check_inputs(graph, nid, spec, inst.inputs, registry)
         canonical[nid] = dataclasses.replace(inst, params=params)

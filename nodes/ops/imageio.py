@@ -187,6 +187,7 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
 
 def _write_atomic(oiio, path: str, spec, pixels: np.ndarray) -> None:
     folder, name = os.path.split(os.path.abspath(path))
+    os.makedirs(folder, exist_ok=True)  # "-o final=out/x.png" must work in a fresh checkout
     stem, ext = os.path.splitext(name)
     tmp = os.path.join(folder, f".{stem}.tmp-{os.getpid()}{ext}")
     out = oiio.ImageOutput.create(tmp)
