@@ -24,6 +24,7 @@ and the same text.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from typing import Any, Callable
@@ -253,11 +254,33 @@ def dumps(graph: Graph) -> str:
                           allow_unicode=True, width=100)
 
 
-def dump(graph: Graph, path: str | os.PathLike) -> None:
+def dump(graph: Graph, path: str | os.PathLike, registry: Registry | None = None) -> None:
+    """Write ``graph`` to ``path`` atomically.
+
+    With ``registry``, relative file params (kind ``path``) are rewritten
+    relative to the new file's folder, so the saved graph finds the same files
+    wherever it is written; without it they are written as given.
+    """
+    if registry is not None:
+        graph = rebase_paths(graph, registry, os.path.dirname(os.path.abspath(path)))
     tmp = f"{os.fspath(path)}.tmp-{os.getpid()}"
     with open(tmp, "w", encoding="utf-8") as f:
         f.write(dumps(graph))
     os.replace(tmp, path)
+
+
+def rebase_paths(graph: Graph, registry: Registry, new_base: str) -> Graph:
+    """The same graph with relative path params re-expressed relative to ``new_base``."""
+    nodes = {}
+    for nid, inst in graph.nodes.items():
+        spec = registry.get(inst.type)
+        params = dict(inst.params)
+        for name, value in inst.params.items():
+            p = spec.param(name)
+            if p is not None and p.kind == "path" and isinstance(value, str) and not os.path.isabs(value):
+                params[name] = os.path.relpath(os.path.join(graph.base_dir, value), new_base)
+        nodes[nid] = dataclasses.replace(inst, params=params)
+    return dataclasses.replace(graph, nodes=nodes, base_dir=new_base)
 
 
 # -- schema ---------------------------------------------------------------------

@@ -153,3 +153,22 @@ def test_random_graphs_round_trip_through_text(reg):
         text = fileio.dumps(g)
         back = fileio.loads(text, reg)
         assert back == g and fileio.dumps(back) == text
+
+
+def test_dump_with_registry_rebases_relative_paths(tmp_path):
+    """A graph saved into another folder still finds its files."""
+    import pathlib
+    from pixgraph.registry import Registry
+    reg = Registry.discover()
+    src = pathlib.Path(__file__).resolve().parents[1] / "graphs" / "wall_corner_shadow.yaml"
+    g = fileio.load(src, reg)
+    out = tmp_path / "elsewhere" / "g.yaml"
+    out.parent.mkdir()
+    fileio.dump(g, out, registry=reg)
+    g2 = fileio.load(out, reg)
+    p1 = g.base_dir + "/" + g.nodes["cutout"].params["path"]
+    p2 = g2.base_dir + "/" + g2.nodes["cutout"].params["path"]
+    assert pathlib.Path(p1).resolve() == pathlib.Path(p2).resolve()
+    # without the registry, paths are written as given
+    fileio.dump(g, tmp_path / "asis.yaml")
+    assert "path: assets/figure.png" in (tmp_path / "asis.yaml").read_text()
