@@ -102,6 +102,7 @@ class Session:
         if not params:
             return graph
         b = GraphBuilder.from_graph(graph, self.registry)
+        overridden = set()
         for name, value in params.items():
             if isinstance(value, Mapping) and "." not in name:
                 node_id, values = name, dict(value)
@@ -113,7 +114,14 @@ class Session:
             if node_id not in graph.nodes:
                 raise GraphError("param override for a node that is not in the graph", file=graph.file, node=node_id)
             b.set(node_id, **values)
-        return b.build()
+            overridden.update((node_id, f"params.{k}") for k in values)
+        try:
+            return b.build()
+        except GraphError as e:
+            if (e.node, e.field) in overridden:  # the bad value is the override, not the file's line
+                raise GraphError(f"{e.message} (set by a param override)", file=graph.file,
+                                 node=e.node, field=e.field) from None
+            raise
 
     # -- plan and run -----------------------------------------------------------
 

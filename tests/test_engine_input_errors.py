@@ -50,3 +50,11 @@ def test_light_target_above_the_horizon_is_bad_input(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
     assert "node 'light'" in err[0] and "above the horizon" in err[0]
+
+
+def test_a_bad_override_is_blamed_on_the_override_not_a_file_line(capsys):
+    code = main(["validate", str(GRAPHS / "wall_corner_shadow.yaml"), "--set", "light.elevation=500"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert "wall_corner_shadow.yaml: node 'light': param 'elevation'" in err
+    assert "set by a param override" in err
