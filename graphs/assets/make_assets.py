@@ -3,6 +3,8 @@
     python graphs/assets/make_assets.py
 
 - ``figure.png``: a 512x512 RGBA cutout of a standing mannequin, shaded, straight alpha.
+- ``figure_far.png``: the same cutout standing 150 rows higher (further back on a
+  ground plane), so that its reflection on a glossy floor stays in the frame.
 - ``room_ground.jpg``, ``room_corner.jpg``, ``room_steps.jpg``: 512x512 "photos" of
   a floor, a wall corner and a staircase, rendered from the *same* pixel-height
   templates and camera as the graphs that use them (floor boards, plaster walls,
@@ -220,6 +222,9 @@ def main() -> None:
     pre = fig.copy()
     pre[..., :3] *= pre[..., 3:]
     write_image(HERE / "figure.png", pre)
+    far = np.zeros_like(pre)
+    far[:-150] = pre[150:]
+    write_image(HERE / "figure_far.png", far)
     for name in SCENES:
         write_image(HERE / f"{name}.jpg", render_background(name))
     for p in sorted(HERE.iterdir()):

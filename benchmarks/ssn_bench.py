@@ -1,0 +1,98 @@
+"""SSN++ inference time at 256^2 on this machine (the issue's goal: <= 50 ms).
+
+    python benchmarks/ssn_bench.py [--weights nodes/weights/ssnpp.pt] [--threads N] [--runs 21]
+
+Reports the median (and min) over ``--runs`` after warm-up of: the network alone
+(torch, CPU), the buffer channels (OpenCL), and the SoftShadowSSN node's whole
+compute on the wall-corner example scene resized to 256^2; plus parameters and
+FLOPs. Nothing here is asserted by the tests.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import pathlib
+import platform
+import statistics
+import sys
+import time
+
+import numpy as np
+import torch
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def machine() -> str:
+    name = platform.processor()
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                name = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{name} ({os.cpu_count()} logical CPUs), torch {torch.__version__}, {torch.get_num_threads()} threads"
+
+
+def timed(fn, runs: int) -> tuple[float, float]:
+    fn()
+    fn()
+    ts = []
+    for _ in range(runs):
+        t = time.perf_counter()
+        fn()
+        ts.append((time.perf_counter() - t) * 1000)
+    return statistics.median(ts), min(ts)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--weights", default=str(ROOT / "nodes" / "weights" / "ssnpp.pt"))
+    ap.add_argument("--threads", type=int, default=0)
+    ap.add_argument("--runs", type=int, default=21)
+    a = ap.parse_args(argv)
+    if a.threads:
+        torch.set_num_threads(a.threads)
+    from pixgraph.device import Device
+    from pixgraph.session import Session
+    from pixgraph_nodes.ops import ssn
+    from pixgraph_nodes.ops.buffers import buffer_channels
+    from pixgraph_nodes.ops.lights import disk_extremes, light_point
+
+    model = ssn.load_model(a.weights)
+    print(machine())
+    print(f"model {a.weights}: {ssn.count_params(model):,} parameters, "
+          f"{ssn.count_flops(model) / 1e9:.2f} GFLOP per 256^2 sample")
+    # the example scene's inputs, at 256^2
+    import torch.nn.functional as F
+    s = Session(disk_cache=None)
+    full = s.run(ROOT / "graphs" / "ssn_wall_corner.yaml",
+                 outputs=["cutout.alpha", "fg_h.height", "bg_h.height", "light.light", "cam.camera"])
+    half = lambda x, scale=1.0: (F.interpolate(torch.from_numpy(np.ascontiguousarray(x))[None, None], size=(256, 256),
+                                               mode="bilinear", align_corners=False)[0, 0].numpy() * scale)
+    mask = (half(full["cutout.alpha"]) > 0.5).astype(np.float32)
+    fg = (half(full["fg_h.height"], 0.5) * mask).astype(np.float32)
+    bg = half(full["bg_h.height"], 0.5).astype(np.float32)
+    cam = full["cam.camera"].scaled(0.5)
+    light = full["light.light"]
+    dev = Device.open()
+    lp, le = light_point(light, cam), disk_extremes(light, cam)
+    buffers = buffer_channels(dev, mask, fg, bg, lp, le)
+    x = torch.from_numpy(ssn.stack_channels(buffers, model.config.channels))[None]
+    soft = torch.tensor([ssn.softness_of(light, cam, mask, fg)])
+    rows = []
+    with torch.inference_mode():
+        rows.append(("network alone (torch)", *timed(lambda: model(x, soft), a.runs)))
+    rows.append(("buffer channels (OpenCL)", *timed(lambda: buffer_channels(dev, mask, fg, bg, lp, le), a.runs)))
+    rows.append(("whole SSN++ prediction", *timed(
+        lambda: ssn.predict(model, buffer_channels(dev, mask, fg, bg, lp, le), float(soft)), a.runs)))
+    print(f"device: {dev.name}")
+    print(f"{'256^2':30s} {'median ms':>10s} {'min ms':>8s}")
+    for name, med, mn in rows:
+        print(f"{name:30s} {med:10.1f} {mn:8.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
