@@ -72,19 +72,7 @@ def read_image(path: str | os.PathLike, colorspace: str = "auto",
     oiio = _oiio()
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)
-    inp = oiio.ImageInput.open(str(path), config)
-    if inp is None:
-        raise OSError(f"cannot read image {path}: {oiio.geterror()}")
-    try:
-        data = inp.read_image("float")
-        if data is None:
-            raise OSError(f"cannot read image {path}: {inp.geterror()}")
-    finally:
-        inp.close()
-    data = np.asarray(data, dtype=np.float32)
-    if data.ndim == 2:
-        data = data[:, :, None]
-    data = np.ascontiguousarray(data)
+    data, _ = _read_float(oiio, path, config)
     if colorspace == "auto":
         colorspace = "linear" if _is_linear_file(path) else "srgb"
     if alpha == "auto":
@@ -223,8 +211,13 @@ def write_exr_channels(path: str | os.PathLike, channels: dict[str, np.ndarray],
 
 def read_exr_channels(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Every channel of an EXR (or any image) as ``{name: float32 (H, W)}``, in file order."""
-    oiio = _oiio()
-    inp = oiio.ImageInput.open(str(path))
+    data, names = _read_float(_oiio(), path)
+    return {n: np.ascontiguousarray(data[:, :, i]) for i, n in enumerate(names)}
+
+
+def _read_float(oiio, path, config=None) -> tuple[np.ndarray, list[str]]:
+    """All pixels of an image file as float32 (H, W, C), and its channel names."""
+    inp = oiio.ImageInput.open(str(path), config) if config is not None else oiio.ImageInput.open(str(path))
     if inp is None:
         raise OSError(f"cannot read image {path}: {oiio.geterror()}")
     try:
@@ -237,4 +230,4 @@ def read_exr_channels(path: str | os.PathLike) -> dict[str, np.ndarray]:
     data = np.asarray(data, dtype=np.float32)
     if data.ndim == 2:
         data = data[:, :, None]
-    return {n: np.ascontiguousarray(data[:, :, i]) for i, n in enumerate(names)}
+    return np.ascontiguousarray(data), names

@@ -124,6 +124,22 @@ inline int ph_march_setup(float ou, float ov, float oh, float du, float dv, floa
     return m->k_hi >= m->k_lo;
 }
 
+/* Narrow a march's sample range to the samples of parameter [t0, t1] plus one
+ * margin sample on each side; ok = 0 (the clip found nothing) empties it.
+ * Returns 0 when no sample remains. Shared by the ph_march_clip_* functions. */
+inline int ph_march_narrow(ph_march *m, int ok, float t0, float t1)
+{
+    if (!ok) {
+        m->k_hi = m->k_lo - 1;
+        return 0;
+    }
+    int a = (int)ceil(t0) - 1;
+    int b = (int)floor(t1) + 1;
+    if (a > m->k_lo) m->k_lo = a;
+    if (b < m->k_hi) m->k_hi = b;
+    return m->k_lo <= m->k_hi;
+}
+
 /* Clip a march's sample range to the 3D box rect x [h_lo, h_hi] in (u, v, h)
  * space, keeping one extra sample on each side: a side flip between two
  * consecutive samples can straddle the box (and it absorbs rounding at the
@@ -133,16 +149,9 @@ inline int ph_march_setup(float ou, float ov, float oh, float du, float dv, floa
 inline int ph_march_clip_box(ph_march *m, float4 rect, float h_lo, float h_hi)
 {
     float t0 = (float)m->k_lo - 1.0f, t1 = (float)m->k_hi + 1.0f;
-    if (!ph_clip_rect(m->u, m->v, m->su, m->sv, rect, &t0, &t1)
-        || !ph_clip_slab(m->h, m->sh, h_lo, h_hi, &t0, &t1)) {
-        m->k_hi = m->k_lo - 1;
-        return 0;
-    }
-    int a = (int)ceil(t0) - 1;
-    int b = (int)floor(t1) + 1;
-    if (a > m->k_lo) m->k_lo = a;
-    if (b < m->k_hi) m->k_hi = b;
-    return m->k_lo <= m->k_hi;
+    int ok = ph_clip_rect(m->u, m->v, m->su, m->sv, rect, &t0, &t1)
+             && ph_clip_slab(m->h, m->sh, h_lo, h_hi, &t0, &t1);
+    return ph_march_narrow(m, ok, t0, t1);
 }
 
 /* Image position (pixels) of sample k. */
@@ -248,15 +257,7 @@ inline float ph_ray_foot(const ph_march *m, int k)
 inline int ph_march_clip_foot(ph_march *m, float f_lo, float f_hi)
 {
     float t0 = (float)m->k_lo - 1.0f, t1 = (float)m->k_hi + 1.0f;
-    if (!ph_clip_slab(m->v + m->h, m->sv + m->sh, f_lo, f_hi, &t0, &t1)) {
-        m->k_hi = m->k_lo - 1;
-        return 0;
-    }
-    int a = (int)ceil(t0) - 1;
-    int b = (int)floor(t1) + 1;
-    if (a > m->k_lo) m->k_lo = a;
-    if (b < m->k_hi) m->k_hi = b;
-    return m->k_lo <= m->k_hi;
+    return ph_march_narrow(m, ph_clip_slab(m->v + m->h, m->sv + m->sh, f_lo, f_hi, &t0, &t1), t0, t1);
 }
 
 /* Conservative whole-segment rejection, no division: 0 when no point of the

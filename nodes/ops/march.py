@@ -128,6 +128,17 @@ def march_setup(ou, ov, oh, du, dv, dh, t_max) -> tuple[March, np.ndarray]:
     return m, good & (k_hi >= k_lo)
 
 
+def _narrow(m: March, ok, t0, t1) -> np.ndarray:
+    """Narrow the sample range to parameter [t0, t1] plus one margin sample each
+    side where ``ok``; empty it elsewhere (mirror of ph_march_narrow)."""
+    with np.errstate(invalid="ignore"):
+        a = np.where(ok, np.ceil(t0), 0).astype(np.int64) - 1
+        b = np.where(ok, np.floor(t1), 0).astype(np.int64) + 1
+    m.k_lo = np.where(ok, np.maximum(m.k_lo, a), m.k_lo)
+    m.k_hi = np.where(ok, np.minimum(m.k_hi, b), m.k_lo - 1)
+    return m.k_lo <= m.k_hi
+
+
 def march_clip_box(m: March, rect, h_lo, h_hi) -> np.ndarray:
     """Clip the sample range to the box ``rect x [h_lo, h_hi]`` in (u, v, h), keeping
     one extra sample on each side (a side flip can straddle the box). Updates
@@ -137,12 +148,7 @@ def march_clip_box(m: March, rect, h_lo, h_hi) -> np.ndarray:
     t0, t1, ok = clip_rect(m.u, m.v, m.su, m.sv, rect, t0, t1)
     t0, t1, ok2 = clip_slab(m.h, m.sh, h_lo, h_hi, t0, t1)
     ok &= ok2
-    with np.errstate(invalid="ignore"):
-        a = np.where(ok, np.ceil(t0), 0).astype(np.int64) - 1
-        b = np.where(ok, np.floor(t1), 0).astype(np.int64) + 1
-    m.k_lo = np.where(ok, np.maximum(m.k_lo, a), m.k_lo)
-    m.k_hi = np.where(ok, np.minimum(m.k_hi, b), m.k_lo - 1)
-    return m.k_lo <= m.k_hi
+    return _narrow(m, ok, t0, t1)
 
 
 def lerp_height(rh, lh, t):
@@ -251,12 +257,7 @@ def march_clip_foot(m: March, f_lo, f_hi) -> np.ndarray:
     t1 = (m.k_hi + 1).astype(np.float32)
     t0, t1, ok = clip_slab((m.v + m.h).astype(np.float32), (m.sv + m.sh).astype(np.float32),
                            f_lo, f_hi, t0, t1)
-    with np.errstate(invalid="ignore"):
-        a = np.where(ok, np.ceil(t0), 0).astype(np.int64) - 1
-        b = np.where(ok, np.floor(t1), 0).astype(np.int64) + 1
-    m.k_lo = np.where(ok, np.maximum(m.k_lo, a), m.k_lo)
-    m.k_hi = np.where(ok, np.minimum(m.k_hi, b), m.k_lo - 1)
-    return m.k_lo <= m.k_hi
+    return _narrow(m, ok, t0, t1)
 
 
 def foot_range(surf: np.ndarray):
