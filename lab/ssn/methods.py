@@ -1,0 +1,57 @@
+"""SSN++ models as methods of the evaluation CLI (``module:function`` specs).
+
+    python -m pixgraph_lab.evaluate --data data/wall_test \
+        --method pixgraph_lab.ssn.methods:shipped \
+        --method pixgraph_lab.ssn.methods:run_ssg --method pixgraph_lab.ssn.methods:run_ssnpp
+
+``shipped`` is the model in ``pixgraph_nodes/weights/ssnpp.pt`` (what the
+SoftShadowSSN node uses); ``run_<variant>`` is ``$PIXGRAPH_SSN_RUNS/<variant>/model.pt``
+(default folder ``runs``), written by ``pixgraph_lab.ssn.train --out runs/<variant>``.
+Each call computes the buffer channels with our tracer, exactly as the node does,
+and times the whole prediction.
+"""
+from __future__ import annotations
+
+import functools
+import os
+import pathlib
+
+from pixgraph_nodes.ops import ssn
+
+from .prepare import sample_inputs
+
+
+@functools.lru_cache(maxsize=8)
+def _model(path: str):
+    return ssn.load_model(path)
+
+
+def _predict(model_path: str, sample: dict):
+    buffers, softness, _ = sample_inputs(sample["device"], sample)
+    return ssn.predict(_model(model_path), buffers, softness)
+
+
+def _run(variant: str):
+    root = pathlib.Path(os.environ.get("PIXGRAPH_SSN_RUNS", "runs"))
+    return str(root / variant / "model.pt")
+
+
+def shipped(sample):
+    from pixgraph_nodes.ssn_soft_shadow import WEIGHTS
+    return _predict(str(WEIGHTS / "ssnpp.pt"), sample)
+
+
+def run_ssg(sample):
+    return _predict(_run("ssg"), sample)
+
+
+def run_sparse(sample):
+    return _predict(_run("sparse"), sample)
+
+
+def run_reldist(sample):
+    return _predict(_run("reldist"), sample)
+
+
+def run_ssnpp(sample):
+    return _predict(_run("ssnpp"), sample)
