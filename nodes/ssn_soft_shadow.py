@@ -1,0 +1,65 @@
+"""pixgraph.SoftShadowSSN: SSN++, the neural soft-shadow renderer (PixHt-Lab Sec. 3.2)."""
+from __future__ import annotations
+
+import functools
+import pathlib
+
+from pixgraph import types as T
+from pixgraph.node import node, param, port
+
+from ._checks import same_size
+from .ops import ssn
+from .ops.buffers import buffer_channels
+from .ops.lights import disk_extremes, light_point
+
+WEIGHTS = pathlib.Path(__file__).parent / "weights"
+
+
+@functools.lru_cache(maxsize=4)
+def _load(path: str, mtime_ns: int):
+    # keyed on mtime too, so retrained weights are picked up without a restart
+    return ssn.load_model(path)
+
+
+def load_shipped(name: str):
+    """The shipped model ``name`` (``weights/<name>.pt``), loaded once per process."""
+    path = WEIGHTS / f"{name}.pt"
+    if not path.exists():
+        raise FileNotFoundError(f"no shipped SSN++ weights {path.name} in {WEIGHTS}")
+    return _load(str(path), path.stat().st_mtime_ns)
+
+
+@node("pixgraph.SoftShadowSSN", version=1)
+class SoftShadowSSN:
+    """Soft shadow from SSN++: the 3D-aware buffer channels (cutout pixel height,
+    background gradient, hard and sparse hard shadows, relative distance) and the
+    light's softness run through a small trained U-Net on the CPU. Same ports as
+    pixgraph.SoftShadow; its cost does not grow with the light's size."""
+
+    class Inputs:
+        mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
+        fg_height: T.PixelHeight = port(doc="cutout pixel height [px]")
+        bg_height: T.PixelHeight = port(doc="background pixel height [px]")
+        light: T.Light = port(doc="the disk light; radius over distance to the object is the softness")
+        camera: T.Camera = port(doc="camera that converts the light to pixel-height space")
+
+    class Params:
+        model: str = param("ssnpp", choices=("ssnpp",), doc="shipped weights to use")
+        thickness: float = param(1.0, min=0.0, max=1000.0, unit="px",
+                                 doc="occluder thickness of the buffer channels' hard shadows")
+
+    class Outputs:
+        lit: T.Mask = port(doc="1 - darkness")
+        darkness: T.Mask = port(doc="soft shadow, 1 = full shadow (what Composite takes)")
+
+    impl_version = "1"  # bump when the shipped weights change
+
+    def compute(self, ctx, inputs, params):
+        same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+        cam, light = inputs.camera, inputs.light
+        model = load_shipped(params.model)
+        buffers = buffer_channels(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height,
+                                  light_point(light, cam), disk_extremes(light, cam), params.thickness)
+        softness = ssn.softness_of(light, cam, inputs.mask, inputs.fg_height)
+        darkness = ssn.predict(model, buffers, softness)
+        return {"lit": 1.0 - darkness, "darkness": darkness}
