@@ -35,17 +35,6 @@ def machine() -> str:
     return f"{name} ({os.cpu_count()} logical CPUs), torch {torch.__version__}, {torch.get_num_threads()} threads"
 
 
-def timed(fn, runs: int) -> tuple[float, float]:
-    fn()
-    fn()
-    ts = []
-    for _ in range(runs):
-        t = time.perf_counter()
-        fn()
-        ts.append((time.perf_counter() - t) * 1000)
-    return statistics.median(ts), min(ts)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--weights", default=str(ROOT / "nodes" / "weights" / "ssnpp.pt"))
@@ -69,7 +58,7 @@ def main(argv=None) -> int:
     s = Session(disk_cache=None)
     full = s.run(ROOT / "graphs" / "ssn_wall_corner.yaml",
                  outputs=["cutout.alpha", "fg_h.height", "bg_h.height", "light.light", "cam.camera"])
-    half = lambda x, scale=1.0: (F.interpolate(torch.from_numpy(np.ascontiguousarray(x))[None, None], size=(256, 256),
+    half = lambda x, scale=1.0: (F.interpolate(torch.from_numpy(np.array(x, dtype=np.float32))[None, None], size=(256, 256),
                                                mode="bilinear", align_corners=False)[0, 0].numpy() * scale)
     mask = (half(full["cutout.alpha"]) > 0.5).astype(np.float32)
     fg = (half(full["fg_h.height"], 0.5) * mask).astype(np.float32)
@@ -81,12 +70,23 @@ def main(argv=None) -> int:
     buffers = buffer_channels(dev, mask, fg, bg, lp, le)
     x = torch.from_numpy(ssn.stack_channels(buffers, model.config.channels))[None]
     soft = torch.tensor([ssn.softness_of(light, cam, mask, fg)])
-    rows = []
+    cases = {
+        "network alone (torch)": lambda: model(x, soft),
+        "buffer channels (OpenCL)": lambda: buffer_channels(dev, mask, fg, bg, lp, le),
+        "whole SSN++ prediction": lambda: ssn.predict(model, buffer_channels(dev, mask, fg, bg, lp, le), float(soft)),
+    }
+    # interleave the cases round by round, so a slow spell of the machine
+    # (or PoCL's worker threads winding down) does not land on one case only
+    times = {name: [] for name in cases}
     with torch.inference_mode():
-        rows.append(("network alone (torch)", *timed(lambda: model(x, soft), a.runs)))
-    rows.append(("buffer channels (OpenCL)", *timed(lambda: buffer_channels(dev, mask, fg, bg, lp, le), a.runs)))
-    rows.append(("whole SSN++ prediction", *timed(
-        lambda: ssn.predict(model, buffer_channels(dev, mask, fg, bg, lp, le), float(soft)), a.runs)))
+        for fn in cases.values():
+            fn()
+        for _ in range(a.runs):
+            for name, fn in cases.items():
+                t = time.perf_counter()
+                fn()
+                times[name].append((time.perf_counter() - t) * 1000)
+    rows = [(name, statistics.median(ts), min(ts)) for name, ts in times.items()]
     print(f"device: {dev.name}")
     print(f"{'256^2':30s} {'median ms':>10s} {'min ms':>8s}")
     for name, med, mn in rows:
