@@ -6,6 +6,7 @@ import numpy as np
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
+from ._checks import same_size
 from .ops.composite import apply_shadow, over
 
 
@@ -39,6 +40,8 @@ class ReflectionComposite:
     impl_version = "1"
 
     def compute(self, ctx, inputs, params):
+        same_size(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha,
+                  reflection=inputs.reflection, shadow=inputs.shadow, refraction=inputs.refraction)
         bg = np.asarray(inputs.background, np.float32)
         if bg.ndim == 2:
             bg = bg[..., None]
