@@ -13,14 +13,19 @@ from pixgraph_nodes.ops.imageio import write_image
 GRAPHS = pathlib.Path(__file__).resolve().parents[1] / "graphs"
 
 
+def _run_with_cutout(tmp_path, capsys, img):
+    """Run the wall-corner graph with ``img`` as its cutout: (exit code, stderr lines)."""
+    path = tmp_path / "cutout.png"
+    write_image(path, img)
+    code = main(["run", str(GRAPHS / "wall_corner_shadow.yaml"), "--no-disk-cache", "-q",
+                 "--set", f"cutout.path={path}", "-o", f"final={tmp_path / 'x.png'}"])
+    return code, capsys.readouterr().err.strip().splitlines()
+
+
 def test_cutout_of_the_wrong_size_is_bad_input_naming_the_node(tmp_path, capsys):
-    small = tmp_path / "small.png"
     img = np.zeros((300, 240, 4), np.float32)
     img[140:290, 100:140] = 1.0     # its foot (row 290) lies below the horizon (row 120)
-    write_image(small, img)
-    code = main(["run", str(GRAPHS / "wall_corner_shadow.yaml"), "--no-disk-cache", "-q",
-                 "--set", f"cutout.path={small}", "-o", f"final={tmp_path / 'x.png'}"])
-    err = capsys.readouterr().err.strip().splitlines()
+    code, err = _run_with_cutout(tmp_path, capsys, img)
     assert code == 2
     assert len(err) == 1 and "Traceback" not in err[0]
     # the first node that meets both sizes names them
@@ -41,13 +46,9 @@ def test_build_error_names_the_compiler_error(device):
 
 
 def test_light_target_above_the_horizon_is_bad_input(tmp_path, capsys):
-    high = tmp_path / "high.png"
     img = np.zeros((512, 512, 4), np.float32)
     img[20:90, 200:240] = 1.0       # its foot (row 90) is above the horizon (row 120)
-    write_image(high, img)
-    code = main(["run", str(GRAPHS / "wall_corner_shadow.yaml"), "--no-disk-cache", "-q",
-                 "--set", f"cutout.path={high}", "-o", f"final={tmp_path / 'x.png'}"])
-    err = capsys.readouterr().err.strip().splitlines()
+    code, err = _run_with_cutout(tmp_path, capsys, img)
     assert code == 2 and len(err) == 1
     assert "node 'light'" in err[0] and "above the horizon" in err[0]
 

@@ -131,13 +131,11 @@ def main(argv=None) -> int:
         writer.writerow(["step", "minutes", "train_loss", "val_loss", "val_rmse"])
 
     budget = args.minutes * 60.0
-    total_steps = min(args.max_steps, 10**9)
     bar = tqdm(total=int(budget), initial=int(elapsed), unit="s", desc=f"train {args.variant}")
     t0 = time.perf_counter() - elapsed
     running, seen = 0.0, 0
-    sched_total = None
     last_eval = elapsed
-    while step < total_steps:
+    while step < args.max_steps:
         elapsed = time.perf_counter() - t0
         if elapsed >= budget:
             break
