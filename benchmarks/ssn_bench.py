@@ -5,7 +5,20 @@
 Reports the median (and min) over ``--runs`` after warm-up of: the network alone
 (torch, CPU), the buffer channels (OpenCL), and the SoftShadowSSN node's whole
 compute on the wall-corner example scene resized to 256^2; plus parameters and
-FLOPs. Nothing here is asserted by the tests.
+FLOPs.
+
+With ``--data`` it times evaluation methods (``pixgraph_lab.evaluate`` specs:
+``soft:N``, ``module:function``) on the first ``--limit`` benchmark samples
+instead, interleaved sample by sample, ``--runs`` times each; this is how the
+ablation table's ms/sample and the classical soft shadow "at equal time" are
+measured (the evaluator's own ms column is one run per sample)::
+
+    python benchmarks/ssn_bench.py --data data/wall_test --limit 40 --runs 3 \
+        --method soft:64 --method soft:128 \
+        --method pixgraph_lab.ssn.methods:run_ssg --method pixgraph_lab.ssn.methods:run_ssnpp \
+        --json out/ssn_bench.json
+
+Nothing here is asserted by the tests.
 """
 from __future__ import annotations
 
@@ -40,9 +53,15 @@ def main(argv=None) -> int:
     ap.add_argument("--weights", default=str(ROOT / "nodes" / "weights" / "ssnpp.pt"))
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--runs", type=int, default=21)
+    ap.add_argument("--data", help="benchmark sample folder: time --method specs on its samples")
+    ap.add_argument("--limit", type=int, default=40, help="with --data: samples to use")
+    ap.add_argument("--method", action="append", default=[], help="with --data: evaluation method spec")
+    ap.add_argument("--json", help="with --data: write the timings here")
     a = ap.parse_args(argv)
     if a.threads:
         torch.set_num_threads(a.threads)
+    if a.data:
+        return time_methods(a)
     from pixgraph.device import Device
     from pixgraph.session import Session
     from pixgraph_nodes.ops import ssn
@@ -91,6 +110,47 @@ def main(argv=None) -> int:
     print(f"{'256^2':30s} {'median ms':>10s} {'min ms':>8s}")
     for name, med, mn in rows:
         print(f"{name:30s} {med:10.1f} {mn:8.1f}")
+    return 0
+
+
+def time_methods(a) -> int:
+    """Median ms per sample of each method on real benchmark samples."""
+    import json
+    from pixgraph.device import Device
+    from pixgraph_lab.datagen.dataset import load_sample, sample_files
+    from pixgraph_lab.evaluate import Method, light_of
+
+    if not a.method:
+        raise SystemExit("--data needs at least one --method")
+    device = Device.open()
+    methods = [Method(spec) for spec in a.method]
+    samples = []
+    for f in sample_files(a.data)[:a.limit]:
+        s = load_sample(f)
+        s["light"], s["device"] = light_of(s), device
+        samples.append(s)
+    print(machine())
+    print(f"device: {device.name}; {len(samples)} samples of {a.data}, {a.runs} runs each")
+    times = {m.spec: [] for m in methods}
+    for m in methods:                       # build programs, load weights
+        m.predict(samples[0])
+    for _ in range(a.runs):
+        for s in samples:
+            for m in methods:
+                t = time.perf_counter()
+                m.predict(s)
+                times[m.spec].append((time.perf_counter() - t) * 1000)
+    print(f"{'method':50s} {'median ms':>10s} {'p10 ms':>8s} {'p90 ms':>8s}")
+    result = {"machine": machine(), "device": device.name, "data": a.data, "samples": len(samples),
+              "runs": a.runs, "ms": {}}
+    for spec, ts in times.items():
+        q = np.percentile(ts, [10, 50, 90])
+        print(f"{spec:50s} {q[1]:10.1f} {q[0]:8.1f} {q[2]:8.1f}")
+        result["ms"][spec] = {"median": float(q[1]), "p10": float(q[0]), "p90": float(q[2])}
+    if a.json:
+        pathlib.Path(a.json).parent.mkdir(parents=True, exist_ok=True)
+        pathlib.Path(a.json).write_text(json.dumps(result, indent=2) + "\n")
+        print(f"wrote {a.json}")
     return 0
 
 

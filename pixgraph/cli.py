@@ -298,9 +298,12 @@ def _cmd_devices(args, registry) -> int:
 def _cmd_cache(args, registry) -> int:
     from .cache import DiskCache
 
+    if args.no_disk_cache:
+        raise UsageError(f"cache {args.action}: --no-disk-cache leaves no disk cache to {args.action}")
     root = args.disk_cache or default_disk_cache()
-    if args.no_disk_cache or not os.path.isdir(root):
-        print(json.dumps({"root": root, "entries": 0, "bytes": 0}))
+    if not os.path.isdir(root):
+        print(json.dumps({"root": root, "entries": 0, "bytes": 0}) if args.action == "stats"
+              else f"removed 0 entries from {root} (no such folder)")
         return EXIT_OK
     from .session import DEFAULT_DISK_CACHE_BYTES, _env_bytes
 

@@ -110,6 +110,11 @@ def test_explain_and_cache_commands(tmp_path, capsys):
     assert "removed 2 entries" in capsys.readouterr().out
     main(["cache", "stats", "--disk-cache", disk], registry=reg)
     assert json.loads(capsys.readouterr().out)["entries"] == 0
+    assert main(["cache", "stats", "--no-disk-cache"], registry=reg) == 2
+    assert "--no-disk-cache leaves no disk cache" in capsys.readouterr().err
+    missing = str(tmp_path / "never-made")
+    assert main(["cache", "clear", "--disk-cache", missing], registry=reg) == 0
+    assert "removed 0 entries" in capsys.readouterr().out and not os.path.exists(missing)
 
 
 def test_nodes_listing_reference_and_schema(capsys):

@@ -89,3 +89,14 @@ def test_training_script_learns_softness(tmp_path):
     ring[7:23, 7:23] = True
     ring[10:20, 10:20] = False
     assert float(large[ring].mean()) > float(small[ring].mean()) + 0.03
+
+
+def test_evaluation_methods_name_any_run_folder(tmp_path, monkeypatch):
+    from pixgraph_lab.evaluate import Method
+    from pixgraph_lab.ssn import methods
+    monkeypatch.setenv("PIXGRAPH_SSN_RUNS", str(tmp_path))
+    m = Method("pixgraph_lab.ssn.methods:run_ssnpp_b4")   # a size-sweep folder, not spelled out
+    assert m._fn.__name__ == "run_ssnpp_b4"
+    assert methods._run("ssnpp_b4") == str(tmp_path / "ssnpp_b4" / "model.pt")
+    with pytest.raises(AttributeError):
+        Method("pixgraph_lab.ssn.methods:shiped")

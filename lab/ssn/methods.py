@@ -5,8 +5,10 @@
         --method pixgraph_lab.ssn.methods:run_ssg --method pixgraph_lab.ssn.methods:run_ssnpp
 
 ``shipped`` is the model in ``pixgraph_nodes/weights/ssnpp.pt`` (what the
-SoftShadowSSN node uses); ``run_<variant>`` is ``$PIXGRAPH_SSN_RUNS/<variant>/model.pt``
-(default folder ``runs``), written by ``pixgraph_lab.ssn.train --out runs/<variant>``.
+SoftShadowSSN node uses); ``run_<name>`` is ``$PIXGRAPH_SSN_RUNS/<name>/model.pt``
+(default folder ``runs``), written by ``pixgraph_lab.ssn.train --out runs/<name>``:
+any run folder works (``run_ssnpp_b4`` reads ``runs/ssnpp_b4/model.pt``); the four
+ablation variants are spelled out below.
 Each call computes the buffer channels with our tracer, exactly as the node does,
 and times the whole prediction.
 """
@@ -55,3 +57,15 @@ def run_reldist(sample):
 
 def run_ssnpp(sample):
     return _predict(_run("ssnpp"), sample)
+
+
+def __getattr__(name: str):
+    """``run_<folder>`` for any other run folder (e.g. the model-size sweep)."""
+    if name.startswith("run_") and len(name) > 4:
+        folder = name[4:]
+
+        def run(sample):
+            return _predict(_run(folder), sample)
+        run.__name__ = name
+        return run
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
