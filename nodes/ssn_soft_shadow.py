@@ -52,7 +52,7 @@ class SoftShadowSSN:
         lit: T.Mask = port(doc="1 - darkness")
         darkness: T.Mask = port(doc="soft shadow, 1 = full shadow (what Composite takes)")
 
-    impl_version = "1"  # bump when the shipped weights change
+    impl_version = "2"  # bump when the shipped weights or the inference change (2: NHWC layout)
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)

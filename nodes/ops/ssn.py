@@ -195,7 +195,9 @@ def load_model(path: str | pathlib.Path) -> SSN:
     model = SSN(SSNConfig(**blob["config"]))
     model.load_state_dict({k: v.float() for k, v in blob["state"].items()})
     model.eval()
-    return model
+    # oneDNN's convolutions run faster on NHWC tensors on the CPU (same results
+    # to ~1e-5); ``predict`` hands the input over in the same layout
+    return model.to(memory_format=torch.channels_last)
 
 
 def predict(model: SSN, buffers: dict[str, np.ndarray], softness: float) -> np.ndarray:
@@ -210,7 +212,7 @@ def predict(model: SSN, buffers: dict[str, np.ndarray], softness: float) -> np.n
     if (H, W) != (RESOLUTION, RESOLUTION):
         x = F.interpolate(x, size=(RESOLUTION, RESOLUTION), mode="bilinear", align_corners=False)
     with torch.inference_mode():
-        y = model(x, torch.tensor([float(softness)]))
+        y = model(x.contiguous(memory_format=torch.channels_last), torch.tensor([float(softness)]))
     if (H, W) != (RESOLUTION, RESOLUTION):
         y = F.interpolate(y, size=(H, W), mode="bilinear", align_corners=False)
     return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
