@@ -78,6 +78,12 @@ def test_run_writes_outputs_with_o(tmp_path, capsys):
     np.testing.assert_array_equal(img[..., 0], np.full((3, 3), 4.25, np.float32))
     assert main(["run", good, "--no-disk-cache", "-o", "nope=x.png"], registry=make_registry()) == 2
     assert "no output named 'nope'" in capsys.readouterr().err
+    # any node output, not only the graph's named outputs
+    src = tmp_path / "src.exr"
+    assert main(["run", good, "--no-disk-cache", "-q", "-o", f"src.out={src}"], registry=make_registry()) == 0
+    np.testing.assert_array_equal(read_image(src)[0][..., 0], np.full((3, 3), 2.0, np.float32))
+    assert main(["run", good, "--no-disk-cache", "-o", f"src.nope={src}"], registry=make_registry()) == 2
+    assert "no such node output 'src.nope'" in capsys.readouterr().err
 
 
 def test_node_failure_exits_1_and_names_the_node(tmp_path, capsys):
