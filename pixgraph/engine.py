@@ -272,6 +272,9 @@ class Engine:
                     why.append(f"memory only: {self.memory_only[type_id]}")
             elif not why:
                 why = ["unchanged"]
+            elif status[nid] in ("memory", "disk"):
+                # changed since the last run, but an earlier run left this key cached
+                why.append(f"an earlier result is in the {status[nid]} cache")
             steps.append(Step(nid, type_id, keys[nid], status[nid], "; ".join(why)))
         return tuple(steps)
 

@@ -178,3 +178,15 @@ def test_progress_bar_only_on_a_terminal_and_not_with_quiet(monkeypatch):
         monkeypatch.setattr(sys, "stderr", stream)
         assert main(["run", good, "--no-disk-cache", *args], registry=make_registry()) == 0
         assert ("node/s" in stream.getvalue()) == bar, stream.getvalue()
+
+
+def test_explain_says_when_a_changed_node_is_served_from_cache(tmp_path):
+    from pixgraph.session import Session
+    good = os.path.join(FIXTURES, "good", "format1.yaml")
+    s = Session(registry=make_registry(), disk_cache=None)
+    s.run(good)                                   # k = 1.5
+    s.run(good, params={"sum.k": 2})              # k = 2: now the last run
+    table = s.explain(good)                       # back to 1.5: changed, yet cached
+    assert re.search(r"sum\s+t\.Add\s+memory\s+\w+\s+params\.k changed; an earlier result is in the memory cache",
+                     table), table
+    assert "src" not in table                     # not needed: its consumer is cached
