@@ -26,12 +26,12 @@ import os
 import platform
 import resource
 import statistics
-import subprocess
 import sys
 import time
 
 import numpy as np
 
+from _machine import cpu_model
 from pixgraph.device import Device, list_devices
 from pixgraph_nodes.ops import buffers as B
 from pixgraph_nodes.ops import shadow as S
@@ -103,15 +103,7 @@ def median_ms(fn, runs):
 
 
 def machine() -> str:
-    model = platform.processor() or ""
-    try:
-        out = subprocess.run(["lscpu"], capture_output=True, text=True, timeout=5).stdout
-        for line in out.splitlines():
-            if line.startswith("Model name:"):
-                model = line.split(":", 1)[1].strip()
-    except (OSError, subprocess.SubprocessError):
-        pass
-    return f"{model} ({os.cpu_count()} logical CPUs), {platform.system()} {platform.release()}"
+    return f"{cpu_model()}, {platform.system()} {platform.release()}"
 
 
 def bench_device(dev: Device, runs: int, quick: bool):

@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import os
 import pathlib
-import platform
 import statistics
 import sys
 import time
@@ -33,19 +32,13 @@ import time
 import numpy as np
 import torch
 
+from _machine import cpu_model
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def machine() -> str:
-    name = platform.processor()
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                name = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{name} ({os.cpu_count()} logical CPUs), torch {torch.__version__}, {torch.get_num_threads()} threads"
+    return f"{cpu_model()}, torch {torch.__version__}, {torch.get_num_threads()} threads"
 
 
 def main(argv=None) -> int:
@@ -117,18 +110,14 @@ def time_methods(a) -> int:
     """Median ms per sample of each method on real benchmark samples."""
     import json
     from pixgraph.device import Device
-    from pixgraph_lab.datagen.dataset import load_sample, sample_files
-    from pixgraph_lab.evaluate import Method, light_of
+    from pixgraph_lab.datagen.dataset import sample_files
+    from pixgraph_lab.evaluate import Method, prepared_sample
 
     if not a.method:
         raise SystemExit("--data needs at least one --method")
     device = Device.open()
     methods = [Method(spec) for spec in a.method]
-    samples = []
-    for f in sample_files(a.data)[:a.limit]:
-        s = load_sample(f)
-        s["light"], s["device"] = light_of(s), device
-        samples.append(s)
+    samples = [prepared_sample(f, device) for f in sample_files(a.data)[:a.limit]]
     print(machine())
     print(f"device: {device.name}; {len(samples)} samples of {a.data}, {a.runs} runs each")
     times = {m.spec: [] for m in methods}

@@ -52,6 +52,14 @@ def light_of(sample: dict):
                  radius=float(sample["light_radius"]), normal=tuple(float(x) for x in sample["light_normal"]))
 
 
+def prepared_sample(path, device) -> dict:
+    """``load_sample(path)`` plus what methods read: ``light`` and ``device``."""
+    s = load_sample(path)
+    s["light"] = light_of(s)
+    s["device"] = device
+    return s
+
+
 class Method:
     """A named predictor: ``predict(sample) -> darkness (H, W)``."""
 
@@ -139,9 +147,7 @@ def evaluate(data_dir: str, specs, limit: int = 0, thickness: float = 1.0, devic
     warm = set()
     rows = []
     for f in tqdm(files, desc=f"evaluate {os.path.basename(os.path.normpath(data_dir))}", disable=not progress):
-        s = load_sample(f)
-        s["light"] = light_of(s)
-        s["device"] = device
+        s = prepared_sample(f, device)
         valid = ~s["mask"] & s["bg_valid"]
         g = s["shadow"].astype(np.float64)
         fac = sample_factors(s)

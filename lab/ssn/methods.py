@@ -7,8 +7,8 @@
 ``shipped`` is the model in ``pixgraph_nodes/weights/ssnpp.pt`` (what the
 SoftShadowSSN node uses); ``run_<name>`` is ``$PIXGRAPH_SSN_RUNS/<name>/model.pt``
 (default folder ``runs``), written by ``pixgraph_lab.ssn.train --out runs/<name>``:
-any run folder works (``run_ssnpp_b4`` reads ``runs/ssnpp_b4/model.pt``); the four
-ablation variants are spelled out below.
+any run folder works (``run_ssnpp_b4`` reads ``runs/ssnpp_b4/model.pt``; the
+ablation's are ``run_ssg``, ``run_sparse``, ``run_reldist``, ``run_ssnpp``).
 Each call computes the buffer channels with our tracer, exactly as the node does,
 and times the whole prediction.
 """
@@ -43,24 +43,8 @@ def shipped(sample):
     return _predict(str(WEIGHTS / "ssnpp.pt"), sample)
 
 
-def run_ssg(sample):
-    return _predict(_run("ssg"), sample)
-
-
-def run_sparse(sample):
-    return _predict(_run("sparse"), sample)
-
-
-def run_reldist(sample):
-    return _predict(_run("reldist"), sample)
-
-
-def run_ssnpp(sample):
-    return _predict(_run("ssnpp"), sample)
-
-
 def __getattr__(name: str):
-    """``run_<folder>`` for any other run folder (e.g. the model-size sweep)."""
+    """``run_<folder>``: the model in ``$PIXGRAPH_SSN_RUNS/<folder>/model.pt``."""
     if name.startswith("run_") and len(name) > 4:
         folder = name[4:]
 

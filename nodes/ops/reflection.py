@@ -662,6 +662,15 @@ def _buf(cl, ctx, array, flags=None):
     return cl.Buffer(ctx, (flags or mf.READ_ONLY) | mf.COPY_HOST_PTR, hostbuf=a)
 
 
+def _read(cl, queue, *buffers):
+    """Copy ``(device buffer, shape, dtype)`` triples back to new host arrays."""
+    out = [np.empty(shape, dtype) for _, shape, dtype in buffers]
+    for (d, _, _), host in zip(buffers, out):
+        cl.enqueue_copy(queue, host, d)
+    queue.finish()
+    return out
+
+
 class _Surface:
     """A surface buffer with its pyramid and box, uploaded once."""
 
@@ -791,14 +800,8 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
             queue.finish()
             if progress is not None:
                 progress(p0 + (p1 - p0) * (y0 + rows) / H, "reflection")
-        out = np.empty((H, W, 4), np.float32)
-        s_out = np.empty((H, W), np.int32)
-        st_out = np.empty((H, W), np.int32)
-        cl.enqueue_copy(queue, out, d_out)
-        cl.enqueue_copy(queue, s_out, d_spp)
-        cl.enqueue_copy(queue, st_out, d_steps)
-        queue.finish()
-        return out, s_out, st_out
+        return _read(cl, queue, (d_out, (H, W, 4), np.float32), (d_spp, (H, W), np.int32),
+                     (d_steps, (H, W), np.int32))
 
     skip = done | ~valid
     if alpha == 0.0:
@@ -865,11 +868,6 @@ def refraction_cl(device, camera: Camera, glass, glass_height, background, bg_he
                    S.d_surf, S.d_pyr, S.d_lvl, np.int32(S.nlev),
                    _buf(cl, ctx, rgb), np.float32(eta), np.asarray(tuple(tint) + (0.0,), np.float32),
                    np.int32(bool(fresnel)), d_out, d_flags, d_steps)
-    out = np.empty((H, W, 4), np.float32)
-    flags = np.empty((H, W), np.int32)
-    steps = np.empty((H, W), np.int32)
-    cl.enqueue_copy(queue, out, d_out)
-    cl.enqueue_copy(queue, flags, d_flags)
-    cl.enqueue_copy(queue, steps, d_steps)
-    queue.finish()
+    out, flags, steps = _read(cl, queue, (d_out, (H, W, 4), np.float32), (d_flags, (H, W), np.int32),
+                              (d_steps, (H, W), np.int32))
     return {"layer": out, "tir": (flags & 4) != 0, "hit": (flags & 1) != 0, "steps": steps}

@@ -1,0 +1,19 @@
+"""The machine a benchmark ran on, for its report (shared by the benchmark scripts)."""
+from __future__ import annotations
+
+import os
+import platform
+import subprocess
+
+
+def cpu_model() -> str:
+    """CPU model name and logical CPU count, e.g. ``AMD EPYC (2 logical CPUs)``."""
+    model = platform.processor() or ""
+    try:
+        out = subprocess.run(["lscpu"], capture_output=True, text=True, timeout=5).stdout
+        for line in out.splitlines():
+            if line.startswith("Model name:"):
+                model = line.split(":", 1)[1].strip()
+    except (OSError, subprocess.SubprocessError):
+        pass
+    return f"{model} ({os.cpu_count()} logical CPUs)"
