@@ -7,6 +7,8 @@
 // by a newer seq (409), and the page never shows an image older than the one shown.
 "use strict";
 
+window.pixgraphShown = [];
+
 const SVG = "http://www.w3.org/2000/svg";
 const $ = (id) => document.getElementById(id);
 const ui = {
@@ -59,8 +61,7 @@ async function render(edits, mode) {
   ui.renders++;
   const ms = (performance.now() - t0).toFixed(0);
   $("status").textContent = `${mode} ${bmp.width}x${bmp.height} in ${ms} ms; ran: ${r.headers.get("X-Pixgraph-Ran") || "nothing (cached)"}`;
-  $("view").dataset.seq = seq;
-  $("view").dataset.mode = mode;
+  window.pixgraphShown.push({seq, mode, ms: Number(ms)});   // what was displayed, for tests and timing
   showError("");
   markBad(null);
   return true;
