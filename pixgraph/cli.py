@@ -69,6 +69,7 @@ def _parser() -> argparse.ArgumentParser:
     n.add_argument("name", nargs="?", help="node type id")
     n.add_argument("--errors", action="store_true", help="show plugins that failed to load")
     n.add_argument("--markdown", action="store_true", help="print the node reference as Markdown")
+    n.add_argument("--json", action="store_true", help="print the node declarations as JSON")
 
     sub.add_parser("schema", parents=[common], help="print the JSON Schema of graph files")
     sub.add_parser("devices", parents=[common], help="list OpenCL platforms and devices")
@@ -264,11 +265,17 @@ def _cmd_nodes(args, registry) -> int:
     if args.markdown:
         sys.stdout.write(reference.markdown(reg))
         return EXIT_OK
+    if args.json and not args.name:
+        print(json.dumps([reference.as_dict(s) for s in reg.specs()], indent=1))
+        return EXIT_OK
     if args.name:
         if args.name not in reg:
             hint = reg.suggest(args.name)
             raise UsageError(f"unknown node type {args.name!r}" + (f" (did you mean {hint!r}?)" if hint else ""))
-        sys.stdout.write(reference.text(reg.get(args.name), reg.source(args.name)))
+        if args.json:
+            print(json.dumps(reference.as_dict(reg.get(args.name)), indent=1))
+        else:
+            sys.stdout.write(reference.text(reg.get(args.name), reg.source(args.name)))
         return EXIT_OK
     width = max((len(s.type_id) for s in reg.specs()), default=0)
     for spec in reg.specs():

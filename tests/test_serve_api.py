@@ -223,3 +223,17 @@ def test_stale_renders_are_dropped_and_running_ones_cancelled(api):
     t.join()
     assert newer.status_code == 200
     assert results["final"].status_code == 409
+
+
+def test_nodes_json_is_what_the_page_is_built_from(capsys):
+    import json
+
+    from pixgraph.cli import main
+
+    assert main(["nodes", "pixgraph.Light", "--json"]) == 0
+    light = json.loads(capsys.readouterr().out)
+    kind = next(p for p in light["params"] if p["name"] == "kind")
+    assert kind["choices"] == ["point", "disk", "directional"] and kind["default"] == "disk"
+    assert [p["name"] for p in light["inputs"]] == ["camera", "mask"] and light["inputs"][1]["optional"]
+    assert main(["nodes", "--json"]) == 0
+    assert "pixgraph.SoftShadowSSN" in {t["type"] for t in json.loads(capsys.readouterr().out)}

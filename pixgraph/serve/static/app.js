@@ -89,7 +89,8 @@ async function finalize(edits) {
 async function refresh() {
   [ui.info, ui.scene] = await Promise.all([api("GET", "/api/graph"), api("GET", "/api/scene")]);
   syncControls();
-  drawHandles();
+  if (!ui.drag) drawHandles();   // never pull a handle from under the pointer
+  document.body.dataset.synced = ui.shownSeq;
 }
 
 // -- handles -----------------------------------------------------------------------
@@ -229,7 +230,8 @@ function buildPanel() {
     const spec = ui.info.types[node.type];
     const box = document.createElement("details");
     box.className = "node";
-    box.open = ["light", "shadow", "bg_h", "cam"].includes(node.id) || node.type.endsWith("Light");
+    const roles = (ui.scene && ui.scene.roles) || {};
+    box.open = node.id === roles.light || node.id === roles.shadow;
     const sum = document.createElement("summary");
     sum.innerHTML = `<b></b><span class="type"></span>`;
     sum.querySelector("b").textContent = node.id;
@@ -313,6 +315,7 @@ async function main() {
   syncControls();
   drawHandles();
   await render({}, "final");
+  document.body.dataset.synced = ui.shownSeq;
   document.body.dataset.ready = "1";
 }
 
