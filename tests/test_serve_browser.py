@@ -61,7 +61,8 @@ def _shadow(shown, photo, alpha):
 def _wait_final(page, after_seq):
     page.wait_for_function(
         f"() => {{ const s = window.pixgraphShown; const l = s[s.length - 1];"
-        f" return l && l.mode === 'final' && l.seq > {after_seq}; }}", timeout=60000)
+        f" return l && l.mode === 'final' && l.seq > {after_seq}"
+        f" && document.body.dataset.synced == l.seq; }}", timeout=60000)   # and its handles redrawn
 
 
 def test_drag_light_moves_the_shadow_and_bad_value_shows_error(browser, server):
@@ -69,8 +70,9 @@ def test_drag_light_moves_the_shadow_and_bad_value_shows_error(browser, server):
         photo = _png(api.get("/api/outputs/photo.image.png").content)
         alpha = _png(api.get("/api/outputs/cutout.alpha.png").content)[:, :, 0]
     page = browser.new_page(viewport={"width": 1180, "height": 660})
-    errors = []
+    errors, requests = [], []
     page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("request", lambda r: requests.append(r.url))
     page.goto(server + "/")
     page.wait_for_selector("body[data-ready='1']", timeout=60000)
     _wait_final(page, 0)
@@ -116,4 +118,40 @@ def test_drag_light_moves_the_shadow_and_bad_value_shows_error(browser, server):
     assert "elevation" in text and "maximum 90" in text, text
     assert "bad" in field.get_attribute("class")
     assert not errors, errors
+    # everything the page used came from the server itself
+    assert requests and all(u.startswith(server + "/") or u.startswith("data:") for u in requests), requests
+    page.close()
+
+
+def _drag(page, selector, dx, dy):
+    box = page.locator(selector).bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x + dx, y + dy, steps=5)
+    page.mouse.up()
+
+
+def test_wall_and_horizon_handles_and_method_toggle(browser, server):
+    page = browser.new_page(viewport={"width": 1180, "height": 660})
+    page.goto(server + "/")
+    page.wait_for_selector("body[data-ready='1']", timeout=60000)
+    seq = page.evaluate("window.pixgraphShown.at(-1).seq")
+    _drag(page, "#corner-handle", 20, -10)
+    _wait_final(page, seq)
+    _drag(page, "#right-wall-handle", 0, 30)
+    _wait_final(page, seq + 1)
+    _drag(page, "#horizon-handle", 0, 25)
+    _wait_final(page, seq + 2)
+    nodes = {n["id"]: n for n in httpx.get(server + "/api/graph").json()["nodes"]}
+    cu, cv = nodes["bg_h"]["params"]["corner"]
+    assert abs(cu - 320) <= 1.5 and abs(cv - 290) <= 1.5
+    # the right handle sits on the wall-floor line at u = 504: moved down 30 px, the
+    # line through the corner and it is 30 / (504 - 320) steeper
+    assert nodes["bg_h"]["params"]["right_slope"] == pytest.approx(0.45 + 30 / (504 - 320), abs=0.01)
+    assert nodes["cam"]["params"]["horizon"] == pytest.approx(145, abs=1.5)
+    seq = page.evaluate("window.pixgraphShown.at(-1).seq")
+    page.locator("input[name=method][value='pixgraph.SoftShadowSSN']").check()
+    _wait_final(page, seq)
+    assert httpx.get(server + "/api/scene").json()["shadow"]["type"] == "pixgraph.SoftShadowSSN"
     page.close()

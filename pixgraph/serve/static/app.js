@@ -150,15 +150,17 @@ function drawHandles() {
   if (bg && roles.background) {
     const id = roles.background;
     if (bg.kind === "wall_corner" || bg.kind === "two_corners") {
+      // the slope handles sit on the wall-floor line, 8 px inside the image's edges
       const [cu, cv] = bg.corner;
-      const lv = cv + bg.left_slope * (0 - cu);
       const rx = bg.kind === "two_corners" ? bg.corner2 : bg.corner;
-      const rv = rx[1] + bg.right_slope * (ui.W - rx[0]);
-      const pts = bg.kind === "two_corners" ? [[0, lv], bg.corner, bg.corner2, [ui.W, rv]] : [[0, lv], bg.corner, [ui.W, rv]];
+      const lu = 8, ru = ui.W - 8;
+      const lv = cv + bg.left_slope * (lu - cu), rv = rx[1] + bg.right_slope * (ru - rx[0]);
+      const ends = [[0, cv + bg.left_slope * (0 - cu)], [ui.W, rx[1] + bg.right_slope * (ui.W - rx[0])]];
+      const pts = bg.kind === "two_corners" ? [ends[0], bg.corner, bg.corner2, ends[1]] : [ends[0], bg.corner, ends[1]];
       svgEl("polyline", {class: "guide wall", points: pts.map((p) => p.join(",")).join(" ")});
       handle("wall", "corner-handle", cu, cv, ([u, v]) => ({params: {[`${id}.corner`]: [round(u), round(v)]}}), "rect");
-      handle("wall", "left-wall-handle", 8, lv, ([, v]) => ({params: {[`${id}.left_slope`]: round((v - cv) / (0 - cu), 4)}}));
-      handle("wall", "right-wall-handle", ui.W - 8, rv, ([, v]) => ({params: {[`${id}.right_slope`]: round((v - rx[1]) / (ui.W - rx[0]), 4)}}));
+      handle("wall", "left-wall-handle", lu, lv, ([, v]) => ({params: {[`${id}.left_slope`]: round((v - cv) / (lu - cu), 4)}}));
+      handle("wall", "right-wall-handle", ru, rv, ([, v]) => ({params: {[`${id}.right_slope`]: round((v - rx[1]) / (ru - rx[0]), 4)}}));
     } else if (bg.kind === "back_wall") {
       const v0 = bg.junction_row, sl = bg.junction_slope;
       svgEl("line", {class: "guide wall", x1: 0, y1: v0 - sl * ui.W / 2, x2: ui.W, y2: v0 + sl * ui.W / 2});
