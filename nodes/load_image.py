@@ -6,12 +6,16 @@ from pathlib import Path
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from .ops.imageio import read_image
+from .ops.imageio import host_pixels, read_image, to_internal
 
 
 @node("pixgraph.LoadImage", version=1)
 class LoadImage:
-    """Read PNG, JPEG, TIFF or EXR; decode to linear light and premultiply alpha."""
+    """Read PNG, JPEG, TIFF or EXR; decode to linear light and premultiply alpha.
+
+    A host may bind a numpy array instead of the file (as for pixgraph.InputImage;
+    ``auto`` then means linear, premultiplied).
+    """
 
     class Params:
         path: Path = param(None, doc="image file, relative to the graph file's folder")
@@ -25,6 +29,12 @@ class LoadImage:
         alpha: T.Mask = port(doc="coverage; ones when the file has no alpha")
 
     impl_version = "1"
+
+    def bind(self, value, params):
+        colorspace = "linear" if params.colorspace == "auto" else params.colorspace
+        alpha = "premultiplied" if params.alpha == "auto" else params.alpha
+        image, a = to_internal(host_pixels(value, (1, 2, 3, 4), "an image"), colorspace, alpha)
+        return {"image": image, "alpha": a}
 
     def compute(self, ctx, inputs, params):
         image, alpha = read_image(params.path, params.colorspace, params.alpha)

@@ -27,6 +27,13 @@ class LoadPixelHeight:
 
     impl_version = "1"
 
+    def bind(self, value, params):
+        """A host's (H, W) float array in pixels instead of the file (times ``scale``)."""
+        from .input_pixel_height import InputPixelHeight
+
+        h = InputPixelHeight().bind(value, params)["height"]
+        return {"height": h * params.scale if params.scale != 1.0 else h}
+
     def compute(self, ctx, inputs, params):
         p = pathlib.Path(params.path)
         if not p.is_absolute() and getattr(ctx, "graph_dir", None):

@@ -101,6 +101,9 @@ class Plan:
     #: params as compute receives them: defaults filled in, paths absolute
     params: Mapping[str, Mapping[str, Any]]
     bind: Mapping[str, Any]
+    #: bound node id -> its outputs (a host input's ``bind`` hook applied; else the
+    #: array as the first output)
+    bound: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
 
     def step(self, node_id: str) -> Step:
         return next(s for s in self.steps if s.node_id == node_id)
@@ -151,14 +154,24 @@ class Engine:
             if nid not in graph.nodes:
                 raise GraphError("cannot bind: no such node in the graph", node=nid)
         order = self._ancestors(graph, [r.node for r in requested.values()], bind)
-        keys, parts, params = {}, {}, {}
+        keys, parts, params, bound = {}, {}, {}, {}
         for nid in order:
             inst = graph.nodes[nid]
             spec = self.registry.get(inst.type)
             if nid in bind:
-                keys[nid] = array_key(bind[nid])
-                parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
                 params[nid] = {}
+                if hasattr(spec.cls, "bind"):
+                    # a host input: its params (colour space, alpha...) say how to read the array
+                    p, relevant = self._params(graph, nid, spec, inst.params, read_paths=False)
+                    params[nid] = p
+                    bound[nid] = self._bind(graph, nid, spec, bind[nid], p)
+                    parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant,
+                                          {"bind": array_key(bind[nid])})
+                    keys[nid] = parts[nid].key()
+                else:
+                    keys[nid] = array_key(bind[nid])
+                    parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
+                    bound[nid] = {spec.outputs[0].name: bind[nid]}
                 continue
             p, relevant = self._params(graph, nid, spec, inst.params)
             params[nid] = p
@@ -166,7 +179,7 @@ class Engine:
             parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
             keys[nid] = parts[nid].key()
         steps = self._steps(graph, requested, order, keys, parts, bind)
-        return Plan(graph, requested, steps, keys, parts, params, bind)
+        return Plan(graph, requested, steps, keys, parts, params, bind, bound)
 
     def _requested(self, graph: Graph, outputs) -> dict[str, Ref]:
         if outputs is None:
@@ -216,10 +229,29 @@ class Engine:
                             stack.append((ref.node, False))
         return order
 
-    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values) -> tuple[dict, dict]:
+    @staticmethod
+    def _bind(graph: Graph, nid: str, spec: NodeSpec, value, params) -> dict[str, Any]:
+        """A host input's outputs from the array bound to it (its ``bind`` hook),
+        checked like computed outputs; a bad array is a ``GraphError`` naming the node."""
+        try:
+            out = spec.cls().bind(value, Namespace(params))
+        except (InputError, TypeError, ValueError) as e:
+            raise graph.error(f"bound value does not fit {spec.type_id}: {str(e).splitlines()[0]}",
+                              node=nid) from None
+        for p in spec.outputs:
+            try:
+                p.type.validate(out[p.name])
+            except (KeyError, TypeError) as e:
+                raise NodeError(nid, spec.type_id, f"bind gave no valid output {p.name!r}: {e}") from None
+            _freeze(out[p.name])
+        return out
+
+    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values, read_paths: bool = True) -> tuple[dict, dict]:
         params = spec.coerce_params(values)
         relevant = {}
         for p in spec.params:
+            if p.kind == "path" and not read_paths:
+                continue  # a bound host input reads no file
             if p.kind == "path":
                 params[p.name] = graph.resolve_path(params[p.name])
                 if p.writes:
@@ -305,7 +337,7 @@ class Engine:
             spec = self.registry.get(inst.type)
             key = plan.keys[nid]
             if nid in plan.bind:
-                results[nid] = {spec.outputs[0].name: plan.bind[nid]}
+                results[nid] = dict(plan.bound[nid])
                 cached.append(nid)
                 emit(E.NodeCached(nid, "bound"))
                 stack.pop()

@@ -77,6 +77,17 @@ def read_image(path: str | os.PathLike, colorspace: str = "auto",
         colorspace = "linear" if _is_linear_file(path) else "srgb"
     if alpha == "auto":
         alpha = "premultiplied" if _is_linear_file(path) else "straight"
+    return to_internal(data, colorspace, alpha)
+
+
+def to_internal(data: np.ndarray, colorspace: str, alpha: str) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels as a file or host holds them -> pixgraph's ``(image, alpha)``.
+
+    data: float (H, W, C), C in 1..4 (alpha last when C is 2 or 4), values as stored;
+    colorspace ``"srgb"`` or ``"linear"``; alpha ``"straight"`` or ``"premultiplied"``.
+    Returns ``image`` float32 (H, W, C) linear premultiplied and ``alpha`` float32
+    (H, W) in [0, 1] (ones when there is no alpha channel).
+    """
     ai = _alpha_channel(data.shape[2])
     if ai is None:
         a = np.ones(data.shape[:2], np.float32)
@@ -98,6 +109,31 @@ def read_image(path: str | os.PathLike, colorspace: str = "auto",
     else:
         image = np.concatenate([colour, a[:, :, None]], axis=2)
     return np.ascontiguousarray(image, dtype=np.float32), a.astype(np.float32)
+
+
+def host_pixels(array, channels: tuple[int, ...], what: str) -> np.ndarray:
+    """A host's numpy array as float32 values: float dtypes as they are, unsigned
+    integers normalised (``v / 255``, ``v / 65535``); (H, W) becomes (H, W, 1).
+
+    Raises ``ValueError`` (one line) for another type, shape or channel count, or
+    for NaN / infinite values.
+    """
+    if not isinstance(array, np.ndarray):
+        raise ValueError(f"{what} must be a numpy array, got {type(array).__name__}")
+    a = array
+    if a.dtype.kind == "u":
+        a = a.astype(np.float32) / np.float32(np.iinfo(a.dtype).max)
+    elif a.dtype.kind != "f":
+        raise ValueError(f"{what} must be float or unsigned integer, got dtype {a.dtype}")
+    a = np.asarray(a, dtype=np.float32)
+    if a.ndim == 2:
+        a = a[:, :, None]
+    if a.ndim != 3 or a.shape[2] not in channels or a.shape[0] < 1 or a.shape[1] < 1:
+        want = " or ".join(f"(H, W, {c})" for c in channels)
+        raise ValueError(f"{what} must have shape {want}, got {array.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{what} has NaN or infinite values")
+    return np.ascontiguousarray(a)
 
 
 def _unpremultiply(colour: np.ndarray, a: np.ndarray) -> np.ndarray:
