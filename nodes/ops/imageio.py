@@ -136,6 +136,51 @@ def host_pixels(array, channels: tuple[int, ...], what: str) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
+def read_raw(path: str | os.PathLike) -> tuple[np.ndarray, list[str]]:
+    """A file's stored values as float32 (H, W, C) and its channel names: integers
+    normalised to [0, 1], never colour-decoded or premultiplied (for data: masks,
+    pixel heights, darkness)."""
+    oiio = _oiio()
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    return _read_float(oiio, path, config)
+
+
+def read_mask(path: str | os.PathLike) -> np.ndarray:
+    """A mask (matte) file as float32 (H, W) in [0, 1].
+
+    ``.npy`` (the PixHt-Lab authors' format): (H, W) or (H, W, C) (first channel);
+    bool, unsigned integers (divided by their maximum), or floats (divided by 255
+    when the largest value is over 1: a 0..255 matte). Images: the alpha channel
+    when there is one, else the first channel, as stored (a matte is data: never
+    sRGB-decoded). Raises ``ValueError`` for NaN values or another shape.
+    """
+    p = pathlib.Path(path)
+    if p.suffix.lower() == ".npy":
+        a = np.load(p, allow_pickle=False)
+        if a.dtype == bool:
+            a = a.astype(np.float32)
+        elif a.dtype.kind == "u":
+            a = a.astype(np.float32) / np.float32(np.iinfo(a.dtype).max)
+        elif a.dtype.kind == "f":
+            a = a.astype(np.float32)
+            if np.isfinite(a).all() and a.size and a.max() > 1.0:
+                a = a / np.float32(255.0)
+        else:
+            raise ValueError(f"{p}: a mask must be bool, unsigned or float, got dtype {a.dtype}")
+        if a.ndim == 3:
+            a = a[:, :, 0]
+    else:
+        data, names = read_raw(p)
+        ai = _alpha_channel(data.shape[2])
+        a = data[:, :, ai if ai is not None else 0]
+    if a.ndim != 2:
+        raise ValueError(f"{p}: expected a 2-D mask, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{p}: mask has NaN or infinite values")
+    return np.ascontiguousarray(np.clip(a, 0.0, 1.0), dtype=np.float32)
+
+
 def _unpremultiply(colour: np.ndarray, a: np.ndarray) -> np.ndarray:
     safe = np.where(a > 0.0, a, 1.0)[:, :, None]
     return np.where(a[:, :, None] > 0.0, colour / safe, 0.0).astype(np.float32)
