@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pixgraph import types as T
 from pixgraph.node import InputError, node, param, port
+from pixgraph.types import Shape
 
 from .ops.camera import Camera as CameraValue
 
@@ -35,6 +36,17 @@ class Camera:
         camera: T.Camera = port(doc="the camera value (pixgraph_nodes.ops.camera.Camera)")
 
     impl_version = "1"
+
+    def infer(self, ctx, inputs, params):
+        img = inputs.image
+        if img is not None:
+            if (params.width or img.width, params.height or img.height) != (img.width, img.height):
+                raise InputError(f"camera size {params.width}x{params.height} differs from its image "
+                                 f"{img.described()}: leave width and height at 0 to take the image's size")
+            return {"camera": Shape(img.height, img.width, None, img.source)}
+        if params.width and params.height:
+            return {"camera": Shape(params.height, params.width, None, f"node {ctx.node_id!r} (width, height)")}
+        return {}  # size from an image of unknown size (a host input): checked when it runs
 
     def compute(self, ctx, inputs, params):
         width, height = params.width, params.height

@@ -4,7 +4,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import InputError, node, param, port
+from pixgraph.types import Shape
+
+from ._checks import file_shape
 
 from .ops.imageio import host_pixels, read_image, to_internal
 
@@ -36,6 +39,13 @@ class LoadImage:
         image, a = to_internal(host_pixels(value, (1, 2, 3, 4), "an image"), colorspace, alpha)
         return {"image": image, "alpha": a}
 
+    def infer(self, ctx, inputs, params):
+        shape = file_shape(params.path, ctx.node_id)
+        return {"image": shape, "alpha": Shape(shape.height, shape.width, 1, shape.source)}
+
     def compute(self, ctx, inputs, params):
-        image, alpha = read_image(params.path, params.colorspace, params.alpha)
+        try:
+            image, alpha = read_image(params.path, params.colorspace, params.alpha)
+        except OSError as e:
+            raise InputError(str(e).splitlines()[0]) from None
         return {"image": image, "alpha": alpha}

@@ -6,7 +6,10 @@ from pathlib import Path
 import numpy as np
 
 from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import InputError, node, param, port
+from pixgraph.types import Shape
+
+from ._checks import file_shape, source
 
 from .ops.imageio import host_pixels, read_mask
 
@@ -29,5 +32,16 @@ class LoadMask:
     def bind(self, value, params):
         return {"mask": np.clip(host_pixels(value, (1,), "a mask")[:, :, 0], 0.0, 1.0)}
 
+    def infer(self, ctx, inputs, params):
+        shape = file_shape(params.path, ctx.node_id)
+        if str(params.path).lower().endswith(".npy"):
+            a = np.load(params.path, mmap_mode="r", allow_pickle=False)
+            if a.dtype.kind == "f" and not np.isfinite(a).all():
+                raise InputError(f"{shape.source}: mask has NaN or infinite values")
+        return {"mask": Shape(shape.height, shape.width, 1, shape.source)}
+
     def compute(self, ctx, inputs, params):
-        return {"mask": read_mask(params.path)}
+        try:
+            return {"mask": read_mask(params.path)}
+        except (OSError, ValueError) as e:
+            raise InputError(f"{source(params.path, ctx.node_id)}: {str(e).splitlines()[0]}") from None

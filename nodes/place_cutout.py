@@ -5,6 +5,7 @@ import numpy as np
 
 from pixgraph import types as T
 from pixgraph.node import InputError, node, param, port
+from pixgraph.types import Shape
 
 from .ops.heightmaps import contact_line_height
 from .ops.placement import place_cutout, resize_map
@@ -46,6 +47,38 @@ class PlaceCutout:
         height: T.PixelHeight = port(doc="cutout pixel height on the canvas [canvas px], 0 outside")
 
     impl_version = "1"
+
+    def infer(self, ctx, inputs, params):
+        """Checks from file headers: alpha or mask, sizes, and a foot that keeps the
+        cutout on the canvas."""
+        cut, bg, mask, height = inputs.cutout, inputs.background, inputs.mask, inputs.height
+        if cut is not None:
+            if cut.height < 2 or cut.width < 2:
+                raise InputError(f"the cutout {cut.described()} is too small to place (at least 2x2)")
+            if mask is None and cut.channels is not None and cut.channels not in (2, 4):
+                raise InputError(f"the cutout {cut.described()} has no alpha channel ({cut.channels} channels): "
+                                 "use an RGBA image (PNG, EXR) or connect a mask (pixgraph.LoadMask)")
+            if mask is not None and (mask.height, mask.width) != (cut.height, cut.width):
+                raise InputError(f"mask {mask.described()} and cutout {cut.described()} differ in size")
+            if height is not None and abs((cut.height / height.height) / (cut.width / height.width) - 1) > 0.02:
+                raise InputError(f"pixel height {height.described()} and cutout {cut.described()} have different "
+                                 "aspect ratios: the map is not of this cutout")
+        if bg is None:
+            return {}
+        u, v = params.foot
+        if cut is not None:
+            # the foot is inside the cutout, so a cutout at least partly on the canvas
+            # has its foot within one scaled cutout size of it
+            w, h = cut.width * params.scale, cut.height * params.scale
+            off = u < -w or u > bg.width + w or v < 0 or v > bg.height + h
+        else:
+            off = not (0 <= u <= bg.width and 0 <= v <= bg.height)
+        if off:
+            what = f"the cutout {cut.described()}" if cut is not None else "the cutout"
+            raise InputError(f"foot {[u, v]} at scale {params.scale} puts {what} outside the canvas "
+                             f"{bg.described()}")
+        source = f"{cut.source} placed on {bg.source}" if cut is not None else bg.source
+        return {o: Shape(bg.height, bg.width, c, source) for o, c in (("image", 4), ("alpha", 1), ("height", 1))}
 
     def compute(self, ctx, inputs, params):
         img = np.asarray(inputs.cutout, dtype=np.float32)

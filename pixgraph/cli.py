@@ -61,7 +61,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
     r.add_argument("--cache-bytes", type=int, default=None, help="memory cache limit in bytes")
 
-    sub.add_parser("validate", parents=[common, graph_opts], help="check a graph file without running it")
+    sub.add_parser("validate", parents=[common, graph_opts],
+                   help="check a graph file and its input files' headers without running it")
     sub.add_parser("explain", parents=[common, graph_opts, cache_opts],
                    help="show what a run would compute or take from cache, and why")
 
@@ -226,6 +227,8 @@ def _cmd_validate(args, registry) -> int:
 
     s = Session(registry=reg)
     g = s.graph(args.graph, parse_sets(args.set))
+    if g.outputs:
+        s.check(g)  # file headers: sizes, alpha, placements (reads no pixels)
     if not args.quiet:
         print(f"{args.graph}: ok ({len(g.nodes)} nodes, outputs: {', '.join(g.outputs) or 'none'})")
     return EXIT_OK

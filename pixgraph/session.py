@@ -128,6 +128,12 @@ class Session:
     def plan(self, graph_or_path, outputs=None, params=None, bind=None) -> Plan:
         return self.engine.plan(self.graph(graph_or_path, params), outputs, bind)
 
+    def check(self, graph_or_path, outputs=None, params=None) -> dict:
+        """Check before running, from file headers only (``Engine.check``): sizes that
+        do not fit, cutouts without alpha, placements off the canvas... Raises the
+        first problem as a ``GraphError`` naming the node and the files."""
+        return self.engine.check(self.graph(graph_or_path, params), outputs)
+
     def explain(self, graph_or_path, outputs=None, params=None, bind=None) -> str:
         return self.plan(graph_or_path, outputs, params, bind).table()
 

@@ -136,6 +136,26 @@ def host_pixels(array, channels: tuple[int, ...], what: str) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
+def read_header(path: str | os.PathLike) -> tuple[int, int, int]:
+    """``(height, width, channels)`` of an image file from its header (no pixels
+    read), or of a ``.npy`` array (its header; 2-D arrays have 1 channel).
+    Raises ``OSError`` when the file cannot be opened as an image."""
+    p = pathlib.Path(path)
+    if p.suffix.lower() == ".npy":
+        a = np.load(p, mmap_mode="r", allow_pickle=False)
+        if a.ndim not in (2, 3):
+            raise OSError(f"{p}: expected a 2-D or 3-D array, got shape {a.shape}")
+        return int(a.shape[0]), int(a.shape[1]), int(a.shape[2]) if a.ndim == 3 else 1
+    inp = _oiio().ImageInput.open(str(p))
+    if inp is None:
+        raise OSError(f"cannot read image {p}: {_oiio().geterror()}".splitlines()[0])
+    try:
+        spec = inp.spec()
+        return int(spec.height), int(spec.width), int(spec.nchannels)
+    finally:
+        inp.close()
+
+
 def read_raw(path: str | os.PathLike) -> tuple[np.ndarray, list[str]]:
     """A file's stored values as float32 (H, W, C) and its channel names: integers
     normalised to [0, 1], never colour-decoded or premultiplied (for data: masks,
