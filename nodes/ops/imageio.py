@@ -224,13 +224,23 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
       written over black (the premultiplied colour) and alpha is dropped.
     - ``.exr``: linear, premultiplied, ``bit_depth`` 16 (half) or 32 (float,
       default), channels ``R,G,B[,A]`` (``Y`` / ``Y,A`` for grey).
+    - ``.npy``: the float32 array as it is (linear, premultiplied).
+
+    Data maps (mattes, darkness, pixel heights) go through ``write_data`` instead.
 
     The file is written to a temporary name next to it and renamed, so a reader
     never sees a half-written image. Returns the path written, as a string.
     """
-    oiio = _oiio()
     path = str(path)
     ext = pathlib.Path(path).suffix.lower()
+    if ext == ".npy":  # the array itself: float32 linear premultiplied, exact
+        folder, name = os.path.split(os.path.abspath(path))
+        os.makedirs(folder, exist_ok=True)
+        tmp = os.path.join(folder, f".{name}.tmp-{os.getpid()}.npy")
+        np.save(tmp, np.ascontiguousarray(array, dtype=np.float32))
+        os.replace(tmp, path)
+        return path
+    oiio = _oiio()
     img = _as_hwc(array)
     h, w, c = img.shape
     ai = _alpha_channel(c)
@@ -272,6 +282,81 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
         raise ValueError(f"unsupported image extension {ext!r} for {path} (png, tif, jpg, exr)")
     _write_atomic(oiio, path, spec, np.ascontiguousarray(pixels, dtype=np.float32))
     return path
+
+
+#: extensions ``write_data`` can write
+DATA_EXTENSIONS = (".npy", ".exr", ".tif", ".tiff", ".png")
+
+
+def write_data(path: str | os.PathLike, array: np.ndarray, bit_depth: int | None = None,
+               white: float = 1.0) -> str:
+    """Write a data map (a matte, a shadow darkness, a pixel height: float (H, W)) so
+    that reading it back gives the same numbers: never sRGB-encoded, never clipped.
+
+    - ``.npy``: float32, exact (read back with ``np.load``, LoadMask, LoadPixelHeight).
+    - ``.exr``: one float channel ``Y``, exact (``bit_depth`` 16: half floats).
+    - ``.tif``/``.tiff``: float32 (default, exact), or ``bit_depth`` 8/16 as below.
+    - ``.png``: 16-bit (default) or 8-bit integers holding ``value / white``, linear
+      (no gamma): exact to 1 / 65535 (1 / 255) of ``white``. Values outside
+      ``[0, white]`` are a ``ValueError`` naming the range (use .npy or .exr), since
+      an integer file cannot hold them.
+    NaN or infinite values are a ``ValueError``. Written atomically (temp + rename).
+    """
+    path = str(path)
+    ext = pathlib.Path(path).suffix.lower()
+    a = np.asarray(array, dtype=np.float32)
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[:, :, 0]
+    if a.ndim != 2:
+        raise ValueError(f"a data map is (H, W), got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{path}: the map has NaN or infinite values")
+    if ext == ".npy":
+        folder, name = os.path.split(os.path.abspath(path))
+        os.makedirs(folder, exist_ok=True)
+        tmp = os.path.join(folder, f".{name}.tmp-{os.getpid()}.npy")
+        np.save(tmp, np.ascontiguousarray(a))
+        os.replace(tmp, path)
+        return path
+    oiio = _oiio()
+    integer = ext == ".png" or (ext in (".tif", ".tiff") and bit_depth in (8, 16))
+    if integer:
+        bit_depth = 16 if bit_depth is None else bit_depth
+        if bit_depth not in (8, 16):
+            raise ValueError(f"{ext} data bit_depth must be 8 or 16, got {bit_depth}")
+        if not white > 0:
+            raise ValueError(f"white must be positive, got {white}")
+        lo, hi = float(a.min()), float(a.max())
+        if lo < 0.0 or hi > white * (1 + 1e-6):
+            raise ValueError(f"values {lo:g}..{hi:g} do not fit a {bit_depth}-bit {ext} holding 0..{white:g} "
+                             f"(write .npy or .exr, or set white)")
+        spec = oiio.ImageSpec(a.shape[1], a.shape[0], 1, oiio.UINT8 if bit_depth == 8 else oiio.UINT16)
+        pixels = np.clip(a / np.float32(white), 0.0, 1.0)
+    elif ext in (".exr", ".tif", ".tiff"):
+        bit_depth = 32 if bit_depth is None else bit_depth
+        if bit_depth not in (16, 32) or (bit_depth == 16 and ext != ".exr"):
+            raise ValueError(f"{ext} float bit_depth must be 32{' or 16' if ext == '.exr' else ''}, got {bit_depth}")
+        spec = oiio.ImageSpec(a.shape[1], a.shape[0], 1, oiio.HALF if bit_depth == 16 else oiio.FLOAT)
+        pixels = a
+    else:
+        raise ValueError(f"cannot write a data map to {ext!r} ({path}): use .npy, .exr, .tif or .png")
+    spec.channelnames = ("Y",)
+    _write_atomic(oiio, path, spec, np.ascontiguousarray(pixels[:, :, None], dtype=np.float32))
+    return path
+
+
+def read_data(path: str | os.PathLike, white: float = 1.0) -> np.ndarray:
+    """A data map written by ``write_data`` (or any single-channel file) as float32
+    (H, W): ``.npy`` as stored, float files as stored, integer files ``v / max * white``."""
+    p = pathlib.Path(path)
+    if p.suffix.lower() == ".npy":
+        return np.asarray(np.load(p, allow_pickle=False), dtype=np.float32)
+    data, _ = read_raw(p)
+    inp = _oiio().ImageInput.open(str(p))
+    fmt = str(inp.spec().format)
+    inp.close()
+    scale = white if fmt.startswith("uint") else 1.0
+    return (data[:, :, 0] * np.float32(scale)).astype(np.float32)
 
 
 def _write_atomic(oiio, path: str, spec, pixels: np.ndarray) -> None:
