@@ -21,7 +21,7 @@ import tempfile
 
 import numpy as np
 
-THICKNESSES = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
+THICKNESSES = (0.5, 1.0, 2.0, 4.0, 6.0, 8.0, 16.0, 32.0)
 
 
 def study(device, data_dir: str, thicknesses=THICKNESSES) -> dict:
