@@ -6,6 +6,7 @@ import numpy as np
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
+from ._checks import finite_outputs, inside, pixel_heights, rgba, same_size
 from .ops.reflection import reflection_cl
 
 
@@ -24,6 +25,12 @@ class Reflection:
     sample, and on flat ground it uses the exact planar closed form (the cutout
     flipped about its foot line). Output: a premultiplied linear RGBA layer to put
     over the background.
+
+    All inputs share the camera's size and the cutout is RGBA; pixel heights must
+    be finite and >= 0 (the cutout's inside its mask), else the node stops with
+    an input error. An empty cutout reflects nothing (a transparent layer). Long
+    runs work in bands of image rows: they report progress and stop at the next
+    band when the run is cancelled.
     """
 
     class Inputs:
@@ -58,6 +65,12 @@ class Reflection:
     impl_version = "2"   # 2: low-discrepancy (R2) samples
 
     def compute(self, ctx, inputs, params):
+        same_size(inputs.camera, cutout=inputs.cutout, fg_height=inputs.fg_height, bg_height=inputs.bg_height,
+                  mask=inputs.mask)
+        rgba(cutout=inputs.cutout)
+        covered = inside(inputs.cutout[..., 3] if inputs.mask is None else inputs.mask)
+        pixel_heights(covered, fg_height=inputs.fg_height)
+        pixel_heights(bg_height=inputs.bg_height)
         r = reflection_cl(ctx.device, inputs.camera, inputs.cutout, inputs.fg_height, inputs.bg_height,
                           roughness=params.roughness, eta=params.eta,
                           conductor=params.material == "conductor", f0=params.f0,
@@ -65,5 +78,6 @@ class Reflection:
                           min_spp=params.min_spp, max_spp=params.max_spp, target_se=params.noise,
                           seed=params.seed, mask=inputs.mask, hiz=params.accelerate,
                           progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        finite_outputs(layer=r["layer"])
         return {"layer": r["layer"],
                 "stats": {"spp": r["spp"].astype(np.float32), "steps": r["steps"].astype(np.float32)}}
