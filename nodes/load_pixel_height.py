@@ -4,8 +4,10 @@ from __future__ import annotations
 import pathlib
 from pathlib import Path
 
+import numpy as np
+
 from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import InputError, node, param, port
 
 from .ops.heightmaps import load_pixel_height
 
@@ -31,4 +33,10 @@ class LoadPixelHeight:
         p = pathlib.Path(params.path)
         if not p.is_absolute() and getattr(ctx, "graph_dir", None):
             p = pathlib.Path(ctx.graph_dir) / p
-        return {"height": load_pixel_height(p, params.scale)}
+        try:
+            height = load_pixel_height(p, params.scale)
+        except (ValueError, OSError) as e:  # the file's content is the user's data
+            raise InputError(f"param 'path': {e}") from None
+        if not np.all(np.isfinite(height)):
+            raise InputError(f"param 'scale': {params.scale} times the file's heights overflows float32")
+        return {"height": height}

@@ -75,11 +75,14 @@ F32 = np.float32
 FLIP_JUMP = 1.0
 #: Stand-in for "no far end" of a march (s = -1 or 0), in units of t.
 _T_FAR = F32(1.0e30)
-#: Pixel-light-sample pairs per band of a banded launch (ShadowScene.launch_banded):
-#: at worst (every march walking the cutout) about 0.1 s on one 2-core PoCL
-#: CPU, so a cancelled run stops within a band; bands shorter than the image
-#: add one launch and one wait each (benchmarks/shadow_bench.py, before/after).
-BAND_WORK = 1 << 21
+#: Pixel-light-sample pairs per band of a banded launch (ShadowScene.bands):
+#: 10-20 ns each where the marches walk the cutout on a shared 2-core PoCL
+#: CPU, so a band takes well under 0.1 s and a cancelled run stops within one;
+#: each band adds one launch and one wait (benchmarks/shadow_bench.py, banded).
+BAND_WORK = 1 << 22
+#: Narrowest piece of a row a banded launch makes (pixels): narrower launches
+#: leave cores idle.
+BAND_MIN_WIDTH = 128
 
 
 def _cl():
@@ -366,40 +369,51 @@ class ShadowScene:
                 np.int32(self.TH), np.int32(M.TILE), _f4(p.rect), np.float32(p.h_lo),
                 np.float32(p.h_hi), np.float32(p.f_lo), np.float32(p.f_hi), np.float32(p.thickness))
 
-    def launch(self, name, *args, rows=None):
+    def launch(self, name, *args, region=None):
         """Enqueue kernel `name` over (W, H) with the occluder args then `args`;
-        ``rows=(y0, n)`` covers only image rows y0 .. y0 + n - 1 (a global offset:
-        each pixel is computed exactly as in a whole-image launch)."""
+        ``region=(x0, y0, nx, ny)`` covers only that rectangle of pixels (a global
+        offset: each pixel is computed exactly as in a whole-image launch)."""
         kern = _kernel(self.prg, name)
         kern.set_args(*self.occluder_args(), *args)
         p = self.prep
-        y0, n = rows if rows is not None else (0, p.H)
-        return _cl().enqueue_nd_range_kernel(self.device.queue, kern, (p.W, n), None,
-                                             global_work_offset=(0, y0) if y0 else None)
+        x0, y0, nx, ny = region if region is not None else (0, 0, p.W, p.H)
+        return _cl().enqueue_nd_range_kernel(self.device.queue, kern, (nx, ny), None,
+                                             global_work_offset=(x0, y0) if (x0 or y0) else None)
+
+    def bands(self, cost=1.0):
+        """The pieces of a banded launch, ``(x0, y0, nx, ny)`` in order: bands of
+        whole rows holding about ``BAND_WORK / cost`` pixels, or, when one row
+        is more work than that, pieces of single rows (at least BAND_MIN_WIDTH
+        pixels wide, so that every core still gets work)."""
+        p = self.prep
+        per_band = BAND_WORK / max(float(cost), 1.0)
+        rows = int(min(p.H, per_band / p.W))
+        if rows >= 1:
+            return [(0, y0, p.W, min(rows, p.H - y0)) for y0 in range(0, p.H, rows)]
+        cols = int(min(p.W, max(BAND_MIN_WIDTH, per_band)))
+        return [(x0, y0, min(cols, p.W - x0), 1) for y0 in range(p.H) for x0 in range(0, p.W, cols)]
 
     def launch_banded(self, name, *args, cost=1.0, progress=None, check_cancelled=None):
-        """Enqueue kernel `name` in bands of rows and wait for each, so that a long
-        launch reports ``progress(fraction, message)`` and honours
+        """Enqueue kernel `name` in bands (:meth:`bands`) and wait for each, so that
+        a long launch reports ``progress(fraction, message)`` and honours
         ``check_cancelled()`` between bands; returns the last band's event.
 
         cost: work per pixel relative to one hard shadow (e.g. the light sample
-        count): a band holds about ``BAND_WORK / cost`` pixels, at least one row.
-        The bands change nothing in the result (see :meth:`launch`). Without
-        either callback the image is one launch, as before.
+        count). The bands change nothing in the result (see :meth:`launch`).
+        Without either callback the image is one launch, as before.
         """
         p = self.prep
         if progress is None and check_cancelled is None:
             return self.launch(name, *args)
-        rows = int(max(1, min(p.H, BAND_WORK / max(float(cost), 1.0) / p.W)))
-        ev = None
-        for y0 in range(0, p.H, rows):
+        ev, done, total = None, 0, p.W * p.H
+        for region in self.bands(cost):
             if check_cancelled is not None:
                 check_cancelled()
-            n = min(rows, p.H - y0)
-            ev = self.launch(name, *args, rows=(y0, n))
+            ev = self.launch(name, *args, region=region)
             ev.wait()
+            done += region[2] * region[3]
             if progress is not None:
-                progress((y0 + n) / p.H, name.replace("_", " "))
+                progress(done / total, name.replace("_", " "))
         return ev
 
     def launch_hard(self, light, progress=None, check_cancelled=None):
