@@ -36,6 +36,20 @@ def rgba(**images) -> None:
             raise InputError(f"input {name!r} must be RGBA (4 channels, its alpha is the coverage), got {got}")
 
 
+def finite(**arrays) -> None:
+    """Raise ``InputError`` naming the first array that holds NaN or inf (colours,
+    masks, layers: a NaN pixel would spread through every effect to the output)."""
+    for name, a in arrays.items():
+        if a is None:
+            continue
+        bad = ~np.isfinite(np.asarray(a))
+        n = int(np.count_nonzero(bad))
+        if n:
+            i, j = np.unravel_index(int(np.argmax(bad.reshape(bad.shape[0], bad.shape[1], -1).any(-1))),
+                                    bad.shape[:2])
+            raise InputError(f"input {name!r}: {n} value(s) NaN or infinite (first at pixel u={j}, v={i})")
+
+
 def pixel_heights(where=None, **maps) -> None:
     """Raise ``InputError`` unless every named pixel-height map is finite and >= 0.
 

@@ -6,7 +6,7 @@ import numpy as np
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from ._checks import finite_outputs, inside, pixel_heights, rgba, same_size
+from ._checks import finite, finite_outputs, inside, pixel_heights, rgba, same_size
 from .ops.reflection import reflection_cl
 
 
@@ -68,6 +68,7 @@ class Reflection:
         same_size(inputs.camera, cutout=inputs.cutout, fg_height=inputs.fg_height, bg_height=inputs.bg_height,
                   mask=inputs.mask)
         rgba(cutout=inputs.cutout)
+        finite(cutout=inputs.cutout, mask=inputs.mask)
         covered = inside(inputs.cutout[..., 3] if inputs.mask is None else inputs.mask)
         pixel_heights(covered, fg_height=inputs.fg_height)
         pixel_heights(bg_height=inputs.bg_height)

@@ -4,7 +4,7 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from ._checks import finite_outputs, pixel_heights, rgba, same_size
+from ._checks import finite, finite_outputs, pixel_heights, rgba, same_size
 from .ops.reflection import refraction_cl
 
 
@@ -57,6 +57,7 @@ class Refraction:
         same_size(inputs.camera, glass=inputs.glass, glass_height=inputs.glass_height,
                   background=inputs.background, bg_height=inputs.bg_height)
         rgba(glass=inputs.glass)
+        finite(glass=inputs.glass, background=inputs.background)
         pixel_heights(inputs.glass[..., 3] > 0, glass_height=inputs.glass_height)
         pixel_heights(bg_height=inputs.bg_height)
         r = refraction_cl(ctx.device, inputs.camera, inputs.glass, inputs.glass_height, inputs.background,

@@ -4,7 +4,7 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from ._checks import finite_outputs, inside, pixel_heights, same_size
+from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops.lights import disk_samples, light_point
 from .ops.shadow import soft_shadow
 
@@ -41,6 +41,7 @@ class SoftShadow:
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+        finite(mask=inputs.mask)
         pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
         pixel_heights(bg_height=inputs.bg_height)
         light, cam = inputs.light, inputs.camera

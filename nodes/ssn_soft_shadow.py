@@ -11,7 +11,7 @@ import numpy as np
 
 from pixgraph.node import InputError
 
-from ._checks import finite_outputs, inside, pixel_heights, same_size
+from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops import ssn
 from .ops.buffers import buffer_channels
 from .ops.lights import disk_extremes, light_point
@@ -69,6 +69,7 @@ class SoftShadowSSN:
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+        finite(mask=inputs.mask)
         pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
         pixel_heights(bg_height=inputs.bg_height)
         cam, light = inputs.camera, inputs.light

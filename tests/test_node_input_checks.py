@@ -251,10 +251,10 @@ def test_ssn_softness_is_clamped_never_nan(tmp_path, device):
 
 def test_subprocess_exit_codes(tmp_path):
     """The real command line: a size mismatch and a NaN height file exit 2 with one
-    line on stderr; a good graph exits 0."""
+    line on stderr (test_the_scene_runs shows the same graph runs when they fit)."""
     env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / "xdg"))
     cases = []
-    for name, kw, bad in (("ok", {}, None), ("size", dict(obj_size=8, fg_size=8), None), ("nan", {}, np.nan)):
+    for name, kw, bad in (("size", dict(obj_size=8, fg_size=8), None), ("nan", {}, np.nan)):
         d = tmp_path / name
         d.mkdir()
         obj, fg, bg, photo = scene(**kw)
@@ -265,8 +265,51 @@ def test_subprocess_exit_codes(tmp_path):
         r = subprocess.run([sys.executable, "-m", "pixgraph", "run", str(path), "--no-disk-cache", "-q"],
                            capture_output=True, text=True, env=env, timeout=120)
         err = r.stderr.strip().splitlines()
-        if name == "ok":
-            assert r.returncode == 0, r.stderr
-        else:
-            assert r.returncode == 2 and len(err) == 1, r.stderr
-            assert ("node 'node'" if name == "size" else "node 'bg'") in err[0]
+        assert r.returncode == 2 and len(err) == 1, r.stderr
+        assert ("node 'node'" if name == "size" else "node 'bg'") in err[0]
+
+
+@pytest.mark.parametrize("type_id, node, port", [
+    ("pixgraph.Refraction", "photo", "background"),
+    ("pixgraph.Refraction", "obj", "glass"),
+    ("pixgraph.Reflection", "obj", "cutout"),
+])
+@pytest.mark.parametrize("value", [np.nan, np.inf])
+def test_non_finite_colours_are_bad_input(tmp_path, type_id, node, port, value):
+    """A NaN colour (an EXR can hold one; a host can bind one) would spread to the
+    output: the node names the input instead."""
+    from pixgraph.engine import NodeInputError
+
+    obj, fg, bg, photo = scene()
+    path = write_graph(tmp_path, type_id, obj, fg, bg, photo)
+    bound = (photo if node == "photo" else obj).copy()
+    bound[20, 18, 0] = value
+    with pytest.raises(NodeInputError, match=rf"input '{port}': 1 value\(s\) NaN or infinite \(first at pixel u=18, v=20\)"):
+        Session(disk_cache=None).run(path, bind={node: bound})
+
+
+@pytest.mark.parametrize("type_id", ["pixgraph.HardShadow", "pixgraph.SoftShadow", "pixgraph.BufferChannels",
+                                     "pixgraph.SoftShadowSSN"])
+def test_a_non_finite_mask_is_bad_input(type_id):
+    from pixgraph.node import InputError, Namespace
+    from pixgraph.registry import Registry
+    from pixgraph_nodes.ops.camera import Camera
+    from pixgraph_nodes.ops.lights import point_light
+
+    spec = Registry.discover().get(type_id)
+    obj, fg, bg, _ = scene()
+    mask = obj[..., 3].copy()
+    mask[20, 18] = np.nan
+    inputs = Namespace(dict(mask=mask, fg_height=fg, bg_height=bg, light=point_light((0.0, 2.0, -3.0)),
+                            camera=Camera(N, N, 50.0, HORIZON)))
+    params = Namespace({p.name: p.default for p in spec.params})
+    with pytest.raises(InputError, match=r"input 'mask': 1 value\(s\) NaN or infinite \(first at pixel u=18, v=20\)"):
+        spec.cls().compute(None, inputs, params)     # refused before the device is touched
+
+
+def test_a_sphere_above_the_horizon_is_bad_input(capsys):
+    code = main(["run", str(ROOT / "graphs" / "crystal_ball.yaml"), "--no-disk-cache", "-q",
+                 "--set", "ball.contact_v=-100"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1
+    assert "node 'ball' (pixgraph.Sphere)" in err[0] and "below the horizon" in err[0]
