@@ -237,3 +237,41 @@ def test_nodes_json_is_what_the_page_is_built_from(capsys):
     assert [p["name"] for p in light["inputs"]] == ["camera", "mask"] and light["inputs"][1]["optional"]
     assert main(["nodes", "--json"]) == 0
     assert "pixgraph.SoftShadowSSN" in {t["type"] for t in json.loads(capsys.readouterr().out)}
+
+
+BAD_EDITS = [
+    {"params": {"light.azimuth": 10 ** 400}}, {"params": {"light.azimuth": "north"}},
+    {"params": {"light.tip_uv": [1]}}, {"params": {"light": 5}}, {"params": {"": 1}},
+    {"params": {"light.": 1}}, {"params": {"light.nope": 1}}, {"params": "light.azimuth=3"},
+    {"params": {"cam.width": 10 ** 30}}, {"params": {"cam.width": 0.5}}, {"params": {"fg_h.method": None}},
+    {"types": "x"}, {"types": {"light": "pixgraph.HardShadow"}}, {"types": {"ghost": "pixgraph.HardShadow"}},
+    {"light_elevation": "high"}, {"light_elevation": 95}, {"light_tip": [float("nan"), 3]},
+    {"light_tip": "here"},
+]
+BAD_RUNS = [{"outputs": 5}, {"outputs": ["comp.nope"]}, {"mode": 5}]   # bad for /api/run only
+
+
+@pytest.mark.parametrize("data", BAD_EDITS + BAD_RUNS, ids=range(len(BAD_EDITS + BAD_RUNS)))
+def test_every_bad_edit_is_a_4xx_json_error(api, server, data):
+    import json
+
+    raw = json.dumps(data).encode()     # NaN as the JSON extension Python writes
+    for path in ("/api/params", "/api/run") if data in BAD_EDITS else ("/api/run",):
+        r = api.post(path, content=raw)
+        assert 400 <= r.status_code < 500 and r.json()["error"], (path, r.status_code, r.text)
+    assert api.get("/api/graph.yaml").text == fileio.dumps(fileio.loads(server["text"], Registry.discover(),
+                                                                  base_dir=os.path.dirname(server["graph"])))
+
+
+def test_bad_render_requests_and_posted_graphs(api):
+    for data in ({"client": 5, "seq": 1}, {"client": "c", "seq": "1"}, {"output": ["final"]},
+                 {"output": "light.light"}, {"mode": "draft"}):
+        _error(api.post("/api/render", json=data), 400)
+    laughs = "pixgraph: 1\na: &a [1, 1, 1, 1, 1, 1, 1, 1, 1]\nb: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a]\n"
+    assert "anchors" in _error(api.post("/api/graph", content=laughs.encode()), 400)["error"]
+    _error(api.post("/api/graph", content=b"\xff\xfe"), 400)
+    _error(api.post("/api/save", json={"path": 5}), 400)
+    _error(api.post("/api/save", json={"path": "no/such/folder/x.yaml"}), 400)
+    _error(api.get("/api/outputs/final.gif"), 404)
+    _error(api.get("/api/outputs/final.png?scale=0"), 400)
+    _error(api.get("/static/../state.py"), 404)

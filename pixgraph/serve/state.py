@@ -181,6 +181,8 @@ class ServeState:
             graph = self.session.graph(self.graph, dict(params))
         except GraphError as e:
             raise ServeError.from_graph_error(e) from None
+        except (TypeError, ValueError, OverflowError) as e:  # e.g. a number too large for a float
+            raise ServeError(400, f"bad params: {e}".splitlines()[0], field="params") from None
         self.graph = self._checked(graph)
         return self.graph
 
@@ -209,6 +211,7 @@ class ServeState:
 
     def load_text(self, text: str) -> Graph:
         """Replace the served graph by posted YAML; its paths resolve in the graph's folder."""
+        _refuse_aliases(text)
         try:
             graph = fileio.loads(text, self.registry, file="<posted graph>", base_dir=self.root)
         except GraphError as e:
@@ -228,7 +231,10 @@ class ServeState:
             self.policy.check_write(target)
         except PathError as e:
             raise ServeError(403, str(e), field="path") from None
-        fileio.dump(self.graph, target, self.registry)
+        try:
+            fileio.dump(self.graph, target, self.registry)
+        except OSError as e:
+            raise ServeError(400, f"save: cannot write {path or target}: {e.strerror or e}", field="path") from None
         return target
 
     # -- run ----------------------------------------------------------------------
@@ -264,6 +270,21 @@ class ServeState:
         except NodeError as e:
             raise ServeError(422, str(e), node=e.node_id) from None
         return values, self.session.last_run
+
+
+def _refuse_aliases(text: str) -> None:
+    """Posted YAML may not use anchors or aliases: a few hundred bytes of nested
+    aliases expand to gigabytes (the "billion laughs"), and graphs never need them."""
+    import yaml
+
+    try:
+        for token in yaml.scan(text):
+            if isinstance(token, (yaml.AliasToken, yaml.AnchorToken)):
+                line = token.start_mark.line + 1
+                raise ServeError(400, f"<posted graph>:{line}: YAML anchors and aliases are not accepted "
+                                      "by the server", line=line)
+    except yaml.YAMLError:
+        pass  # the loader reports the syntax error with its line
 
 
 def _jsonable(v: Any) -> Any:
