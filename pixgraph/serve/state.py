@@ -49,7 +49,9 @@ class ServeError(Exception):
         return {"error": self.message, **self.where}
 
     @classmethod
-    def from_graph_error(cls, e: GraphError, status: int = 400) -> "ServeError":
+    def from_graph_error(cls, e: GraphError) -> "ServeError":
+        """400, or 403 for a path the policy refuses (``PathError`` is a ``GraphError``)."""
+        status = 403 if isinstance(e, PathError) else 400
         return cls(status, str(e), node=e.node, field=e.field, file=e.file, line=e.line)
 
 
