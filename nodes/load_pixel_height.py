@@ -4,9 +4,9 @@ from __future__ import annotations
 import pathlib
 from pathlib import Path
 
-from pixgraph import types as T
 import numpy as np
 
+from pixgraph import types as T
 from pixgraph.node import InputError, node, param, port
 from pixgraph.types import Shape
 
@@ -53,6 +53,9 @@ class LoadPixelHeight:
         if not p.is_absolute() and getattr(ctx, "graph_dir", None):
             p = pathlib.Path(ctx.graph_dir) / p
         try:
-            return {"height": load_pixel_height(p, params.scale)}
-        except (OSError, ValueError) as e:
+            height = load_pixel_height(p, params.scale)
+        except (OSError, ValueError) as e:  # the file's content is the user's data
             raise InputError(f"{source(str(p), ctx.node_id)}: {str(e).splitlines()[0]}") from None
+        if not np.all(np.isfinite(height)):
+            raise InputError(f"param 'scale': {params.scale} times the file's heights overflows float32")
+        return {"height": height}

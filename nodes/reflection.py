@@ -6,7 +6,7 @@ import numpy as np
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from ._checks import same_size
+from ._checks import finite, finite_outputs, inside, pixel_heights, rgba, same_size
 from .ops.reflection import reflection_cl
 
 
@@ -27,6 +27,12 @@ class Reflection:
     over the background. A photo has more than one surface: ``receivers: ground``
     and/or a ``receiver`` mask keep the reflection on the floor (a wall template
     would otherwise mirror the cutout too).
+
+    All inputs share the camera's size and the cutout is RGBA; pixel heights must
+    be finite and >= 0 (the cutout's inside its mask), else the node stops with
+    an input error. An empty cutout reflects nothing (a transparent layer). Long
+    runs work in bands of image rows: they report progress and stop at the next
+    band when the run is cancelled.
     """
 
     class Inputs:
@@ -66,8 +72,14 @@ class Reflection:
     impl_version = "2"   # 2: low-discrepancy (R2) samples
 
     def compute(self, ctx, inputs, params):
-        if inputs.receiver is not None:
-            same_size(receiver=inputs.receiver, bg_height=inputs.bg_height)
+        same_size(inputs.camera, cutout=inputs.cutout, fg_height=inputs.fg_height, bg_height=inputs.bg_height,
+                  mask=inputs.mask, receiver=inputs.receiver)
+        rgba(cutout=inputs.cutout)
+        finite(cutout=inputs.cutout, mask=inputs.mask)
+        covered = inside(inputs.cutout[..., 3] if inputs.mask is None else inputs.mask)
+        pixel_heights(covered, fg_height=inputs.fg_height)
+        pixel_heights(bg_height=inputs.bg_height)
+        finite(receiver=inputs.receiver)
         r = reflection_cl(ctx.device, inputs.camera, inputs.cutout, inputs.fg_height, inputs.bg_height,
                           roughness=params.roughness, eta=params.eta,
                           conductor=params.material == "conductor", f0=params.f0,
@@ -75,6 +87,7 @@ class Reflection:
                           min_spp=params.min_spp, max_spp=params.max_spp, target_se=params.noise,
                           seed=params.seed, mask=inputs.mask, hiz=params.accelerate,
                           progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        finite_outputs(layer=r["layer"])
         layer = r["layer"]
         receiver = _receiver_mask(inputs.receiver, inputs.bg_height, params.receivers)
         if receiver is not None:
