@@ -74,13 +74,14 @@ def reflection_study(device, data_dir: str, thicknesses=THICKNESSES) -> dict:
         cut = np.concatenate([np.repeat(a[:, :, None], 3, axis=2) * 0.5, a[:, :, None]], axis=2)
         fg, bg = s["fg_height"].astype(np.float32), s["bg_height"].astype(np.float32)
         floor = (bg <= 0.5) & (a == 0)
-        exact = reflection_cl(device, cam, cut, fg, bg, roughness=0.0, planar=True)["layer"][..., 3] > 0.5
+        mirror = dict(roughness=0.0, conductor=True, f0=(1.0, 1.0, 1.0))   # full reflectance: alpha is coverage
+        exact = reflection_cl(device, cam, cut, fg, bg, planar=True, **mirror)["layer"][..., 3] > 0.5
         exact &= floor
         if exact.sum() < 20:
             continue
         for t in thicknesses:
-            marched = reflection_cl(device, cam, cut, fg, bg, roughness=0.0, planar=False,
-                                    thickness=t)["layer"][..., 3] > 0.5
+            marched = reflection_cl(device, cam, cut, fg, bg, planar=False, thickness=t,
+                                    **mirror)["layer"][..., 3] > 0.5
             marched &= floor
             rows[t]["holes"].append(float((exact & ~marched).sum() / exact.sum()))
             rows[t]["extra"].append(float((marched & ~exact).sum() / exact.sum()))
