@@ -115,8 +115,9 @@ def host_pixels(array, channels: tuple[int, ...], what: str) -> np.ndarray:
     """A host's numpy array as float32 values: float dtypes as they are, unsigned
     integers normalised (``v / 255``, ``v / 65535``); (H, W) becomes (H, W, 1).
 
-    Raises ``ValueError`` (one line) for another type, shape or channel count, or
-    for NaN / infinite values.
+    Raises ``ValueError`` (one line) for another type, shape or channel count.
+    NaN / infinite values are passed on: the nodes that use them refuse them where
+    they matter (inside the cutout), naming the input and the pixel.
     """
     if not isinstance(array, np.ndarray):
         raise ValueError(f"{what} must be a numpy array, got {type(array).__name__}")
@@ -131,8 +132,6 @@ def host_pixels(array, channels: tuple[int, ...], what: str) -> np.ndarray:
     if a.ndim != 3 or a.shape[2] not in channels or a.shape[0] < 1 or a.shape[1] < 1:
         want = " or ".join(f"(H, W, {c})" for c in channels)
         raise ValueError(f"{what} must have shape {want}, got {array.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{what} has NaN or infinite values")
     return np.ascontiguousarray(a)
 
 
