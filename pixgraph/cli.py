@@ -111,6 +111,8 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("pixgraph: cancelled", file=sys.stderr)
+        if argv is None:
+            _exit_now(EXIT_CANCELLED)
         return EXIT_CANCELLED
     except Exception as e:
         from .device import DeviceError
@@ -121,6 +123,17 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
             return EXIT_CANCELLED
         _fail(args, e, prefix="error: ")
         return EXIT_BAD_INPUT if isinstance(e, DeviceError) and "matches" in str(e) else EXIT_INTERNAL
+
+
+def _exit_now(code: int) -> None:
+    """End the process at once after Ctrl-C on the command line. Nothing is left to
+    save: the interrupted node stored nothing, and every finished node's cache
+    entry was written atomically when it finished. Python's normal teardown would
+    first finalise torch, PoCL and every module (torch alone: 1.7 s on a loaded
+    2-core machine), delaying the exit the user asked for (benchmarks/cancel_bench.py)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 def _fail(args, e: BaseException, prefix: str = "") -> None:
