@@ -45,6 +45,10 @@ def _parser() -> argparse.ArgumentParser:
     graph_opts.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
                             help="override a param; VALUE is a YAML scalar or list")
 
+    graph_opts.add_argument("--allow-path", action="append", default=[], metavar="DIR",
+                            help="let the graph read and write files under DIR too (repeatable; "
+                                 "also PIXGRAPH_ALLOW_PATHS, separated by os.pathsep)")
+
     cache_opts = argparse.ArgumentParser(add_help=False)
     cache_opts.add_argument("--disk-cache", metavar="DIR", default=None,
                             help="disk cache folder (default PIXGRAPH_DISK_CACHE or ~/.cache/pixgraph)")
@@ -150,7 +154,7 @@ def _session(args, registry, disk: bool = True):
         except DeviceError as e:
             raise UsageError(str(e)) from None
     return Session(device=getattr(args, "device", None), cache_bytes=getattr(args, "cache_bytes", None),
-                   disk_cache=disk_dir, registry=registry)
+                   disk_cache=disk_dir, registry=registry, allow_paths=getattr(args, "allow_path", []))
 
 
 def _cmd_run(args, registry) -> int:
@@ -164,6 +168,7 @@ def _cmd_run(args, registry) -> int:
         targets[name] = path
     s = _session(args, registry)
     graph = s.graph(args.graph, parse_sets(args.set))
+    _check_output_paths(targets, graph, s.registry)
     # unknown names or node outputs are reported by the engine's plan (exit 2)
     bar = None
     show_bar = not args.quiet and sys.stderr.isatty()
@@ -199,6 +204,25 @@ def _cmd_run(args, registry) -> int:
     return EXIT_OK
 
 
+def _check_output_paths(targets: dict[str, str], graph, registry) -> None:
+    """``-o`` paths are the user's own (any folder), but never hold control
+    characters and never overwrite a file this graph reads."""
+    from .paths import bad_characters, quote
+
+    reads = {os.path.realpath(graph.file)} if graph.file else set()
+    for nid, inst in graph.nodes.items():
+        spec = registry.get(inst.type)
+        for p in spec.params:
+            if p.kind == "path" and not p.writes and inst.params.get(p.name) is not None:
+                reads.add(os.path.realpath(graph.resolve_path(os.fspath(inst.params[p.name]))))
+    for name, path in targets.items():
+        why = bad_characters(path)
+        if why:
+            raise UsageError(f"-o {name}=...: path {quote(path)} {why}")
+        if os.path.realpath(path) in reads:
+            raise UsageError(f"-o {name}={quote(path)}: would write over a file this graph reads")
+
+
 def _write_output(name: str, value, path: str) -> None:
     import numpy as np
 
@@ -224,8 +248,8 @@ def _cmd_validate(args, registry) -> int:
     reg = registry if registry is not None else Registry.discover()
     from .session import Session
 
-    s = Session(registry=reg)
-    g = s.graph(args.graph, parse_sets(args.set))
+    s = Session(registry=reg, allow_paths=args.allow_path)
+    g = s.check_paths(args.graph, parse_sets(args.set))
     if not args.quiet:
         print(f"{args.graph}: ok ({len(g.nodes)} nodes, outputs: {', '.join(g.outputs) or 'none'})")
     return EXIT_OK

@@ -26,6 +26,7 @@ from .cache import MISS, DiskCache, MemoryCache, Unstorable
 from .graph import Graph, GraphError, Ref
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import InputError, Namespace, NodeSpec
+from .paths import PathError, PathPolicy
 from .registry import Registry
 from .types import nbytes
 
@@ -131,8 +132,11 @@ class Engine:
     """
 
     def __init__(self, registry: Registry, memory: MemoryCache, disk: DiskCache | None = None,
-                 device: Callable[[], Any] | None = None, hasher: FileHasher | None = None):
+                 device: Callable[[], Any] | None = None, hasher: FileHasher | None = None,
+                 paths: PathPolicy | None = None):
         self.registry = registry
+        #: where path params may point; the graph's own folder is added per graph
+        self.paths = paths if paths is not None else PathPolicy()
         self.memory = memory
         self.disk = disk
         self._device = device or _no_device
@@ -151,6 +155,7 @@ class Engine:
             if nid not in graph.nodes:
                 raise GraphError("cannot bind: no such node in the graph", node=nid)
         order = self._ancestors(graph, [r.node for r in requested.values()], bind)
+        policy = self.policy_for(graph)
         keys, parts, params = {}, {}, {}
         for nid in order:
             inst = graph.nodes[nid]
@@ -160,11 +165,12 @@ class Engine:
                 parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
                 params[nid] = {}
                 continue
-            p, relevant = self._params(graph, nid, spec, inst.params)
+            p, relevant = self._params(graph, nid, spec, inst.params, policy)
             params[nid] = p
             inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
             parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
             keys[nid] = parts[nid].key()
+        self._check_overwrites(graph, params, order, bind)
         steps = self._steps(graph, requested, order, keys, parts, bind)
         return Plan(graph, requested, steps, keys, parts, params, bind)
 
@@ -216,12 +222,69 @@ class Engine:
                             stack.append((ref.node, False))
         return order
 
-    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values) -> tuple[dict, dict]:
+    # -- paths ------------------------------------------------------------------
+
+    def policy_for(self, graph: Graph) -> PathPolicy:
+        """The path policy for one graph: the engine's roots plus the graph's folder."""
+        return self.paths.with_roots([graph.base_dir])
+
+    def check_paths(self, graph: Graph) -> None:
+        """Check every path param of every node against the policy (``validate``)."""
+        policy = self.policy_for(graph)
+        params = {}
+        for nid, inst in graph.nodes.items():
+            spec = self.registry.get(inst.type)
+            values = spec.coerce_params(inst.params)
+            for p in spec.params:
+                if p.kind == "path" and values.get(p.name) is not None:
+                    values[p.name] = self._checked_path(graph, policy, nid, p, values[p.name])
+            params[nid] = values
+        self._check_overwrites(graph, params, list(graph.nodes), {})
+
+    @staticmethod
+    def _checked_path(graph: Graph, policy: PathPolicy, nid: str, p, raw) -> str:
+        field = f"params.{p.name}"
+        try:
+            resolved = graph.resolve_path(os.fspath(raw))
+            checked = (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
+        except PathError as e:
+            located = graph.error(e.message, node=nid, field=field)
+            raise PathError(e.message, file=located.file, line=located.line, node=nid, field=field) from None
+        except ValueError as e:  # e.g. embedded NUL in a home-folder lookup
+            located = graph.error(f"bad path: {e}"[:200], node=nid, field=field)
+            raise PathError(located.message, file=located.file, line=located.line, node=nid, field=field) from None
+        return os.fspath(checked)
+
+    def _check_overwrites(self, graph: Graph, params, order, bind) -> None:
+        """A node may not write over a file that this run reads (or the graph file)."""
+        reads = {os.path.realpath(graph.file): "the graph file"} if graph.file else {}
+        writes = []
+        for nid in order:
+            if nid in bind:
+                continue
+            spec = self.registry.get(graph.nodes[nid].type)
+            for p in spec.params:
+                if p.kind == "path" and params[nid].get(p.name) is not None:
+                    if p.writes:
+                        writes.append((nid, p.name, params[nid][p.name]))
+                    else:
+                        reads.setdefault(params[nid][p.name], f"node {nid!r} param {p.name!r}")
+        for nid, pname, path in writes:
+            if path in reads:
+                raise self._located(graph, f"would write over {reads[path]}, read by this run ({path})",
+                                    nid, f"params.{pname}")
+
+    @staticmethod
+    def _located(graph: Graph, message: str, nid: str, field: str) -> PathError:
+        e = graph.error(message, node=nid, field=field)
+        return PathError(e.message, file=e.file, line=e.line, node=nid, field=field)
+
+    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values, policy: PathPolicy) -> tuple[dict, dict]:
         params = spec.coerce_params(values)
         relevant = {}
         for p in spec.params:
             if p.kind == "path":
-                params[p.name] = graph.resolve_path(params[p.name])
+                params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
                 if p.writes:
                     relevant[p.name] = params[p.name]
                 else:
