@@ -31,6 +31,17 @@ from .registry import Registry
 from .types import nbytes
 
 
+DEFAULT_MAX_FILE_BYTES = 4 << 30
+
+
+def _env_int(name: str, default: int) -> int:
+    raw = os.environ.get(name, "")
+    try:
+        return int(float(raw)) if raw.strip() else default
+    except ValueError:
+        raise GraphError(f"{name} must be a number, got {raw[:40]!r}") from None
+
+
 class NodeError(RuntimeError):
     """A node failed while computing, or returned values that break its declaration."""
 
@@ -137,6 +148,8 @@ class Engine:
         self.registry = registry
         #: where path params may point; the graph's own folder is added per graph
         self.paths = paths if paths is not None else PathPolicy()
+        #: largest file a path param may read (hashing reads it all)
+        self.max_file_bytes = _env_int("PIXGRAPH_MAX_FILE_BYTES", DEFAULT_MAX_FILE_BYTES)
         self.memory = memory
         self.disk = disk
         self._device = device or _no_device
@@ -289,6 +302,10 @@ class Engine:
                     relevant[p.name] = params[p.name]
                 else:
                     try:
+                        size = os.path.getsize(params[p.name])
+                        if size > self.max_file_bytes:
+                            raise graph.error(f"file is {size} bytes, more than the limit of {self.max_file_bytes} "
+                                              "(PIXGRAPH_MAX_FILE_BYTES)", node=nid, field=f"params.{p.name}")
                         relevant[p.name] = {"file_sha256": self._hash_file(params[p.name])}
                     except OSError as e:
                         raise graph.error(f"cannot read {params[p.name]}: {e.strerror}", node=nid,
@@ -333,6 +350,8 @@ class Engine:
                     why = ["not in cache"]
                 if type_id in self.memory_only:
                     why.append(f"memory only: {self.memory_only[type_id]}")
+                if self.disk is not None and keys[nid] in self.disk.discarded:
+                    why.append(f"disk entry discarded: {self.disk.discarded[keys[nid]]}")
             elif not why:
                 why = ["unchanged"]
             elif status[nid] in ("memory", "disk"):
@@ -355,6 +374,7 @@ class Engine:
         emit(E.RunStarted(sum(s.status == "run" for s in plan.steps),
                           sum(s.status != "run" for s in plan.steps)))
         missed: set[str] = set()
+        tainted: set[str] = set()
         # a stack: reversed, so outputs (and inputs, below) are pulled in the order given
         stack = list(reversed(dict.fromkeys(r.node for r in plan.outputs.values())))
         while stack:
@@ -374,14 +394,18 @@ class Engine:
                 stack.pop()
                 continue
             if not spec.side_effects and nid not in missed:
-                value, where = self._fetch(key)
+                value, where = self._fetch(key, spec)
                 if value is not MISS:
                     results[nid] = value
                     cached.append(nid)
                     emit(E.NodeCached(nid, where))
                     stack.pop()
                     continue
-                missed.add(nid)  # evicted since the plan: run it after its inputs
+                missed.add(nid)  # evicted (or discarded) since the plan: run it after its inputs
+                why = self.disk.discarded.get(key) if self.disk is not None else None
+                if why:
+                    reasons[nid] = f"disk cache entry discarded ({why}); recomputing"
+                    emit(E.NodeLog(nid, reasons[nid]))
             waiting = [ref.node for ref in inst.inputs.values() if ref.node not in results]
             if waiting:
                 stack.extend(reversed(waiting))
@@ -393,7 +417,15 @@ class Engine:
             timings[nid] = time.perf_counter() - t0
             results[nid] = value
             ran.append(nid)
-            stored = self._store(spec, key, value)
+            changed = self._sources_changed(nid, spec, plan)
+            if changed or any(ref.node in tainted for ref in inst.inputs.values()):
+                # computed on bytes the key does not describe: never cache it, nor what uses it
+                tainted.add(nid)
+                stored = ("not cached: " + (f"file changed during the run ({', '.join(changed)})" if changed
+                                            else "an input was computed from a file that changed during the run"))
+                emit(E.NodeLog(nid, stored))
+            else:
+                stored = self._store(spec, key, value)
             emit(E.NodeFinished(nid, timings[nid], stored))
         last = self._last_run_parts(graph.file)
         for nid in results:
@@ -420,17 +452,36 @@ class Engine:
             self._last_parts[file] = last
         return last
 
-    def _fetch(self, key: str):
+    def _fetch(self, key: str, spec: NodeSpec):
         value = self.memory.get(key)
         if value is not MISS:
             return value, "memory"
         if self.disk is not None:
             value = self.disk.get(key)
             if value is not MISS:
+                why = _misfit(spec, value)
+                if why:  # a well-formed entry that is not this node's outputs
+                    self.disk._discard(key, self.disk.path(key), why)
+                    return MISS, ""
                 _freeze(value)
                 self.memory.put(key, value)
                 return value, "disk"
         return MISS, ""
+
+    def _sources_changed(self, nid: str, spec: NodeSpec, plan: Plan) -> list[str]:
+        """Read-path params whose file no longer has the content hashed into the
+        key (it changed between planning and the end of the compute)."""
+        changed = []
+        for p in spec.params:
+            if p.kind == "path" and not p.writes:
+                expect = plan.parts[nid].params.get(p.name)
+                try:
+                    now = {"file_sha256": self._hash_file.fresh(plan.params[nid][p.name])}
+                except OSError:
+                    now = None
+                if now != expect:
+                    changed.append(f"params.{p.name}")
+        return changed
 
     def _compute(self, nid, spec: NodeSpec, inst, plan: Plan, results, cancel, emit) -> dict[str, Any]:
         inputs = {p.name: None for p in spec.inputs}
@@ -474,6 +525,20 @@ class Engine:
                 self.memory_only[spec.type_id] = str(e)
                 where += f"; memory only: {e}"
         return where
+
+
+def _misfit(spec: NodeSpec, value) -> str | None:
+    """Why a cached value is not a valid output dict of ``spec``, or None."""
+    names = [p.name for p in spec.outputs]
+    if not isinstance(value, dict) or sorted(value) != sorted(names):
+        return f"holds outputs {sorted(value)[:8] if isinstance(value, dict) else type(value).__name__}, " \
+               f"not {names}"
+    for p in spec.outputs:
+        try:
+            p.type.validate(value[p.name])
+        except TypeError as e:
+            return f"output {p.name!r} is not a valid {p.type.type_name()}: {e}"[:200]
+    return None
 
 
 def _freeze(value) -> None:
