@@ -16,7 +16,7 @@ from typing import Any
 import yaml
 
 from .engine import NodeInputError
-from .graph import GraphError
+from .graph import GraphError, one_line
 from .registry import Registry
 
 EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_CANCELLED = 0, 1, 2, 130
@@ -126,8 +126,11 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
 
 
 def _fail(args, e: BaseException, prefix: str = "") -> None:
-    line = str(e).replace("\n", " ") if not isinstance(e, GraphError) else str(e)
-    print(f"{prefix}{line}" if prefix else line, file=sys.stderr)
+    try:
+        text = str(e)
+    except Exception:  # noqa: BLE001 - a message that cannot even be formatted
+        text = type(e).__name__
+    print(one_line(f"{prefix}{text}"), file=sys.stderr)
     if getattr(args, "debug", False):
         traceback.print_exception(e, file=sys.stderr)
 

@@ -30,6 +30,17 @@ from typing import Any, Mapping
 from .node import NodeSpec, ParamError
 from .registry import Registry, UnknownNodeType
 
+#: longest error line printed, in characters
+MAX_ERROR_LINE = 300
+
+
+def one_line(text: str, limit: int = MAX_ERROR_LINE) -> str:
+    """``text`` on one line, cut to ``limit`` characters (error messages quote user
+    values, which may be huge)."""
+    text = " ".join(str(text).split("\n"))
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 NODE_ID = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 
 
@@ -61,7 +72,7 @@ class GraphError(ValueError):
             label = {"params": "param", "inputs": "input", "outputs": "output"}.get(head)
             parts.append(f"{label} {rest!r}" if label and rest else self.field)
         parts.append(self.message)
-        return ": ".join(parts).replace("\n", " ")
+        return one_line(": ".join(parts))
 
 
 @dataclasses.dataclass(frozen=True)
