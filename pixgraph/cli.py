@@ -170,7 +170,9 @@ def _cmd_run(args, registry) -> int:
             raise UsageError(f"-o {item}: expected NAME=PATH")
         targets[name] = path
     s = _session(args, registry)
-    graph = s.graph(args.graph, parse_sets(args.set))
+    sets = parse_sets(args.set)
+    graph = s.graph(args.graph, sets)
+    _allow_typed_paths(s, graph, sets)
     _check_output_paths(targets, graph, s.registry)
     # unknown names or node outputs are reported by the engine's plan (exit 2)
     bar = None
@@ -205,6 +207,22 @@ def _cmd_run(args, registry) -> int:
             where = f" -> {targets[name]}" if name in targets else ""
             print(f"{name}: {_describe(v)}{where}")
     return EXIT_OK
+
+
+def _allow_typed_paths(s, graph, sets: dict[str, Any]) -> None:
+    """A path given with ``--set`` is the user's own, like ``-o``: allow that one file."""
+    files = []
+    for name, value in sets.items():
+        nid, _, pname = name.partition(".")
+        inst = graph.nodes.get(nid)
+        p = s.registry.get(inst.type).param(pname) if inst is not None else None
+        if p is not None and p.kind == "path" and isinstance(value, str) and value:
+            from .paths import bad_characters
+
+            if not bad_characters(value):
+                files.append(graph.resolve_path(value))
+    if files:
+        s.allow_files(files)
 
 
 def _check_output_paths(targets: dict[str, str], graph, registry) -> None:
@@ -252,7 +270,10 @@ def _cmd_validate(args, registry) -> int:
     from .session import Session
 
     s = Session(registry=reg, allow_paths=args.allow_path)
-    g = s.check_paths(args.graph, parse_sets(args.set))
+    sets = parse_sets(args.set)
+    g = s.graph(args.graph, sets)
+    _allow_typed_paths(s, g, sets)
+    s.check_paths(g)
     if not args.quiet:
         print(f"{args.graph}: ok ({len(g.nodes)} nodes, outputs: {', '.join(g.outputs) or 'none'})")
     return EXIT_OK
@@ -260,7 +281,10 @@ def _cmd_validate(args, registry) -> int:
 
 def _cmd_explain(args, registry) -> int:
     s = _session(args, registry)
-    print(s.explain(args.graph, params=parse_sets(args.set)))
+    sets = parse_sets(args.set)
+    graph = s.graph(args.graph, sets)
+    _allow_typed_paths(s, graph, sets)
+    print(s.explain(graph))
     return EXIT_OK
 
 

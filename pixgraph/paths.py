@@ -70,6 +70,8 @@ class PathPolicy:
         if not strict:
             given += env_roots()
         self.roots: tuple[str, ...] = tuple(dict.fromkeys(self._root(r) for r in given))
+        #: single files allowed wherever they are (paths the user typed, e.g. ``--set``)
+        self.files: frozenset[str] = frozenset()
 
     @staticmethod
     def _root(root: str) -> str:
@@ -84,9 +86,19 @@ class PathPolicy:
         out.strict = self.strict
         extra = [self._root(os.fspath(r)) for r in roots]
         out.roots = tuple(dict.fromkeys(self.roots + tuple(extra)))
+        out.files = self.files
+        return out
+
+    def with_files(self, files: Iterable[PathLike]) -> "PathPolicy":
+        """A copy that also allows these exact files (resolved), e.g. paths the user
+        gave on the command line rather than ones written in the graph file."""
+        out = self.with_roots(())
+        out.files = self.files | {self._root(os.fspath(f)) for f in files}
         return out
 
     def allows(self, resolved: str) -> bool:
+        if resolved in self.files:
+            return True
         return any(resolved == r or resolved.startswith(r.rstrip(os.sep) + os.sep) for r in self.roots)
 
     def _resolve(self, path, node, param, verb) -> pathlib.Path:

@@ -131,6 +131,11 @@ class Session:
                                  node=e.node, field=e.field) from None
             raise
 
+    def allow_files(self, files) -> None:
+        """Allow these exact files too (paths a person typed, not ones from a graph file)."""
+        self.paths = self.paths.with_files(files)
+        self.engine.paths = self.paths
+
     def check_paths(self, graph_or_path, params=None) -> Graph:
         """The graph, after checking every path param against the path policy
         (raises ``paths.PathError``); ``plan`` and ``run`` check the nodes they need."""
