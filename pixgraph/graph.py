@@ -194,6 +194,13 @@ def _check_params(graph: Graph, nid: str, spec: NodeSpec, values: Mapping[str, A
             out[name] = p.coerce(value)
         except ParamError as e:
             raise graph.error(e.message, node=nid, field=f"params.{name}") from None
+        if p.kind == "path":
+            from .paths import PathError, bad_characters
+
+            why = bad_characters(os.fspath(out[name]))
+            if why:
+                e = graph.error(f"path {out[name]!r} {why}", node=nid, field=f"params.{name}")
+                raise PathError(e.message, file=e.file, line=e.line, node=nid, field=e.field)
         if p.kind == "path" and not p.writes and not os.path.isfile(graph.resolve_path(out[name])):
             raise graph.error(f"file not found: {graph.resolve_path(out[name])}", node=nid, field=f"params.{name}")
     for p in spec.params:

@@ -28,7 +28,7 @@ from .graph import GraphError
 PathLike = str | os.PathLike
 ENV_ALLOW = "PIXGRAPH_ALLOW_PATHS"
 #: longest path text quoted in an error, in characters
-_QUOTE = 120
+_QUOTE = 100
 
 
 class PathError(GraphError):
@@ -111,10 +111,9 @@ class PathPolicy:
             raise PathError(f"path {quote(path)} {why}", node=node, field=field)
         resolved = os.path.realpath(os.path.abspath(path))
         if not self.allows(resolved):
-            shown = quote(path) + (f" (resolves to {quote(resolved)})" if resolved != os.path.abspath(path) else "")
-            raise PathError(f"cannot {verb} {shown}: outside the allowed folders (the graph's folder"
-                            f"{' and ' + str(len(self.roots) - 1) + ' more' if len(self.roots) > 1 else ''}); "
-                            "allow a folder with --allow-path DIR", node=node, field=field)
+            shown = quote(path) + (f" -> {quote(resolved)}" if resolved != os.path.abspath(path) else "")
+            raise PathError(f"outside the allowed folders (allow one with --allow-path DIR): {verb} {shown}",
+                            node=node, field=field)
         return pathlib.Path(resolved)
 
     def check_read(self, path: PathLike, *, node: str | None = None, param: str | None = None) -> pathlib.Path:
