@@ -85,7 +85,7 @@ def _parser() -> argparse.ArgumentParser:
     sv.add_argument("graph", help="graph file (YAML); it may read and write only in its folder and --allow folders")
     sv.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
     sv.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")
-    sv.add_argument("--allow", action="append", default=[], metavar="DIR",
+    sv.add_argument("--allow-path", action="append", default=[], metavar="DIR",
                     help="another folder the graph may read and write (repeatable)")
     sv.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
     sv.add_argument("--max-pixels", type=int, default=None, help="largest image, width x height (default 4096^2)")
@@ -424,9 +424,9 @@ def _cmd_serve(args, registry) -> int:
         limits = dataclasses.replace(limits, max_pixels=args.max_pixels)
     if args.max_body is not None:
         limits = dataclasses.replace(limits, max_body_bytes=args.max_body)
-    for d in args.allow:
+    for d in args.allow_path:
         if not os.path.isdir(d):
-            raise UsageError(f"--allow {d}: no such folder")
+            raise UsageError(f"--allow-path {d}: no such folder")
     if args.device:
         from .device import DeviceError, choose
 
@@ -435,7 +435,7 @@ def _cmd_serve(args, registry) -> int:
         except DeviceError as e:
             raise UsageError(str(e)) from None
     try:
-        state = ServeState(args.graph, allow=args.allow, limits=limits, device=args.device, registry=registry)
+        state = ServeState(args.graph, allow=args.allow_path, limits=limits, device=args.device, registry=registry)
     except ServeError as e:
         raise UsageError(e.message) from None
 

@@ -24,7 +24,7 @@ def server(tmp_path_factory):
     graph = copy_scene(str(top / "scene"))
     os.makedirs(top / "extra")
     with running_server(graph, "--max-pixels", str(MAX_PIXELS), "--max-body", str(MAX_BODY),
-                        "--allow", str(top / "extra")) as (url, proc):
+                        "--allow-path", str(top / "extra")) as (url, proc):
         yield {"url": url, "graph": graph, "top": top, "text": open(graph).read(), "proc": proc}
 
 

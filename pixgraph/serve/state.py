@@ -22,10 +22,7 @@ from .. import fileio
 from ..engine import NodeError, NodeInputError, RunResult
 from ..events import CancelToken
 from ..graph import Graph, GraphError, NodeInstance, validate
-try:
-    from ..paths import PathError, PathPolicy
-except ImportError:  # TODO(server): the hardening branch's pixgraph.paths replaces this
-    from ._paths_interim import PathError, PathPolicy
+from ..paths import PathError, PathPolicy
 from ..session import Session
 
 #: previews swap these node types for a cheaper one with the same ports
@@ -84,10 +81,7 @@ class ServeState:
         self.upload_dir = upload_dir or tempfile.mkdtemp(prefix="pixgraph-uploads-")
         roots = [self.root, self.upload_dir, *(os.path.abspath(a) for a in allow)]
         self.policy = PathPolicy(roots, strict=True)
-        try:
-            self.session = Session(device=device, registry=registry, allow_paths=roots, strict_paths=True)
-        except TypeError:  # TODO(server): drop once the hardening branch's Session is merged
-            self.session = Session(device=device, registry=registry)
+        self.session = Session(device=device, registry=registry, allow_paths=roots, strict_paths=True)
         self.registry = self.session.registry
         self._stash: dict[tuple[str, str], dict] = {}   # (node, type) -> its params before a type swap
         self._preview: tuple[Graph, Graph] | None = None
