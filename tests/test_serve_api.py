@@ -171,11 +171,15 @@ def test_paths_outside_the_roots_are_refused(api, server):
     link = os.path.join(os.path.dirname(server["graph"]), "assets", "link.png")
     if not os.path.lexists(link):
         os.symlink(top / "outside.png", link)
-    for path in ("/etc/hostname", "../outside.png", str(top / "outside.png"), "assets/link.png"):
+    for path in ("/etc/hostname", "../outside.png", str(top / "outside.png"), "assets/link.png",
+                 "/etc/no-such-file.png", "../../no-such-file.png"):   # refused alike: no probing outside
         e = _error(api.post("/api/params", json={"params": {"cutout.path": path}}), 403)
         assert e["node"] == "cutout" and e["field"] == "params.path", path
-    e = _error(api.post("/api/graph", content=server["text"].replace("assets/figure.png", "/etc/hostname")), 403)
-    assert e["node"] == "cutout"
+    for path in ("/etc/hostname", "/etc/no-such-file.png"):
+        e = _error(api.post("/api/graph", content=server["text"].replace("assets/figure.png", path)), 403)
+        assert e["node"] == "cutout"
+    assert "not found" in _error(api.post("/api/params", json={"params": {"cutout.path": "assets/nope.png"}}),
+                                 400)["error"]
     _error(api.post("/api/save", json={"path": "../escaped.yaml"}), 403)
     assert not (top / "escaped.yaml").exists()
     _error(api.post("/api/save", json={"path": "edited.txt"}), 400)

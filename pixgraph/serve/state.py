@@ -22,7 +22,7 @@ from .. import fileio
 from ..engine import NodeError, NodeInputError, RunResult
 from ..events import CancelToken
 from ..graph import Graph, GraphError, NodeInstance, validate
-from ..paths import PathError, PathPolicy
+from ..paths import PathError
 from ..session import Session
 
 #: previews swap these node types for a cheaper one with the same ports
@@ -80,47 +80,55 @@ class ServeState:
         self.limits = limits or Limits()
         self.upload_dir = upload_dir or tempfile.mkdtemp(prefix="pixgraph-uploads-")
         roots = [self.root, self.upload_dir, *(os.path.abspath(a) for a in allow)]
-        self.policy = PathPolicy(roots, strict=True)
         self.session = Session(device=device, registry=registry, allow_paths=roots, strict_paths=True)
         self.registry = self.session.registry
         self._stash: dict[tuple[str, str], dict] = {}   # (node, type) -> its params before a type swap
         self._preview: tuple[Graph, Graph] | None = None
         self._pixels: dict[tuple[str, int], int] = {}
-        self.graph = self._checked(self._load_file(self.graph_path))
+        try:
+            graph = self.session.load(self.graph_path)
+        except GraphError as e:
+            raise ServeError.from_graph_error(e) from None
+        self.graph = self._checked(graph)
 
     # -- graph ------------------------------------------------------------------
 
-    def _load_file(self, path: str) -> Graph:
+    def _checked(self, graph: Graph) -> Graph:
+        """``graph`` after the session's path policy and the image limits; raises ServeError."""
         try:
-            self.policy.check_read(path)
-        except PathError as e:
-            raise ServeError(403, str(e)) from None
-        try:
-            return self.session.load(path)
+            self.session.engine.check_paths(graph)
         except GraphError as e:
             raise ServeError.from_graph_error(e) from None
-
-    def _checked(self, graph: Graph) -> Graph:
-        """``graph`` after the path policy and the image limits; raises ServeError."""
         for nid, inst in graph.nodes.items():
             spec = self.registry.get(inst.type)
             for p in spec.params:
-                if p.kind != "path" or p.name not in inst.params:
-                    continue
-                path = graph.resolve_path(inst.params[p.name])
-                try:
-                    if p.writes:
-                        self.policy.check_write(path, node=nid, param=p.name)
-                    else:
-                        self.policy.check_read(path, node=nid, param=p.name)
-                except PathError as e:
-                    raise ServeError(403, str(e), node=nid, field=f"params.{p.name}") from None
-                if not p.writes and path.lower().endswith(IMAGE_EXTENSIONS):
-                    self._check_pixels(self._image_pixels(path), nid, p.name)
+                if p.kind == "path" and not p.writes and p.name in inst.params:
+                    path = graph.resolve_path(inst.params[p.name])
+                    if path.lower().endswith(IMAGE_EXTENSIONS):
+                        self._check_pixels(self._image_pixels(path), nid, p.name)
             values = spec.coerce_params(inst.params)
             if isinstance(values.get("width"), int) and isinstance(values.get("height"), int):
                 self._check_pixels(values["width"] * values["height"], nid, "width")
         return graph
+
+    def _paths_first(self, base_dir: str, nodes) -> None:
+        """Check path params against the policy before the graph is validated, so a
+        path outside the roots is refused (403) whether or not the file exists there:
+        "file not found" would tell a client which files exist outside."""
+        policy = self.session.engine.paths.with_roots([base_dir])
+        for nid, type_id, params in nodes:
+            if type_id not in self.registry:
+                continue
+            spec = self.registry.get(type_id)
+            for pname, value in params.items():
+                p = spec.param(str(pname))
+                if p is None or p.kind != "path" or not isinstance(value, str) or not value:
+                    continue
+                path = os.path.normpath(os.path.join(base_dir, os.path.expanduser(value)))
+                try:
+                    (policy.check_write if p.writes else policy.check_read)(path, node=str(nid), param=p.name)
+                except PathError as e:
+                    raise ServeError.from_graph_error(e) from None
 
     def _check_pixels(self, n: int, nid: str, pname: str) -> None:
         if n > self.limits.max_pixels:
@@ -173,6 +181,15 @@ class ServeState:
         """Apply ``{"node.param": value}`` (or ``{"node": {"param": value}}``) edits."""
         if not isinstance(params, Mapping):
             raise ServeError(400, "params must be an object of 'node.param': value")
+        edits = []
+        for name, value in params.items():
+            if isinstance(value, Mapping) and "." not in str(name):
+                edits += [(str(name), k, v) for k, v in value.items()]
+            else:
+                nid, _, pname = str(name).partition(".")
+                edits.append((nid, pname, value))
+        self._paths_first(self.graph.base_dir, [(nid, self.graph.nodes[nid].type, {pname: v})
+                                                for nid, pname, v in edits if nid in self.graph.nodes])
         try:
             graph = self.session.graph(self.graph, dict(params))
         except GraphError as e:
@@ -209,6 +226,15 @@ class ServeState:
         """Replace the served graph by posted YAML; its paths resolve in the graph's folder."""
         _refuse_aliases(text)
         try:
+            import yaml
+
+            doc = yaml.safe_load(text)
+        except yaml.YAMLError:
+            doc = None  # the loader below reports it with its line
+        if isinstance(doc, dict) and isinstance(doc.get("nodes"), dict):
+            self._paths_first(self.root, [(nid, n.get("type"), n.get("params")) for nid, n in doc["nodes"].items()
+                                          if isinstance(n, dict) and isinstance(n.get("params"), dict)])
+        try:
             graph = fileio.loads(text, self.registry, file="<posted graph>", base_dir=self.root)
         except GraphError as e:
             raise ServeError.from_graph_error(e) from None
@@ -224,7 +250,7 @@ class ServeState:
         if not target.endswith((".yaml", ".yml")):
             raise ServeError(400, f"save: {path!r} must end in .yaml or .yml", field="path")
         try:
-            self.policy.check_write(target)
+            self.session.engine.policy_for(self.graph).check_write(target)
         except PathError as e:
             raise ServeError(403, str(e), field="path") from None
         try:
