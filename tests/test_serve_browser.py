@@ -155,3 +155,19 @@ def test_wall_and_horizon_handles_and_method_toggle(browser, server):
     _wait_final(page, seq)
     assert httpx.get(server + "/api/scene").json()["shadow"]["type"] == "pixgraph.SoftShadowSSN"
     page.close()
+
+
+def test_upload_a_background_from_the_page(browser, server, tmp_path):
+    flat = tmp_path / "my photo.png"
+    Image.new("RGB", (512, 512), (200, 60, 40)).save(flat)
+    page = browser.new_page(viewport={"width": 1180, "height": 660})
+    page.goto(server + "/")
+    page.wait_for_selector("body[data-ready='1']", timeout=60000)
+    seq = page.evaluate("window.pixgraphShown.at(-1).seq")
+    page.locator('[data-param="photo.path"] + input[type=file]').set_input_files(str(flat))
+    _wait_final(page, seq)
+    shown = _shown(page)
+    assert np.abs(shown[4, 4] * 255 - [200, 60, 40]).max() <= 1.0     # the uploaded photo, shown
+    nodes = {n["id"]: n for n in httpx.get(server + "/api/graph").json()["nodes"]}
+    assert nodes["photo"]["params"]["path"].endswith("my_photo.png")
+    page.close()

@@ -266,10 +266,33 @@ function buildPanel() {
       setField(el, node.values[p.name]);
       el.addEventListener("change", () => finalize({params: {[`${node.id}.${p.name}`]: readField(el, p)}}));
       row.append(name, el);
+      if (p.kind === "path" && !p.writes) row.append(uploadButton(`${node.id}.${p.name}`));
       box.appendChild(row);
     }
     root.appendChild(box);
   }
+}
+
+// An image from this computer: stored by the server in its upload folder (an allowed
+// root), then set as the param's path.
+function uploadButton(param) {
+  const pick = document.createElement("input");
+  pick.type = "file";
+  pick.accept = ".png,.jpg,.jpeg,.tif,.tiff,.exr";
+  pick.title = "upload an image for this param";
+  pick.addEventListener("change", async () => {
+    const file = pick.files[0];
+    if (!file) return;
+    const name = file.name.replace(/[^A-Za-z0-9_.-]/g, "_").replace(/^[^A-Za-z0-9]+/, "") || "upload.png";
+    try {
+      const r = await fetch(`/api/uploads/${encodeURIComponent(name)}`, {method: "PUT", body: file});
+      const data = await r.json();
+      if (!r.ok) throw new Error(data.error);
+      await finalize({params: {[param]: data.path}});
+    } catch (err) { showError(err.message); }
+    pick.value = "";
+  });
+  return pick;
 }
 
 function wireToolbar() {
