@@ -9,7 +9,8 @@ Rows (medians; the served graph is 512x512):
                             kernels built or read from PoCL's cache)
   drag -> preview           one drag step: POST /api/render {light_tip, mode: preview}
                             until its PNG has arrived (Light, HardShadow and Composite
-                            rerun; 256x256 PNG), --steps per drag, --drags per method
+                            rerun; 256x256 PNG), --steps per drag, --drags per method;
+                            and the part of it inside the server's request handler
   pointer up -> final       the final render at the last drag position, per shadow
                             method (the light is already cached from the preview)
   --browser                 the same drag in headless Chromium: the page's own time
@@ -23,6 +24,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import socket
 import statistics
 import subprocess
 import sys
@@ -79,23 +81,28 @@ def cold_starts(graph: str, n: int) -> tuple[list[float], list[float]]:
     return listening, first
 
 
-def drag(url: str, steps: int, method: str, offset: float) -> tuple[list[float], float]:
-    """Preview latencies over one drag, then the final render's latency."""
-    with httpx.Client(base_url=url, timeout=300) as c:
+def drag(url: str, steps: int, method: str, offset: float) -> tuple[list[float], list[float], float]:
+    """Preview latencies over one drag (at the client, and inside the server's
+    handler), then the final render's latency."""
+    # TCP_NODELAY as browsers set it: httpx writes a POST's headers and body separately,
+    # and without it the body waits for the server's delayed ACK (~40 ms)
+    nodelay = httpx.HTTPTransport(socket_options=[(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)])
+    with httpx.Client(base_url=url, timeout=300, transport=nodelay) as c:
         c.post("/api/params", json={"types": {"shadow": METHODS[method]}}).raise_for_status()
         c.post("/api/render", json={"mode": "final"}).raise_for_status()      # warm: nothing upstream runs
-        seq, times, last = 0, [], None
+        seq, times, server, last = 0, [], [], None
         for tip in tips(steps, offset):
             seq += 1
             t0 = time.perf_counter()
             r = c.post("/api/render", json={"light_tip": tip, "mode": "preview", "client": f"bench-{offset}", "seq": seq})
             r.raise_for_status()
             times.append(time.perf_counter() - t0)
+            server.append(float(r.headers["x-pixgraph-seconds"]))
             last = tip
         seq += 1
         t0 = time.perf_counter()
         c.post("/api/render", json={"light_tip": last, "mode": "final", "client": f"bench-{offset}", "seq": seq}).raise_for_status()
-        return times, time.perf_counter() - t0
+        return times, server, time.perf_counter() - t0
 
 
 def browser_drag(url: str, steps: int) -> tuple[list[float], list[float]]:
@@ -150,12 +157,14 @@ def main() -> None:
     proc, url, _, _ = start(args.graph)
     try:
         for i, method in enumerate(METHODS):
-            previews, finals = [], []
+            previews, inside, finals = [], [], []
             for k in range(args.drags):
-                p, f = drag(url, args.steps, method, 0.01 * (i * args.drags + k))
+                p, q, f = drag(url, args.steps, method, 0.01 * (i * args.drags + k))
                 previews += p
+                inside += q
                 finals.append(f)
             rows.append((f"drag -> preview ({method} final)", previews, f"{len(previews)} steps"))
+            rows.append(("  of which inside the server's handler", inside, f"{len(inside)} steps"))
             rows.append((f"pointer up -> final, {method}", finals, f"{len(finals)} drags"))
         if args.browser:
             with httpx.Client(base_url=url) as c:
