@@ -8,7 +8,8 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 extras=""
-[ "${1:-}" = "test" ] && extras="[test,datagen]"
+extras="[ssn]"
+[ "${1:-}" = "test" ] && extras="[ssn,lab,test,datagen]"
 
 debs=()
 dpkg -s pocl-opencl-icd >/dev/null 2>&1 || debs+=(pocl-opencl-icd)

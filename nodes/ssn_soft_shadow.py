@@ -8,17 +8,29 @@ from pixgraph import types as T
 from pixgraph.node import node, param, port
 
 from ._checks import same_size
-from .ops import ssn
 from .ops.buffers import buffer_channels
 from .ops.lights import disk_extremes, light_point
 
 WEIGHTS = pathlib.Path(__file__).parent / "weights"
 
 
+def _ssn():
+    """``ops.ssn``, imported when SSN++ first runs: it needs torch (the ``ssn`` extra),
+    which a graph without this node never loads."""
+    try:
+        from .ops import ssn
+    except ModuleNotFoundError as e:
+        if e.name != "torch":
+            raise
+        raise ModuleNotFoundError("pixgraph.SoftShadowSSN needs torch: pip install 'pixgraph[ssn]'",
+                                  name="torch") from None
+    return ssn
+
+
 @functools.lru_cache(maxsize=4)
 def _load(path: str, mtime_ns: int):
     # keyed on mtime too, so retrained weights are picked up without a restart
-    return ssn.load_model(path)
+    return _ssn().load_model(path)
 
 
 def load_shipped(name: str):
@@ -57,6 +69,7 @@ class SoftShadowSSN:
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
         cam, light = inputs.camera, inputs.light
+        ssn = _ssn()
         model = load_shipped(params.model)
         buffers = buffer_channels(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height,
                                   light_point(light, cam), disk_extremes(light, cam), params.thickness)
