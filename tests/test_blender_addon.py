@@ -131,3 +131,14 @@ def test_compositor_renders_the_composite_in_standard_view(blender_run):
     umbra = _segment(report, 0.7)[0]
     np.testing.assert_allclose(_at(render, umbra) * 255, linear_to_srgb(_at(comp, umbra)) * 255, atol=0.51)
     assert (_at(render, umbra) * 255 < 70).all()
+
+
+def test_progress_reaches_one_and_cancel_is_reported(blender_run):
+    report, _ = blender_run
+    assert report["progress_error"] is None
+    kinds = [k for k, _ in report["progress"]]
+    assert kinds[0] == "RunStarted" and kinds[-1] == "RunFinished"
+    fractions = [f for _, f in report["progress"]]
+    assert fractions == sorted(fractions) and fractions[-1] == pytest.approx(1.0)
+    assert kinds.count("NodeFinished") >= 2          # the shadow and the composite ran again
+    assert report["cancelled"] == "cancelled"

@@ -145,6 +145,23 @@ for p in [F, tip, Vector((1.0, 4.0, 0.0)), Vector((-0.5, 2.5, 0.7)), Vector((0.8
 report["projection_pairs"] = pairs
 report["camera_params"] = cam_params
 
+# progress and cancellation, through the add-on's Job (what the modal operator runs in
+# a thread; a modal operator needs a window, which headless Blender has not)
+s.samples = 40                               # a new key: the shadow and composite run again
+job = pixgraph_blender.Job(bpy.context)
+seen = []
+on_event = job.on_event
+job.on_event = lambda e: (on_event(e), seen.append([type(e).__name__, job.fraction]))
+job.run()
+report["progress"] = seen
+report["progress_error"] = None if job.error is None else repr(job.error)
+s.samples = 41
+job = pixgraph_blender.Job(bpy.context)
+job.cancel.cancel()                          # Esc before the first node
+job.run()
+report["cancelled"] = pixgraph_blender._message(job.error) if job.error else None
+s.samples = 32
+
 # errors are messages, not crashes: a pitched camera
 cam.rotation_euler = (math.radians(80), 0.0, 0.0)
 bpy.context.view_layer.update()
