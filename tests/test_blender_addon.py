@@ -39,23 +39,33 @@ def linear_to_srgb(c):
     return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
 
 
-@pytest.fixture(scope="module")
-def blender_run(tmp_path_factory):
+def _run_scene(work, *args):
+    """Run tests/blender/addon_scene.py in the bpy venv with a fresh Blender user folder."""
     t0 = time.perf_counter()
     python = bpy_env.ensure(log=lambda m: print(m, file=sys.stderr))
     venv_s = time.perf_counter() - t0
-    work = tmp_path_factory.mktemp("blender")
     zip_path = build.build(work / "dist")
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(work / "blender-user"))
     env.setdefault("XDG_CACHE_HOME", str(work / "xdg"))
     t0 = time.perf_counter()
-    proc = subprocess.run([str(python), str(ROOT / "tests" / "blender" / "addon_scene.py"), str(zip_path), str(work)],
-                          capture_output=True, text=True, env=env, timeout=600)
-    run_s = time.perf_counter() - t0
-    print(f"bpy venv {venv_s:.1f} s, Blender scene {run_s:.1f} s", file=sys.stderr)
+    proc = subprocess.run([str(python), str(ROOT / "tests" / "blender" / "addon_scene.py"), str(zip_path), str(work),
+                           *args], capture_output=True, text=True, env=env, timeout=600)
+    print(f"bpy venv {venv_s:.1f} s, Blender scene {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("REPORT ")), None)
     assert proc.returncode == 0 and line, proc.stdout[-3000:] + proc.stderr[-3000:]
-    report = json.loads(line[len("REPORT "):])
+    return json.loads(line[len("REPORT "):])
+
+
+def test_legacy_addon_install_registers(tmp_path):
+    report = _run_scene(tmp_path, "legacy", "install-only")
+    assert report["registered"] and report["mode"] == "legacy"
+    assert report["addon_file"].endswith("scripts/addons/pixgraph_blender/__init__.py")
+
+
+@pytest.fixture(scope="module")
+def blender_run(tmp_path_factory):
+    work = tmp_path_factory.mktemp("blender")
+    report = _run_scene(work, "extension")
     arrays = {k: np.load(work / f"{k}.npy") for k in ("composite", "shadow", "render")}
     return report, arrays
 
@@ -63,7 +73,8 @@ def blender_run(tmp_path_factory):
 def test_operator_wrote_linear_composite_and_data_shadow(blender_run):
     report, _ = blender_run
     assert report["blender"].startswith("5.0")
-    assert "blender-user" in report["addon_file"]          # the installed zip, not the source tree
+    assert report["mode"] == "extension" and report["registered"]
+    assert report["addon_file"].endswith("extensions/user_default/pixgraph/__init__.py")   # the installed zip
     assert report["operator"] == ["FINISHED"]
     assert report["composite"] == {"size": [128, 128], "is_float": True, "colorspace": "Linear Rec.709"}
     assert report["shadow"] == {"size": [128, 128], "is_float": True, "colorspace": "Non-Color"}
@@ -140,5 +151,5 @@ def test_progress_reaches_one_and_cancel_is_reported(blender_run):
     assert kinds[0] == "RunStarted" and kinds[-1] == "RunFinished"
     fractions = [f for _, f in report["progress"]]
     assert fractions == sorted(fractions) and fractions[-1] == pytest.approx(1.0)
-    assert kinds.count("NodeFinished") >= 2          # the shadow and the composite ran again
+    assert report["rerun_after_samples"] == ["comp", "shadow"]   # the rest came from the session's cache
     assert report["cancelled"] == "cancelled"

@@ -2,7 +2,7 @@
 into a headless Blender, build a small scene, run the add-on's operator, and print
 a JSON report of what Blender holds afterwards (pixels, colour spaces, projections).
 
-    python addon_scene.py ADDON_ZIP WORKDIR
+    python addon_scene.py ADDON_ZIP WORKDIR [extension|legacy [install-only]]
 """
 import json
 import math
@@ -19,11 +19,23 @@ W = H = 128
 report = {"blender": bpy.app.version_string}
 
 # -- the add-on, installed from its zip as a user would -----------------------------
-bpy.ops.preferences.addon_install(filepath=zip_path, overwrite=True)
-bpy.ops.preferences.addon_enable(module="pixgraph_blender")
-import pixgraph_blender  # noqa: E402  (installed just now)
-from pixgraph_blender import mapping  # noqa: E402
+mode = sys.argv[3] if len(sys.argv) > 3 else "extension"
+if mode == "legacy":          # Blender < 4.2 style: Preferences > Add-ons > Install (bl_info)
+    bpy.ops.preferences.addon_install(filepath=zip_path, overwrite=True)
+    bpy.ops.preferences.addon_enable(module="pixgraph_blender")
+    module = "pixgraph_blender"
+else:                         # Blender 4.2+: an extension (blender_manifest.toml)
+    bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
+    module = "bl_ext.user_default.pixgraph"
+import importlib  # noqa: E402
 
+pixgraph_blender = importlib.import_module(module)
+mapping = importlib.import_module(module + ".mapping")
+report["mode"] = mode
+report["registered"] = hasattr(bpy.types.Scene, "pixgraph") and hasattr(bpy.ops.pixgraph, "composite")
+if len(sys.argv) > 4 and sys.argv[4] == "install-only":
+    print("REPORT " + json.dumps({**report, "addon_file": pixgraph_blender.__file__}))
+    sys.exit(0)
 report["addon_file"] = pixgraph_blender.__file__
 
 scene = bpy.context.scene
@@ -154,12 +166,14 @@ on_event = job.on_event
 job.on_event = lambda e: (on_event(e), seen.append([type(e).__name__, job.fraction]))
 job.run()
 report["progress"] = seen
+progress_ran = sorted(pixgraph_blender.session().last_run.ran)
 report["progress_error"] = None if job.error is None else repr(job.error)
 s.samples = 41
 job = pixgraph_blender.Job(bpy.context)
 job.cancel.cancel()                          # Esc before the first node
 job.run()
 report["cancelled"] = pixgraph_blender._message(job.error) if job.error else None
+report["rerun_after_samples"] = progress_ran
 s.samples = 32
 
 # errors are messages, not crashes: a pitched camera
