@@ -36,7 +36,8 @@ def ensure_cache_dir() -> None:
         probe = tempfile.NamedTemporaryFile(dir=xdg, delete=True)
         probe.close()
     except OSError:
-        fallback = os.path.join(tempfile.gettempdir(), f"pixgraph-cache-{os.getuid()}")
+        user = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")  # no getuid on Windows
+        fallback = os.path.join(tempfile.gettempdir(), f"pixgraph-cache-{user}")
         os.makedirs(fallback, exist_ok=True)
         os.environ["XDG_CACHE_HOME"] = fallback
 

@@ -113,3 +113,27 @@ def test_graph_builds_with_host_inputs():
                             cutout_colorspace="linear", cutout_alpha="premultiplied")
     assert set(g.outputs) == {"composite", "shadow"}
     assert {"background", "cutout"} <= set(g.nodes)
+
+
+def test_build_script_makes_the_zip_the_docs_name(tmp_path):
+    import sys
+    import tomllib
+    import zipfile
+
+    root = _path.parents[3]
+    sys.path.insert(0, str(root / "hosts" / "blender"))
+    try:
+        import build
+    finally:
+        sys.path.pop(0)
+    z = build.build(tmp_path)
+    assert f"dist/{z.name}" in (root / "docs" / "blender.md").read_text()
+    with zipfile.ZipFile(z) as f:
+        names = set(f.namelist())
+        manifest = tomllib.loads(f.read("pixgraph_blender/blender_manifest.toml").decode())
+        init = f.read("pixgraph_blender/__init__.py").decode()
+    assert names == {"pixgraph_blender/__init__.py", "pixgraph_blender/mapping.py",
+                     "pixgraph_blender/blender_manifest.toml"}
+    assert manifest["id"] == "pixgraph" and manifest["blender_version_min"] == "4.2.0"
+    compile(init, "__init__.py", "exec")                       # the bpy half at least parses here
+    assert f'"version": ({manifest["version"].replace(".", ", ")})' in init   # bl_info agrees with the manifest

@@ -27,6 +27,7 @@ from bpy.props import (EnumProperty, FloatProperty, FloatVectorProperty, IntProp
 from . import mapping
 
 _session = None          # one pixgraph Session per Blender process: its cache serves reruns
+_running = threading.Event()   # set while a run is in flight: one at a time per session
 
 
 def _pixgraph():
@@ -200,10 +201,13 @@ class Job:
             self.fraction = self._done / self._total
 
     def run(self):
+        _running.set()
         try:
             self.result = session().run(self.graph, bind=self.bind, cancel=self.cancel, on_event=self.on_event)
         except BaseException as e:      # reported in the main thread
             self.error = e
+        finally:
+            _running.clear()
 
     def finish(self):
         """Write the results as Blender images (main thread only). Returns the images."""
@@ -228,6 +232,13 @@ class PIXGRAPH_OT_composite(bpy.types.Operator):
     _timer = None
     _job = None
     _thread = None
+
+    @classmethod
+    def poll(cls, context):
+        if _running.is_set():
+            cls.poll_message_set("pixgraph is already running (Esc cancels it)")
+            return False
+        return True
 
     def _start(self, context):
         try:
