@@ -279,14 +279,16 @@ class PIXGRAPH_OT_composite(bpy.types.Operator):
     def modal(self, context, event):
         job = self._job
         if event.type == "ESC":
-            job.cancel.cancel()
+            job.cancel.cancel()         # the run stops where it next checks; the timer sees it end
+            return {"RUNNING_MODAL"}
         if event.type == "TIMER":
             context.window_manager.progress_update(int(100 * job.fraction))
             context.workspace.status_text_set(f"pixgraph: {job.fraction:.0%} {job.status} (Esc to cancel)")
             if not self._thread.is_alive():
                 self._end(context)
                 return self._done(context)
-        return {"RUNNING_MODAL"}   # after Esc, until the run notices the cancel and ends
+            return {"RUNNING_MODAL"}
+        return {"PASS_THROUGH"}        # Blender stays usable while pixgraph runs
 
     def _end(self, context):
         wm = context.window_manager
