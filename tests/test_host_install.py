@@ -87,10 +87,12 @@ def test_no_device_hint_names_what_to_install(system, machine, needle):
 
 
 def test_ssn_without_torch_names_the_extra(monkeypatch):
+    import pixgraph_nodes.ops
     from pixgraph_nodes import ssn_soft_shadow
 
     monkeypatch.setitem(sys.modules, "torch", None)          # import torch -> ModuleNotFoundError
-    monkeypatch.delitem(sys.modules, "pixgraph_nodes.ops.ssn", raising=False)
+    monkeypatch.delitem(sys.modules, "pixgraph_nodes.ops.ssn", raising=False)   # as if never imported
+    monkeypatch.delattr(pixgraph_nodes.ops, "ssn", raising=False)
     with pytest.raises(ModuleNotFoundError, match=r"pip install 'pixgraph\[ssn\]'"):
         ssn_soft_shadow._ssn()
 

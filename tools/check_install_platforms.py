@@ -16,7 +16,7 @@ against this machine, so torch resolved "for macOS" from Linux asks for CUDA
 packages that macOS never installs.
 
 Prints each target's pip command and resolved packages; exit status 1 if any
-target fails. Needs the package index (network).
+target fails. Needs the package index (network) and `packaging` (installed with pytest).
 """
 from __future__ import annotations
 
