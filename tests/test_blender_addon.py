@@ -66,7 +66,8 @@ def test_legacy_addon_install_registers(tmp_path):
 def blender_run(tmp_path_factory):
     work = tmp_path_factory.mktemp("blender")
     report = _run_scene(work, "extension")
-    arrays = {k: np.load(work / f"{k}.npy") for k in ("composite", "shadow", "render")}
+    arrays = {k: np.load(work / f"{k}.npy") for k in ("composite", "shadow", "render", "example", "example_cli",
+                                                      "example_shadow", "example_cli_shadow")}
     return report, arrays
 
 
@@ -153,3 +154,18 @@ def test_progress_reaches_one_and_cancel_is_reported(blender_run):
     assert fractions == sorted(fractions) and fractions[-1] == pytest.approx(1.0)
     assert report["rerun_after_samples"] == ["comp", "shadow"]   # the rest came from the session's cache
     assert report["cancelled"] == "cancelled"
+
+
+def test_readme_main_job_in_blender_matches_the_graph_file(blender_run):
+    # the add-on with Blender's camera and the panel's light on graphs/assets, against
+    # `graphs/wall_corner_shadow.yaml` run from its file: same camera, light, template
+    report, arrays = blender_run
+    assert report["example_operator"] == ["FINISHED"]
+    shadow, cli_shadow = arrays["example_shadow"], arrays["example_cli_shadow"]
+    assert shadow.shape == cli_shadow.shape == (512, 512)
+    assert cli_shadow.max() > 0.9 and (cli_shadow > 0.5).sum() > 2000       # a real shadow to compare
+    np.testing.assert_allclose(shadow, cli_shadow, atol=1e-6)                # measured: identical
+    # composite: Blender decodes the JPEG plate itself (measured identical with bpy 5.0.1;
+    # another libjpeg could differ by a code value, which this tolerance allows)
+    diff = np.abs(arrays["example"] - arrays["example_cli"])
+    assert diff.mean() < 1e-4 and np.percentile(diff, 99.9) < 0.01

@@ -212,4 +212,35 @@ bpy.ops.render.render(write_still=True)
 rendered = bpy.data.images.load(scene.render.filepath)
 np.save(os.path.join(work, "render.npy"), pixels(rendered))
 report["box"] = box
+
+# -- the README's main job, set up in Blender, against the same graph run from its file ---
+# graphs/wall_corner_shadow.yaml: 512x512, hfov 50, horizon row 120, cam_height 1, a disk
+# light by azimuth/elevation around the cutout's foot, the wall-corner template.
+repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+assets = os.path.join(repo, "graphs", "assets")
+s.background = bpy.data.images.load(os.path.join(assets, "room_corner.jpg"))
+s.cutout = bpy.data.images.load(os.path.join(assets, "figure.png"))
+cam_data.lens = 18.0 / math.tan(math.radians(25.0))        # hfov 50 on a 36 mm sensor
+cam_data.shift_y = (120.0 - 256.0) / 512.0                  # horizon at row 120
+cam.location = (0.0, 0.0, 1.0)
+cam.rotation_euler = (math.radians(90), 0.0, 0.0)
+bpy.context.view_layer.update()
+s.light = None                                              # the panel's values
+s.azimuth, s.elevation, s.distance, s.radius = -25.0, 32.0, 4.0, 0.25
+s.template, s.corner, s.left_slope, s.right_slope = "wall_corner", (300.0, 300.0), -0.35, 0.45
+s.samples, s.opacity, s.tint = 48, 0.85, (0.10, 0.11, 0.14)
+report["example_operator"] = sorted(bpy.ops.pixgraph.composite())
+example = pixels(bpy.data.images[s.composite_name])[..., :3]
+from pixgraph.session import Session  # noqa: E402
+
+cli = Session().run(os.path.join(repo, "graphs", "wall_corner_shadow.yaml"),
+                    outputs=["final", "shadow.darkness"])
+np.save(os.path.join(work, "example.npy"), example)
+np.save(os.path.join(work, "example_cli.npy"), cli["final"])
+np.save(os.path.join(work, "example_shadow.npy"), pixels(bpy.data.images[s.shadow_name])[..., 0])
+np.save(os.path.join(work, "example_cli_shadow.npy"), cli["shadow.darkness"])
+scene.render.resolution_x = scene.render.resolution_y = 512
+img_node.image = bpy.data.images[s.composite_name]
+scene.render.filepath = os.path.join(work, "example.png")
+bpy.ops.render.render(write_still=True)
 print("REPORT " + json.dumps(report))

@@ -136,7 +136,7 @@ class Job:
             template.update(corner=list(s.corner), left_slope=s.left_slope, right_slope=s.right_slope)
         sess = session()
         self.graph = mapping.build_graph(sess.builder(), camera=camera, light=light, template=template,
-                                         samples=s.samples, opacity=s.opacity,
+                                         samples=s.samples, opacity=s.opacity, tint=list(s.tint),
                                          background_colorspace=bg_space, background_alpha=bg_alpha,
                                          cutout_colorspace=cut_space, cutout_alpha=cut_alpha)
         self.bind = {"background": bg[..., :3], "cutout": cut}
@@ -324,6 +324,8 @@ class PixgraphSettings(bpy.types.PropertyGroup):
     right_slope: FloatProperty(name="Right slope", default=0.3)
     samples: IntProperty(name="Samples", default=48, min=1, max=65536, description="light samples")
     opacity: FloatProperty(name="Opacity", default=0.85, min=0.0, max=1.0, description="shadow strength")
+    tint: FloatVectorProperty(name="Tint", size=3, subtype="COLOR", default=(0.08, 0.09, 0.12), min=0.0, max=1.0,
+                              description="fraction of each channel that survives full shadow (sky fill)")
     composite_name: StringProperty(name="Composite image", default="pixgraph composite")
     shadow_name: StringProperty(name="Shadow image", default="pixgraph shadow")
 
@@ -349,6 +351,7 @@ class PIXGRAPH_PT_panel(bpy.types.Panel):
             col.prop(s, p)
         col.prop(s, "samples")
         col.prop(s, "opacity")
+        col.prop(s, "tint")
         col.prop(s, "composite_name")
         col.prop(s, "shadow_name")
         col.operator(PIXGRAPH_OT_composite.bl_idname, icon="RENDER_STILL")

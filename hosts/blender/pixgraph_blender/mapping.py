@@ -137,12 +137,13 @@ TEMPLATE_PARAMS = {
 
 
 def build_graph(builder, *, camera: dict, light: dict, template: dict, samples: int, opacity: float,
-                background_colorspace: str, background_alpha: str, cutout_colorspace: str, cutout_alpha: str):
+                background_colorspace: str, background_alpha: str, cutout_colorspace: str, cutout_alpha: str,
+                tint=(0.08, 0.09, 0.12)):
     """The panel's graph: host inputs ``background`` and ``cutout`` (bind their arrays),
     outputs ``composite`` (linear RGB) and ``shadow`` (darkness, 1 = full shadow).
 
-    builder: ``Session.builder()``. template: BackgroundHeight params (``kind`` and
-    its handles, pixels of the background image).
+    builder: ``Session.builder()``. opacity, tint: pixgraph.Composite's. template:
+    BackgroundHeight params (``kind`` and its handles, pixels of the background image).
     """
     b = builder
     b.add("pixgraph.InputImage", "background", colorspace=background_colorspace, alpha=background_alpha)
@@ -152,7 +153,7 @@ def build_graph(builder, *, camera: dict, light: dict, template: dict, samples: 
     b.add("pixgraph.BackgroundHeight", "bg_h", **template)
     b.add("pixgraph.Light", "light", **light)
     b.add("pixgraph.SoftShadow", "shadow", samples=samples)
-    b.add("pixgraph.Composite", "comp", opacity=opacity)
+    b.add("pixgraph.Composite", "comp", opacity=opacity, tint=[float(t) for t in tint])
     b.connect("cutout.alpha", "fg_h.mask")
     b.connect("cam.camera", "bg_h.camera")
     b.connect("cam.camera", "light.camera")
