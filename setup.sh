@@ -22,5 +22,5 @@ if [ ${#debs[@]} -gt 0 ] && command -v apt-get >/dev/null && [ "$(id -u)" = 0 ];
 fi
 pip install -q -e ".${extras}"
 # The Blender add-on test runs in its own venv (bpy 5.0 wheel, Python 3.11, numpy < 2);
-# built once (downloads bpy, ~1 GB on disk), then reused.
+# built once (downloads bpy; ~1.2 GB on disk), then reused.
 if [ "${1:-}" = "test" ]; then python hosts/blender/bpy_env.py; fi

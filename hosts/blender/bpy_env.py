@@ -6,7 +6,7 @@ environment. The venv lives in ``$PIXGRAPH_BPY_VENV`` or
 ``$XDG_CACHE_HOME/pixgraph/bpy-venv`` (``~/.cache`` without XDG_CACHE_HOME) and is
 reused while its stamp (the requirements and pyproject.toml) is unchanged; pixgraph
 is installed editable from this working tree, so code changes need no rebuild.
-The first build downloads bpy (~350 MB); about 1 GB on disk.
+The first build downloads bpy (a few hundred MB); about 1.2 GB on disk.
 """
 from __future__ import annotations
 
