@@ -95,8 +95,8 @@ def test_sun_direction_gives_azimuth_and_elevation():
     M = level()                                  # looking along +Y: pixgraph +Z is Blender -Y
     cam = params(matrix_world=M)
     # a sun up 30 deg, toward the camera's right (+X) and behind the camera (-Y)
-    d = [math.cos(math.radians(30)) * math.sin(math.radians(40)), -math.cos(math.radians(30)) * math.cos(math.radians(40)),
-         math.sin(math.radians(30))]
+    el, az = math.radians(30), math.radians(40)
+    d = [math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)]
     p = mapping.light_params(cam, M, (960.0, 900.0), kind="directional", direction=d, angular_radius_deg=0.3)
     assert p["azimuth"] == pytest.approx(40.0) and p["elevation"] == pytest.approx(30.0)
 
