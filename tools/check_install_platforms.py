@@ -21,6 +21,7 @@ target fails. Needs the package index (network) and `packaging` (installed with 
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
 import json
 import pathlib
 import subprocess
@@ -103,14 +104,16 @@ def main(argv=None) -> int:
     ap.add_argument("--python", default=PYTHON, help="target Python version (default 3.11)")
     args = ap.parse_args(argv)
     PYTHON = args.python
+    jobs = [(target, what, extras) for target in args.target or list(TARGETS)
+            for what, extras in [("base", None)] + ([(f"extras {args.extra}", args.extra)] if args.extra else [])]
+    with concurrent.futures.ThreadPoolExecutor(4) as pool:     # pip waits on the index, not the CPU
+        results = list(pool.map(lambda job: resolve(job[0], job[2]), jobs))
     failed = 0
-    for target in args.target or list(TARGETS):
-        for what, extras in [("base", None)] + ([(f"extras {args.extra}", args.extra)] if args.extra else []):
-            ok, cmd, lines = resolve(target, extras)
-            print(f"== {target} {what}: {'ok' if ok else 'FAILED'}\n$ python {cmd}")
-            for ln in lines:
-                print("   " + ln)
-            failed += not ok
+    for (target, what, _), (ok, cmd, lines) in zip(jobs, results):
+        print(f"== {target} {what}: {'ok' if ok else 'FAILED'}\n$ python {cmd}")
+        for ln in lines:
+            print("   " + ln)
+        failed += not ok
     return 1 if failed else 0
 
 
