@@ -373,11 +373,11 @@ def _cmd_schema(args, registry) -> int:
 
 
 def _cmd_devices(args, registry) -> int:
-    from .device import DeviceError, build_problem, choose, list_devices
+    from .device import DeviceError, build_problem, choose, list_devices, no_device_hint
 
     devices = list_devices()
     if not devices:
-        print("no OpenCL device found", file=sys.stderr)
+        print(f"no OpenCL device found: {no_device_hint()}", file=sys.stderr)
         return EXIT_INTERNAL
     try:
         default = choose().spec
