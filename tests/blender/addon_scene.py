@@ -78,6 +78,7 @@ box = dict(top=top, bottom=bottom, left=left, right=right)
 s = scene.pixgraph
 s.background, s.cutout, s.light = bg, cut, lamp
 s.template, s.samples, s.opacity = "ground", 32, 0.85
+s.thickness = 1.0                                            # a flat card: one pixel deep
 
 # -- run the operator as a script would (blocking) ----------------------------------
 result = bpy.ops.pixgraph.composite()
@@ -228,7 +229,7 @@ bpy.context.view_layer.update()
 s.light = None                                              # the panel's values
 s.azimuth, s.elevation, s.distance, s.radius = -25.0, 32.0, 4.0, 0.25
 s.template, s.corner, s.left_slope, s.right_slope = "wall_corner", (300.0, 300.0), -0.35, 0.45
-s.samples, s.opacity, s.tint = 48, 0.85, (0.10, 0.11, 0.14)
+s.samples, s.opacity, s.tint, s.thickness = 48, 0.85, (0.10, 0.11, 0.14), 6.0
 report["example_operator"] = sorted(bpy.ops.pixgraph.composite())
 example = pixels(bpy.data.images[s.composite_name])[..., :3]
 from pixgraph.session import Session  # noqa: E402

@@ -137,6 +137,7 @@ class Job:
         sess = session()
         self.graph = mapping.build_graph(sess.builder(), camera=camera, light=light, template=template,
                                          samples=s.samples, opacity=s.opacity, tint=list(s.tint),
+                                         thickness=s.thickness,
                                          background_colorspace=bg_space, background_alpha=bg_alpha,
                                          cutout_colorspace=cut_space, cutout_alpha=cut_alpha)
         self.bind = {"background": bg[..., :3], "cutout": cut}
@@ -323,6 +324,8 @@ class PixgraphSettings(bpy.types.PropertyGroup):
     left_slope: FloatProperty(name="Left slope", default=-0.3)
     right_slope: FloatProperty(name="Right slope", default=0.3)
     samples: IntProperty(name="Samples", default=48, min=1, max=65536, description="light samples")
+    thickness: FloatProperty(name="Thickness", default=6.0, min=0.0, max=1000.0,
+                             description="occluder thickness in pixels (how deep the cutout is, for its shadow)")
     opacity: FloatProperty(name="Opacity", default=0.85, min=0.0, max=1.0, description="shadow strength")
     tint: FloatVectorProperty(name="Tint", size=3, subtype="COLOR", default=(0.08, 0.09, 0.12), min=0.0, max=1.0,
                               description="fraction of each channel that survives full shadow (sky fill)")
@@ -350,6 +353,7 @@ class PIXGRAPH_PT_panel(bpy.types.Panel):
         for p in mapping.TEMPLATE_PARAMS[s.template]:
             col.prop(s, p)
         col.prop(s, "samples")
+        col.prop(s, "thickness")
         col.prop(s, "opacity")
         col.prop(s, "tint")
         col.prop(s, "composite_name")

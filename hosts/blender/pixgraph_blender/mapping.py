@@ -138,11 +138,13 @@ TEMPLATE_PARAMS = {
 
 def build_graph(builder, *, camera: dict, light: dict, template: dict, samples: int, opacity: float,
                 background_colorspace: str, background_alpha: str, cutout_colorspace: str, cutout_alpha: str,
-                tint=(0.08, 0.09, 0.12)):
+                tint=(0.08, 0.09, 0.12), thickness: float = 6.0):
     """The panel's graph: host inputs ``background`` and ``cutout`` (bind their arrays),
     outputs ``composite`` (linear RGB) and ``shadow`` (darkness, 1 = full shadow).
 
-    builder: ``Session.builder()``. opacity, tint: pixgraph.Composite's. template:
+    builder: ``Session.builder()``. opacity, tint: pixgraph.Composite's. thickness:
+    pixgraph.SoftShadow's occluder thickness in pixels (6, as the example graphs:
+    lab/thickness_study.py with contact-line heights). template:
     BackgroundHeight params (``kind`` and its handles, pixels of the background image).
     """
     b = builder
@@ -152,7 +154,7 @@ def build_graph(builder, *, camera: dict, light: dict, template: dict, samples: 
     b.add("pixgraph.CutoutHeight", "fg_h", method="contact_line")
     b.add("pixgraph.BackgroundHeight", "bg_h", **template)
     b.add("pixgraph.Light", "light", **light)
-    b.add("pixgraph.SoftShadow", "shadow", samples=samples)
+    b.add("pixgraph.SoftShadow", "shadow", samples=samples, thickness=thickness)
     b.add("pixgraph.Composite", "comp", opacity=opacity, tint=[float(t) for t in tint])
     b.connect("cutout.alpha", "fg_h.mask")
     b.connect("cam.camera", "bg_h.camera")
