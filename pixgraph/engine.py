@@ -493,9 +493,12 @@ class Engine:
         except (E.Cancelled, DeviceError):
             raise  # not the node's fault: no device could be opened
         except InputError as exc:
-            raise NodeInputError(nid, spec.type_id, str(exc).splitlines()[0]) from exc
+            raise NodeInputError(nid, spec.type_id, (str(exc).splitlines() or [type(exc).__name__])[0]) from exc
+        except MemoryError as exc:  # sizes from the user's graph, too large for this machine
+            raise NodeInputError(nid, spec.type_id, "ran out of memory: its inputs or params ask for more "
+                                 "than this machine has") from exc
         except Exception as exc:
-            raise NodeError(nid, spec.type_id, f"failed: {type(exc).__name__}: {exc}".splitlines()[0]) from exc
+            raise NodeError(nid, spec.type_id, (f"failed: {type(exc).__name__}: {exc}".splitlines() or [""])[0]) from exc
         if not isinstance(out, dict):
             raise NodeError(nid, spec.type_id, f"compute returned {type(out).__name__}, expected a dict of outputs")
         names = [p.name for p in spec.outputs]
