@@ -60,12 +60,14 @@ def _parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", parents=[common, graph_opts, cache_opts], help="run a graph")
     r.add_argument("-o", "--output", action="append", default=[], metavar="NAME=PATH",
-                   help="write graph output NAME (or any node output, NODE.OUTPUT) to an image file "
-                        "PATH (png, tif, jpg, exr)")
+                   help="write graph output NAME (or any node output, NODE.OUTPUT) to a file PATH "
+                        "(png, tif, jpg, exr, npy); masks and pixel heights are written as data "
+                        "(no gamma, never clipped: 16-bit PNG for 0..1, else npy/exr/tif)")
     r.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
     r.add_argument("--cache-bytes", type=int, default=None, help="memory cache limit in bytes")
 
-    sub.add_parser("validate", parents=[common, graph_opts], help="check a graph file without running it")
+    sub.add_parser("validate", parents=[common, graph_opts],
+                   help="check a graph file and its input files' headers without running it")
     sub.add_parser("explain", parents=[common, graph_opts, cache_opts],
                    help="show what a run would compute or take from cache, and why")
 
@@ -113,6 +115,8 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("pixgraph: cancelled", file=sys.stderr)
+        if argv is None:
+            _exit_now(EXIT_CANCELLED)
         return EXIT_CANCELLED
     except Exception as e:
         from .device import DeviceError
@@ -123,6 +127,17 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
             return EXIT_CANCELLED
         _fail(args, e, prefix="error: ")
         return EXIT_BAD_INPUT if isinstance(e, DeviceError) and "matches" in str(e) else EXIT_INTERNAL
+
+
+def _exit_now(code: int) -> None:
+    """End the process at once after Ctrl-C on the command line. Nothing is left to
+    save: the interrupted node stored nothing, and every finished node's cache
+    entry was written atomically when it finished. Python's normal teardown would
+    first finalise torch, PoCL and every module (torch alone: 1.7 s on a loaded
+    2-core machine), delaying the exit the user asked for (benchmarks/cancel_bench.py)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 def _fail(args, e: BaseException, prefix: str = "") -> None:
@@ -198,7 +213,7 @@ def _cmd_run(args, registry) -> int:
         if bar is not None:
             bar.close()
     for name, path in targets.items():
-        _write_output(name, values[name], path)
+        _write_output(name, values[name], path, _port_type(s, graph, name))
     if not args.quiet:
         res = s.last_run
         print(f"ran {len(res.ran)} node(s), {len(res.cached)} from cache, "
@@ -207,6 +222,14 @@ def _cmd_run(args, registry) -> int:
             where = f" -> {targets[name]}" if name in targets else ""
             print(f"{name}: {_describe(v)}{where}")
     return EXIT_OK
+
+
+def _port_type(session, graph, name: str):
+    """The declared type of a graph output or ``node.output`` ref."""
+    from .graph import Ref
+
+    ref = graph.outputs.get(name) or Ref.parse(name)
+    return session.registry.get(graph.nodes[ref.node].type).output(ref.output).type
 
 
 def _allow_typed_paths(s, graph, sets: dict[str, Any]) -> None:
@@ -244,15 +267,19 @@ def _check_output_paths(targets: dict[str, str], graph, registry) -> None:
             raise UsageError(f"-o {name}={quote(path)}: would write over a file this graph reads")
 
 
-def _write_output(name: str, value, path: str) -> None:
+def _write_output(name: str, value, path: str, port_type=None) -> None:
     import numpy as np
 
-    from pixgraph_nodes.ops.imageio import write_image
+    from pixgraph_nodes.ops.imageio import write_data, write_image
+
+    from . import types as T
 
     if not isinstance(value, np.ndarray):
         raise UsageError(f"-o {name}={path}: output {name!r} is a {type(value).__name__}, not an image")
+    # a matte, a darkness or a pixel height is data: written as numbers, never as colour
+    data = port_type is not None and issubclass(port_type, (T.Mask, T.PixelHeight))
     try:
-        write_image(path, value)
+        write_data(path, value) if data else write_image(path, value)
     except (ValueError, OSError) as e:
         raise UsageError(f"-o {name}={path}: {e}") from None
 
@@ -274,6 +301,8 @@ def _cmd_validate(args, registry) -> int:
     g = s.graph(args.graph, sets)
     _allow_typed_paths(s, g, sets)
     s.check_paths(g)
+    if g.outputs:
+        s.check(g)  # file headers: sizes, alpha, placements (reads no pixels)
     if not args.quiet:
         print(f"{args.graph}: ok ({len(g.nodes)} nodes, outputs: {', '.join(g.outputs) or 'none'})")
     return EXIT_OK
@@ -325,11 +354,11 @@ def _cmd_schema(args, registry) -> int:
 
 
 def _cmd_devices(args, registry) -> int:
-    from .device import DeviceError, build_problem, choose, list_devices
+    from .device import DeviceError, build_problem, choose, list_devices, no_device_hint
 
     devices = list_devices()
     if not devices:
-        print("no OpenCL device found", file=sys.stderr)
+        print(f"no OpenCL device found: {no_device_hint()}", file=sys.stderr)
         return EXIT_INTERNAL
     try:
         default = choose().spec
