@@ -214,14 +214,15 @@ class Engine:
         """
         requested = self._requested(graph, outputs)
         order = self._ancestors(graph, [r.node for r in requested.values()], {})
+        policy = self.policy_for(graph)
         infos: dict[str, dict[str, Any]] = {}
         for nid in order:
             inst = graph.nodes[nid]
             spec = self.registry.get(inst.type)
             params = spec.coerce_params(inst.params)
             for p in spec.params:
-                if p.kind == "path" and params[p.name] is not None:
-                    params[p.name] = graph.resolve_path(params[p.name])
+                if p.kind == "path" and params[p.name] is not None:  # the policy before any header is read
+                    params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
             ins = {p.name: None for p in spec.inputs}
             for port, ref in inst.inputs.items():
                 ins[port] = infos[ref.node].get(ref.output)
