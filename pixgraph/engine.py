@@ -14,6 +14,7 @@ always run when requested and are never cached.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 import time
 from typing import Any, Callable, Mapping
@@ -32,6 +33,7 @@ from .types import SIZED, Shape, nbytes
 
 
 DEFAULT_MAX_FILE_BYTES = 4 << 30
+_log = logging.getLogger("pixgraph.engine")
 
 
 def _env_int(name: str, default: int) -> int:
@@ -495,6 +497,7 @@ class Engine:
                 stored = ("not cached: " + (f"file changed during the run ({', '.join(changed)})" if changed
                                             else "an input was computed from a file that changed during the run"))
                 emit(E.NodeLog(nid, stored))
+                _log.warning("node %r: %s", nid, stored)
             else:
                 stored = self._store(spec, key, value)
             emit(E.NodeFinished(nid, timings[nid], stored))
