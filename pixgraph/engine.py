@@ -14,6 +14,7 @@ always run when requested and are never cached.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 import time
 from typing import Any, Callable, Mapping
@@ -32,6 +33,7 @@ from .types import SIZED, Shape, nbytes
 
 
 DEFAULT_MAX_FILE_BYTES = 4 << 30
+_log = logging.getLogger("pixgraph.engine")
 
 
 def _env_int(name: str, default: int) -> int:
@@ -214,14 +216,15 @@ class Engine:
         """
         requested = self._requested(graph, outputs)
         order = self._ancestors(graph, [r.node for r in requested.values()], {})
+        policy = self.policy_for(graph)
         infos: dict[str, dict[str, Any]] = {}
         for nid in order:
             inst = graph.nodes[nid]
             spec = self.registry.get(inst.type)
             params = spec.coerce_params(inst.params)
             for p in spec.params:
-                if p.kind == "path" and params[p.name] is not None:
-                    params[p.name] = graph.resolve_path(params[p.name])
+                if p.kind == "path" and params[p.name] is not None:  # the policy before any header is read
+                    params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
             ins = {p.name: None for p in spec.inputs}
             for port, ref in inst.inputs.items():
                 ins[port] = infos[ref.node].get(ref.output)
@@ -494,6 +497,7 @@ class Engine:
                 stored = ("not cached: " + (f"file changed during the run ({', '.join(changed)})" if changed
                                             else "an input was computed from a file that changed during the run"))
                 emit(E.NodeLog(nid, stored))
+                _log.warning("node %r: %s", nid, stored)
             else:
                 stored = self._store(spec, key, value)
             emit(E.NodeFinished(nid, timings[nid], stored))
@@ -565,9 +569,13 @@ class Engine:
         except InputError as exc:
             files = _files_upstream(plan, nid)
             where = f" (inputs from {files})" if files else ""
-            raise NodeInputError(nid, spec.type_id, str(exc).splitlines()[0] + where) from exc
+            raise NodeInputError(nid, spec.type_id,
+                                 (str(exc).splitlines() or [type(exc).__name__])[0] + where) from exc
+        except MemoryError as exc:  # sizes from the user's graph, too large for this machine
+            raise NodeInputError(nid, spec.type_id, "ran out of memory: its inputs or params ask for more "
+                                 "than this machine has") from exc
         except Exception as exc:
-            raise NodeError(nid, spec.type_id, f"failed: {type(exc).__name__}: {exc}".splitlines()[0]) from exc
+            raise NodeError(nid, spec.type_id, (f"failed: {type(exc).__name__}: {exc}".splitlines() or [""])[0]) from exc
         if not isinstance(out, dict):
             raise NodeError(nid, spec.type_id, f"compute returned {type(out).__name__}, expected a dict of outputs")
         names = [p.name for p in spec.outputs]
