@@ -4,12 +4,10 @@ from __future__ import annotations
 import functools
 import pathlib
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
-
 import numpy as np
 
-from pixgraph.node import InputError
+from pixgraph import types as T
+from pixgraph.node import InputError, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops import ssn

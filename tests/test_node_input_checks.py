@@ -144,11 +144,10 @@ def test_impossible_pixel_heights_are_bad_input(tmp_path, capsys, type_id, value
     target = fg if which == "fg" else bg
     target[30, 17] = value              # inside the object (column 16..23, rows 16..35)
     path = write_graph(tmp_path, type_id, obj, fg, bg, photo)
-    # a .npy with NaN/inf never gets past the loader, which names its path
     code, err = run_cli(capsys, path)
     assert code == 2, err
     assert len(err) == 1
-    if not np.isfinite(value):
+    if not np.isfinite(value):      # a .npy with NaN/inf never gets past its loader
         assert f"node '{which}' (pixgraph.LoadPixelHeight)" in err[0] and "non-finite" in err[0]
     else:
         port = {"pixgraph.Refraction": {"fg": "glass_height"}}.get(type_id, {}).get(which)
