@@ -41,7 +41,7 @@ def thread_latency(samples: int) -> float:
 
     s = Session(disk_cache=None)
     g = s.graph(GRAPH, {"shadow.samples": samples})
-    token, at = CancelToken(), []
+    token, at, armed = CancelToken(), [], []
 
     def cancel_later():
         time.sleep(0.5)
@@ -49,8 +49,8 @@ def thread_latency(samples: int) -> float:
         token.cancel()
 
     def on_event(ev):
-        if isinstance(ev, NodeProgress) and ev.node_id == "shadow" and not at and not getattr(on_event, "armed", 0):
-            on_event.armed = 1
+        if isinstance(ev, NodeProgress) and ev.node_id == "shadow" and not armed:
+            armed.append(True)
             threading.Thread(target=cancel_later, daemon=True).start()
 
     try:

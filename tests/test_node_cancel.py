@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import _shadow_scenes as sc
-from pixgraph.events import CancelToken, Cancelled, NodeProgress, NodeStarted
+from pixgraph.events import CancelToken, Cancelled, NodeProgress
 from pixgraph.session import Session
 from pixgraph_nodes.ops import buffers as B
 from pixgraph_nodes.ops import reflection as R

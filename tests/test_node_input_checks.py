@@ -144,11 +144,10 @@ def test_impossible_pixel_heights_are_bad_input(tmp_path, capsys, type_id, value
     target = fg if which == "fg" else bg
     target[30, 17] = value              # inside the object (column 16..23, rows 16..35)
     path = write_graph(tmp_path, type_id, obj, fg, bg, photo)
-    # a .npy with NaN/inf never gets past the loader, which names its path
     code, err = run_cli(capsys, path)
     assert code == 2, err
     assert len(err) == 1
-    if not np.isfinite(value):
+    if not np.isfinite(value):      # a .npy with NaN/inf never gets past its loader
         assert f"node '{which}' (pixgraph.LoadPixelHeight)" in err[0] and "non-finite" in err[0]
     else:
         port = {"pixgraph.Refraction": {"fg": "glass_height"}}.get(type_id, {}).get(which)
@@ -323,3 +322,26 @@ def test_a_sphere_above_the_horizon_is_bad_input(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
     assert "node 'ball' (pixgraph.Sphere)" in err[0] and "below the horizon" in err[0]
+
+
+def test_the_ops_refuse_mismatched_sizes_too(device):
+    """Below the nodes, the OpenCL wrappers check sizes themselves (a script calling
+    them directly never gets a read outside a buffer either)."""
+    from pixgraph_nodes.ops import reflection as R
+    from pixgraph_nodes.ops import shadow as S
+    from pixgraph_nodes.ops.camera import Camera
+
+    obj, fg, bg, photo = scene()
+    cam = Camera(N, N, 50.0, HORIZON)
+    with pytest.raises(ValueError, match="glass 8x8"):
+        R.refraction_cl(device, cam, obj[:8, :8], fg[:8, :8], photo, bg)
+    with pytest.raises(ValueError, match="camera's 32x32"):
+        R.refraction_cl(device, Camera(32, 32, 50.0, HORIZON), obj, fg, photo, bg)
+    with pytest.raises(ValueError, match="bg_height 24x24"):
+        R.reflection_cl(device, cam, obj, fg, bg[:24, :24])
+    with pytest.raises(ValueError, match="mask 48x40"):
+        R.reflection_cl(device, cam, obj, fg, bg, mask=obj[:40, :, 3])
+    with pytest.raises(ValueError, match="must be RGBA"):
+        R.reflection_cl(device, cam, obj[..., :3], fg, bg)
+    with pytest.raises(ValueError, match="share one"):
+        S.soft_shadow(device, obj[..., 3], fg[:40], bg, np.array([[5.0, 5.0, 60.0, 1.0]]))
