@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
 # Install pixgraph and what it needs on a fresh machine.
 #   ./setup.sh          the package (run graphs)
-#   ./setup.sh test     plus the test and ground-truth (Mitsuba) extras
+#   ./setup.sh test     plus the test, ground-truth (Mitsuba) and batch (Dask) extras
 # Debian's PoCL is installed when apt is available and we are root: it is ~2x
 # faster than the PoCL inside the pyopencl wheel, and that one (LLVM 14) cannot
 # build kernels at all on CPUs newer than it knows ("unknown target CPU").
 set -euo pipefail
 cd "$(dirname "$0")"
 extras=""
-[ "${1:-}" = "test" ] && extras="[test,datagen]"
+[ "${1:-}" = "test" ] && extras="[test,datagen,batch]"
 
 debs=()
 dpkg -s pocl-opencl-icd >/dev/null 2>&1 || debs+=(pocl-opencl-icd)

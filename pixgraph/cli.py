@@ -73,6 +73,12 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("schema", parents=[common], help="print the JSON Schema of graph files")
     sub.add_parser("devices", parents=[common], help="list OpenCL platforms and devices")
 
+    b = sub.add_parser("batch", parents=[common, graph_opts, cache_opts],
+                       help="run a graph over a manifest's rows or a sweep (see docs/batch.md)")
+    from .batch import add_arguments as _batch_arguments
+
+    _batch_arguments(b)
+
     c = sub.add_parser("cache", parents=[common, cache_opts], help="disk cache statistics or clearing")
     c.add_argument("action", choices=["stats", "clear"])
     return p
@@ -314,5 +320,11 @@ def _cmd_cache(args, registry) -> int:
     return EXIT_OK
 
 
-_COMMANDS = {"run": _cmd_run, "validate": _cmd_validate, "explain": _cmd_explain, "nodes": _cmd_nodes,
+def _cmd_batch(args, registry) -> int:
+    from .batch import cli_batch
+
+    return cli_batch(args, _session(args, registry), parse_sets(args.set), UsageError)
+
+
+_COMMANDS = {"batch": _cmd_batch, "run": _cmd_run, "validate": _cmd_validate, "explain": _cmd_explain, "nodes": _cmd_nodes,
              "schema": _cmd_schema, "devices": _cmd_devices, "cache": _cmd_cache}
