@@ -646,7 +646,17 @@ def _run_dask(config, gfile, items, workers, scheduler, force, record) -> int:
     finally:
         client.close()
         if cluster is not None:
-            cluster.close()
+            import logging
+
+            # a worker holding an OpenCL context can take a few seconds to exit; the
+            # nanny then kills it and warns: expected at shutdown, not worth a line
+            nanny = logging.getLogger("distributed.nanny")
+            level = nanny.level
+            nanny.setLevel(logging.ERROR)
+            try:
+                cluster.close()
+            finally:
+                nanny.setLevel(level)
 
 
 def batch(session, graph, rows: Iterable[Row | Mapping[str, Any]] | None = None, outputs=None,
