@@ -625,8 +625,12 @@ def _run_dask(config, gfile, items, workers, scheduler, force, record) -> int:
         from distributed import Client, LocalCluster, as_completed
     except ImportError:
         raise BatchError("the dask executor needs dask.distributed: pip install 'pixgraph[batch]'") from None
-    cluster = None
-    if scheduler:
+    cluster, own_client = None, True
+    if hasattr(scheduler, "submit"):  # a Client the caller made (e.g. on a dask-jobqueue cluster)
+        client, own_client = scheduler, False
+    elif scheduler is not None and hasattr(scheduler, "scheduler_address"):  # a cluster object
+        client = Client(scheduler)
+    elif scheduler:
         client = Client(scheduler)
     else:
         # one thread per worker process: a worker runs one composite at a time on
@@ -644,7 +648,8 @@ def _run_dask(config, gfile, items, workers, scheduler, force, record) -> int:
             record(_future_result(fut, by_key[fut.key]))
         return n
     finally:
-        client.close()
+        if own_client:
+            client.close()
         if cluster is not None:
             import logging
 

@@ -166,8 +166,9 @@ class Session:
         outputs: ``{name: template}`` or names (each written to ``template``);
             default every image output of the graph.
         executor: ``"inprocess"`` (this session), ``"processes"`` (``workers``
-            spawned processes) or ``"dask"`` (``scheduler`` address, or a
-            ``LocalCluster`` of ``workers`` processes). See ``pixgraph.batch``.
+            spawned processes) or ``"dask"`` (``scheduler``: an address, a
+            ``distributed.Client`` or a cluster object; none: a ``LocalCluster``
+            of ``workers`` processes). See ``pixgraph.batch`` and docs/batch.md.
         force: re-render rows whose outputs are already done.
         """
         from . import batch

@@ -226,3 +226,50 @@ def test_process_pool_matches_in_process(scene, tmp_path):
     assert ref.count("done") == res.count("done") == 4, res.table()
     assert all(not r.worker.endswith(f":{os.getpid()}") for r in res.results)
     _same_files(tmp_path, "inproc", "pool", 4)
+
+
+# -- docs/batch.md: its commands run --------------------------------------------------
+
+DOC = os.path.join(os.path.dirname(__file__), "..", "docs", "batch.md")
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _blocks(lang):
+    import re
+
+    return re.findall(rf"```{lang}\n(.*?)```", open(DOC).read(), re.S)
+
+
+def test_batch_doc_commands_run(tmp_path, monkeypatch, capsys):
+    """The doc's `pixgraph batch` commands, manifest and Python block, in a folder with
+    the repo's graphs and two cutouts (4 light samples instead of 48, for time)."""
+    import shlex
+    import shutil
+
+    monkeypatch.chdir(tmp_path)
+    os.symlink(os.path.join(REPO, "graphs"), tmp_path / "graphs")
+    (tmp_path / "cutouts").mkdir()
+    for f in ("figure.png", "figure_far.png"):
+        shutil.copy(os.path.join(REPO, "graphs", "assets", f), tmp_path / "cutouts" / f)
+    (csv_text,) = _blocks("csv")
+    (tmp_path / "shots.csv").write_text(csv_text)
+    commands = [c.strip() for block in _blocks("sh") for c in block.splitlines()
+                if c.strip().startswith("pixgraph batch") and "--scheduler" not in c]
+    assert len(commands) == 3
+    reg = Registry.discover()
+    for cmd in commands:
+        argv = shlex.split(cmd)[1:] + ["--set", "shadow.samples=4", "--no-disk-cache"]
+        assert main(argv, reg) == 0, capsys.readouterr()
+    out = capsys.readouterr().out
+    assert "2 done, 0 skipped" in out and "3 done, 0 skipped" in out and "6 done, 0 skipped" in out
+    names = sorted(os.listdir(tmp_path / "composites"))
+    assert names == sorted(f"{n}.png{e}" for n in ("figure", "figure_far", "hero_left", "hero_right", "far")
+                           for e in ("", ".json"))
+    assert len(os.listdir(tmp_path / "sweep")) == 12 and (tmp_path / "sweep" / "az-60_el30.png").is_file()
+    meta = json.loads((tmp_path / "composites" / "hero_right.png.json").read_text())
+    assert meta["params"]["light.azimuth"] == 45 and meta["row"] == "hero_right"
+    # the Python block
+    (py,) = _blocks("python")
+    exec(compile(py.replace('"shadow.samples": 16', '"shadow.samples": 4'), "batch.md python", "exec"), {})
+    out = capsys.readouterr().out
+    assert "2 done" in out and "left done" in out and (tmp_path / "composites" / "right.png").is_file()
