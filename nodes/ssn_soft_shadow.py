@@ -7,7 +7,11 @@ import pathlib
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from ._checks import same_size
+import numpy as np
+
+from pixgraph.node import InputError
+
+from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops import ssn
 from .ops.buffers import buffer_channels
 from .ops.lights import disk_extremes, light_point
@@ -34,7 +38,15 @@ class SoftShadowSSN:
     """Soft shadow from SSN++: the 3D-aware buffer channels (cutout pixel height,
     background gradient, hard and sparse hard shadows, relative distance) and the
     light's softness run through a small trained U-Net on the CPU. Same ports as
-    pixgraph.SoftShadow; its cost does not grow with the light's size."""
+    pixgraph.SoftShadow; its cost does not grow with the light's size.
+
+    All inputs share the camera's size; pixel heights must be finite and >= 0
+    (the cutout's inside its mask), else the node stops with an input error. An
+    empty mask casts no shadow (darkness 0). Softness beyond 1 (radius larger
+    than the distance) is clamped to 1. Torch runs with
+    ``PIXGRAPH_TORCH_THREADS`` intra-op threads (default: 1 per 4 CPUs, 1 to
+    4), restored afterwards. Progress is reported after the buffer channels
+    (banded, cancellable) and after the network."""
 
     class Inputs:
         mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
@@ -52,14 +64,33 @@ class SoftShadowSSN:
         lit: T.Mask = port(doc="1 - darkness")
         darkness: T.Mask = port(doc="soft shadow, 1 = full shadow (what Composite takes)")
 
-    impl_version = "2"  # bump when the shipped weights or the inference change (2: NHWC layout)
+    # bump when the shipped weights or the inference change (2: NHWC layout; 3: softness clamped to 1)
+    impl_version = "3"
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+        finite(mask=inputs.mask)
+        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
+        pixel_heights(bg_height=inputs.bg_height)
         cam, light = inputs.camera, inputs.light
+        if not inside(inputs.mask).any():  # nothing casts a shadow
+            darkness = np.zeros(inputs.mask.shape, np.float32)
+            return {"lit": 1.0 - darkness, "darkness": darkness}
+        try:
+            softness = ssn.softness_of(light, cam, inputs.mask, inputs.fg_height)
+        except ValueError as e:
+            raise InputError(f"input 'fg_height': {e}") from None
+        try:
+            threads = ssn.inference_threads()
+        except ValueError as e:  # the host's setting, not the node's fault
+            raise InputError(str(e)) from None
         model = load_shipped(params.model)
         buffers = buffer_channels(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height,
-                                  light_point(light, cam), disk_extremes(light, cam), params.thickness)
-        softness = ssn.softness_of(light, cam, inputs.mask, inputs.fg_height)
-        darkness = ssn.predict(model, buffers, softness)
+                                  light_point(light, cam), disk_extremes(light, cam), params.thickness,
+                                  progress=lambda f, m="": ctx.progress(0.5 * f, m),
+                                  check_cancelled=ctx.check_cancelled)
+        ctx.check_cancelled()
+        darkness = ssn.predict(model, buffers, softness, threads)
+        finite_outputs(darkness=darkness)
+        ctx.progress(1.0, "SSN++")
         return {"lit": 1.0 - darkness, "darkness": darkness}
