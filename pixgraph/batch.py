@@ -358,17 +358,11 @@ def run_item(session, graph: Graph, item: Item, force: bool = False) -> ItemResu
         if not force and all(_is_done(item.outputs[n], k) for n, k in keys.items()):
             return ItemResult(item.index, item.row, "skipped", dict(item.outputs), time.perf_counter() - t0,
                               worker=worker)
+        _check_outputs(session, g, item)
         res = session.engine.run(plan)
         session.last_run = res
-        from pixgraph_nodes.ops.imageio import write_image
-        import numpy as np
-
         for name, path in item.outputs.items():
-            value = res.values[name]
-            if not isinstance(value, np.ndarray):
-                raise BatchError(f"output {name!r} is a {type(value).__name__}, not an image")
-            os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
-            write_image(path, value)
+            _write_output(session, g, plan, name, res.values[name], path)
         seconds = time.perf_counter() - t0
         for name, path in item.outputs.items():
             _write_sidecar(session, g, plan, res, item, name, path, keys[name], seconds)
@@ -378,6 +372,55 @@ def run_item(session, graph: Graph, item: Item, force: bool = False) -> ItemResu
             f"{type(e).__name__}: {e}".replace("\n", " ")
         return ItemResult(item.index, item.row, "failed", dict(item.outputs), time.perf_counter() - t0,
                           error=msg, worker=worker)
+
+
+def _check_outputs(session, graph: Graph, item: Item) -> None:
+    """Output paths are the user's own (any folder, like ``pixgraph run -o``), but
+    never hold control characters and never overwrite a file this row reads."""
+    from .paths import bad_characters, quote
+
+    reads = {os.path.realpath(graph.file)} if graph.file else set()
+    for nid, inst in graph.nodes.items():
+        for p in session.registry.get(inst.type).params:
+            if p.kind == "path" and not p.writes and inst.params.get(p.name) is not None:
+                reads.add(os.path.realpath(graph.resolve_path(os.fspath(inst.params[p.name]))))
+    for name, path in item.outputs.items():
+        why = bad_characters(path)
+        if why:
+            raise BatchError(f"output {name}: path {quote(path)} {why}")
+        if os.path.realpath(path) in reads:
+            raise BatchError(f"output {name}: {quote(path)} would write over a file this row reads")
+
+
+def _write_output(session, graph: Graph, plan, name: str, value, path: str) -> None:
+    """Write like ``pixgraph run -o``: images as colour, mattes and heights as data."""
+    import numpy as np
+
+    from pixgraph_nodes.ops.imageio import write_data, write_image
+
+    from . import types as T
+
+    if not isinstance(value, np.ndarray):
+        raise BatchError(f"output {name!r} is a {type(value).__name__}, not an image")
+    ref = plan.outputs[name]
+    port = session.registry.get(graph.nodes[ref.node].type).output(ref.output)
+    data = port is not None and isinstance(port.type, type) and issubclass(port.type, (T.Mask, T.PixelHeight))
+    os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
+    write_data(path, value) if data else write_image(path, value)
+
+
+def user_files(graph: Graph, registry, items: Sequence[Item]) -> list[str]:
+    """The files that rows' path overrides name: the user's own (from a manifest,
+    a sweep or ``--set``), allowed by the path policy like ``pixgraph run --set``."""
+    from .paths import bad_characters
+
+    files = set()
+    for item in items:
+        for name, value in item.params.items():
+            if isinstance(value, str) and value and _is_path_param(graph, registry, name) \
+                    and not bad_characters(value):
+                files.add(graph.resolve_path(value))
+    return sorted(files)
 
 
 def _write_sidecar(session, graph, plan, res, item, name, path, key, seconds) -> None:
@@ -434,6 +477,10 @@ class WorkerConfig:
     #: threads one worker may use (torch, OpenMP, PoCL); 1 = one composite per core
     threads: int = 1
     open_device: bool = True
+    #: the path policy of the batch's session: allowed folders and files, strict or not
+    allow_paths: tuple = ()
+    allow_files: tuple = ()
+    strict_paths: bool = False
 
 
 _WORKER: dict[str, Any] = {}
@@ -462,7 +509,10 @@ def init_worker(config: WorkerConfig) -> None:
         limit_threads(config.threads)
         from .session import Session
 
-        s = Session(device=config.device, cache_bytes=config.cache_bytes, disk_cache=config.disk_cache)
+        s = Session(device=config.device, cache_bytes=config.cache_bytes, disk_cache=config.disk_cache,
+                    allow_paths=config.allow_paths, strict_paths=config.strict_paths)
+        if config.allow_files:
+            s.allow_files(config.allow_files)
         if config.open_device:
             try:
                 s.device  # noqa: B018 - open the OpenCL context now, once per process
@@ -584,7 +634,9 @@ def run_batch(session, graph: Graph | str | os.PathLike, items: Sequence[Item], 
                 device = session._device_arg  # a Device value cannot cross processes: workers open their own
             config = WorkerConfig(device=device, cache_bytes=session.memory.limit_bytes,
                                   disk_cache=session.disk.root if session.disk is not None else None,
-                                  threads=threads)
+                                  threads=threads, allow_paths=tuple(session.paths.roots),
+                                  allow_files=tuple(sorted(session.paths.files)),
+                                  strict_paths=session.paths.strict)
             gfile = os.path.abspath(os.fspath(graph))
             if executor == "processes":
                 n = _run_pool(config, gfile, items, workers, force, record)
@@ -677,6 +729,9 @@ def batch(session, graph, rows: Iterable[Row | Mapping[str, Any]] | None = None,
     sweeps = [parse_sweep(s) if isinstance(s, str) else (s[0], list(s[1])) for s in sweeps]
     rows = sweep_rows(sweeps, rows)
     items = make_items(g, rows, session.registry, outputs, template, manifest_dir, params)
+    files = user_files(g, session.registry, items)
+    if files:
+        session.allow_files(files)
     return run_batch(session, g, items, **run_kw)
 
 

@@ -273,3 +273,15 @@ def test_batch_doc_commands_run(tmp_path, monkeypatch, capsys):
     exec(compile(py.replace('"shadow.samples": 16', '"shadow.samples": 4'), "batch.md python", "exec"), {})
     out = capsys.readouterr().out
     assert "2 done" in out and "left done" in out and (tmp_path / "composites" / "right.png").is_file()
+
+
+def test_rows_never_write_over_their_inputs(scene, tmp_path):
+    """Manifest and sweep files are the user's (allowed outside the graph's folder),
+    but an output template that lands on a row's own input fails that row."""
+    (tmp_path / "cut").mkdir()
+    src = (scene / "cutouts" / "c1.png").read_bytes()
+    (tmp_path / "cut" / "c1.png").write_bytes(src)
+    res = Session().batch(scene / "g.yaml", sweeps=[f"cutout.path={tmp_path}/cut/*.png"],
+                          outputs={"final": str(tmp_path / "cut" / "{stem}.png")})
+    assert [r.status for r in res.results] == ["failed"] and "would write over" in res.results[0].error
+    assert (tmp_path / "cut" / "c1.png").read_bytes() == src
