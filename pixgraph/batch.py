@@ -659,8 +659,12 @@ def _run_pool(config, gfile, items, workers, force, record) -> int:
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=init_worker,
                              initargs=(config,)) as pool:
         futures = {pool.submit(worker_run, config, gfile, it, force): it for it in items}
-        for fut in as_completed(futures):
-            record(_future_result(fut, futures[fut]))
+        try:
+            for fut in as_completed(futures):
+                record(_future_result(fut, futures[fut]))
+        except BaseException:  # Ctrl-C or an error in a callback: do not run the rest
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
     return workers
 
 
@@ -774,9 +778,9 @@ def cli_batch(args, session, shared_params: Mapping[str, Any], usage_error) -> i
                     raise BatchError(f"-o {item}: expected NAME=TEMPLATE")
                 outputs[name] = tmpl
         executor, workers = "inprocess", 1
-        if args.processes:
+        if args.processes is not None:
             executor, workers = "processes", args.processes
-        elif args.dask_local:
+        elif args.dask_local is not None:
             executor, workers = "dask", args.dask_local
         elif args.scheduler:
             executor = "dask"
