@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Install pixgraph and what it needs on a fresh machine.
 #   ./setup.sh          the package and SSN++ (the `ssn` extra: torch) to run every example graph
-#   ./setup.sh test     plus the lab, test and ground-truth (Mitsuba) extras, the
+#   ./setup.sh test     plus the lab, test, ground-truth (Mitsuba) and batch (Dask) extras, the
 #                       separate bpy venv the Blender add-on test runs in (hosts/blender/bpy_env.py),
 #                       and Debian's chromium for the browser test of 'pixgraph serve'
 # Debian's PoCL is installed when apt is available and we are root: it is ~2x
@@ -10,12 +10,12 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 extras="[ssn]"
-[ "${1:-}" = "test" ] && extras="[ssn,lab,test,datagen]"
+[ "${1:-}" = "test" ] && extras="[ssn,lab,test,datagen,batch]"
 
 debs=()
 dpkg -s pocl-opencl-icd >/dev/null 2>&1 || debs+=(pocl-opencl-icd)
 # Mitsuba's fast llvm variants want libLLVM; without it the generator falls back to scalar_rgb.
-[ -n "$extras" ] && ! dpkg -s libllvm19 >/dev/null 2>&1 && debs+=(libllvm19)
+[ "${1:-}" = "test" ] && ! dpkg -s libllvm19 >/dev/null 2>&1 && debs+=(libllvm19)
 # The browser test drives Debian's chromium with Playwright (Playwright's own browser downloads are not used).
 [ "${1:-}" = "test" ] && ! dpkg -s chromium >/dev/null 2>&1 && debs+=(chromium)
 if [ ${#debs[@]} -gt 0 ] && command -v apt-get >/dev/null && [ "$(id -u)" = 0 ]; then

@@ -92,6 +92,12 @@ def _parser() -> argparse.ArgumentParser:
     sv.add_argument("--max-body", type=int, default=None, metavar="BYTES",
                     help="largest request body (default 32 MiB)")
 
+    b = sub.add_parser("batch", parents=[common, graph_opts, cache_opts],
+                       help="run a graph over a manifest's rows or a sweep (see docs/batch.md)")
+    from .batch import add_arguments as _batch_arguments
+
+    _batch_arguments(b)
+
     c = sub.add_parser("cache", parents=[common, cache_opts], help="disk cache statistics or clearing")
     c.add_argument("action", choices=["stats", "clear"])
     return p
@@ -413,6 +419,12 @@ def _cmd_cache(args, registry) -> int:
     return EXIT_OK
 
 
+def _cmd_batch(args, registry) -> int:
+    from .batch import cli_batch
+
+    return cli_batch(args, _session(args, registry), parse_sets(args.set), UsageError)
+
+
 def _cmd_serve(args, registry) -> int:
     import dataclasses
 
@@ -449,5 +461,6 @@ def _cmd_serve(args, registry) -> int:
     return EXIT_OK
 
 
-_COMMANDS = {"run": _cmd_run, "serve": _cmd_serve, "validate": _cmd_validate, "explain": _cmd_explain, "nodes": _cmd_nodes,
-             "schema": _cmd_schema, "devices": _cmd_devices, "cache": _cmd_cache}
+_COMMANDS = {"run": _cmd_run, "batch": _cmd_batch, "serve": _cmd_serve, "validate": _cmd_validate,
+             "explain": _cmd_explain, "nodes": _cmd_nodes, "schema": _cmd_schema, "devices": _cmd_devices,
+             "cache": _cmd_cache}
