@@ -8,8 +8,7 @@ from pixgraph import types as T
 from pixgraph.node import node, param, port
 
 from ._checks import same_size
-from .ops import ssn
-from .ops.buffers import buffer_channels
+from .ops import ssn, ssn_crop
 from .ops.lights import disk_extremes, light_point
 
 WEIGHTS = pathlib.Path(__file__).parent / "weights"
@@ -34,7 +33,13 @@ class SoftShadowSSN:
     """Soft shadow from SSN++: the 3D-aware buffer channels (cutout pixel height,
     background gradient, hard and sparse hard shadows, relative distance) and the
     light's softness run through a small trained U-Net on the CPU. Same ports as
-    pixgraph.SoftShadow; its cost does not grow with the light's size."""
+    pixgraph.SoftShadow; its cost does not grow with the light's size.
+
+    Any image size: the network runs on a window around the cutout and its shadow,
+    at the scale it was trained for, and the result is pasted back edge-aware
+    (darkness 0 outside the window). A light softer or harder than the training
+    data's (radius / distance outside 0.015-0.45) is clamped, with a warning in
+    the run's log (docs/ssn.md)."""
 
     class Inputs:
         mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
@@ -46,20 +51,27 @@ class SoftShadowSSN:
     class Params:
         model: str = param("ssnpp", choices=("ssnpp",), doc="shipped weights to use")
         thickness: float = param(1.0, min=0.0, max=1000.0, unit="px",
-                                 doc="occluder thickness of the buffer channels' hard shadows")
+                                 doc="occluder thickness of the buffer channels' hard shadows, "
+                                     "in pixels of the network's window (the trained scale)")
 
     class Outputs:
         lit: T.Mask = port(doc="1 - darkness")
         darkness: T.Mask = port(doc="soft shadow, 1 = full shadow (what Composite takes)")
 
-    impl_version = "2"  # bump when the shipped weights or the inference change (2: NHWC layout)
+    # bump when the shipped weights or the inference change (2: NHWC layout; 3: window at the trained scale)
+    impl_version = "3"
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
         cam, light = inputs.camera, inputs.light
         model = load_shipped(params.model)
-        buffers = buffer_channels(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height,
-                                  light_point(light, cam), disk_extremes(light, cam), params.thickness)
         softness = ssn.softness_of(light, cam, inputs.mask, inputs.fg_height)
-        darkness = ssn.predict(model, buffers, softness)
+        darkness, info = ssn_crop.render(ctx.device, model, inputs.mask, inputs.fg_height, inputs.bg_height,
+                                         light_point(light, cam), disk_extremes(light, cam), softness,
+                                         params.thickness)
+        if info.clamped:
+            lo, hi = ssn_crop.SOFTNESS_RANGE
+            ctx.log(f"warning: light softness (radius / distance) {softness:.3g} is outside the trained "
+                    f"range {lo:g}-{hi:g}: the network was run at {info.softness:g}")
+        ctx.log(info.describe())
         return {"lit": 1.0 - darkness, "darkness": darkness}

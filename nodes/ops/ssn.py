@@ -162,14 +162,15 @@ def count_flops(model: SSN, size: int = RESOLUTION) -> int:
     return flops
 
 
-def stack_channels(buffers: dict[str, np.ndarray], channels: tuple[str, ...]) -> np.ndarray:
+def stack_channels(buffers: dict[str, np.ndarray], channels: tuple[str, ...],
+                   norm: float | None = None) -> np.ndarray:
     """Buffer channels (each float (H, W), pixel units) -> network input float32 (C, H, W).
 
-    Pixel-height-like channels are divided by the image height so that a
-    resized scene gives the same input; shadows are already in [0, 1]; the
-    background gradient is dimensionless and clipped to +-2.
+    Pixel-height-like channels are divided by ``norm`` pixels (default the
+    image height) so that a resized scene gives the same input; shadows are
+    already in [0, 1]; the background gradient is dimensionless and clipped to +-2.
     """
-    H = next(iter(buffers.values())).shape[0]
+    H = float(norm) if norm else next(iter(buffers.values())).shape[0]
     out = []
     for name in channels:
         x = np.nan_to_num(np.asarray(buffers[name], dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
@@ -215,6 +216,21 @@ def predict(model: SSN, buffers: dict[str, np.ndarray], softness: float) -> np.n
         y = model(x.contiguous(memory_format=torch.channels_last), torch.tensor([float(softness)]))
     if (H, W) != (RESOLUTION, RESOLUTION):
         y = F.interpolate(y, size=(H, W), mode="bilinear", align_corners=False)
+    return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
+
+
+def run_network(model: SSN, buffers: dict[str, np.ndarray], softness: float,
+                norm: float | None = None) -> np.ndarray:
+    """Darkness (H, W) float32 in [0, 1] with the network run at the buffers' own
+    size (no resizing: H and W must be multiples of ``2**levels``); pixel-unit
+    channels are divided by ``norm`` px (see ``stack_channels``). ``ssn_crop``
+    runs it on a window at the trained scale, where ``norm = RESOLUTION``."""
+    x = torch.from_numpy(stack_channels(buffers, model.config.channels, norm))[None]
+    m = 2 ** model.config.levels
+    if x.shape[-2] % m or x.shape[-1] % m:
+        raise ValueError(f"run_network needs sides divisible by {m}, got {tuple(x.shape[-2:])}")
+    with torch.inference_mode():
+        y = model(x.contiguous(memory_format=torch.channels_last), torch.tensor([float(softness)]))
     return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
 
 
