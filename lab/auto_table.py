@@ -16,6 +16,10 @@
    fixed method.
 4. Writes the table fitted on all samples (``--table``) with its provenance,
    and the error-vs-time chart (``--chart``).
+
+Times: the evaluator's per-sample ms are measured one method after another on
+a shared machine; ``--times`` replaces them by medians measured interleaved
+(``benchmarks/ssn_bench.py --data ... --json``, see docs/auto.md).
 """
 from __future__ import annotations
 
@@ -41,7 +45,7 @@ def spec(m: str) -> str:
     return SPECS.get(m, m)
 
 
-def measure(data_dirs, out: str, reuse: bool, progress: bool = True) -> list[dict]:
+def measure(data_dirs, out: str, reuse: bool, progress: bool = True, refresh=()) -> list[dict]:
     """One record per sample: data, index, softness, receiver, feature_ms, rmse{m}, ms{m}."""
     from pixgraph.device import Device
     from pixgraph_nodes.ops.choose import scene_features
@@ -57,6 +61,11 @@ def measure(data_dirs, out: str, reuse: bool, progress: bool = True) -> list[dic
         if reuse and os.path.exists(path):
             with open(path) as fh:
                 rows = list(csv.DictReader(fh))
+            if refresh:       # recompute these methods, keep the others' rows
+                again = {spec(m) for m in refresh}
+                rows = [r for r in rows if r["method"] not in again]
+                rows += evaluate(d, sorted(again), device=device, progress=progress)
+                write_csv(path, rows)
         else:
             rows = evaluate(d, [spec(m) for m in methods], device=device, progress=progress)
             write_csv(path, rows)
@@ -80,6 +89,27 @@ def measure(data_dirs, out: str, reuse: bool, progress: bool = True) -> list[dic
                    "ms": {mm: float(by[idx][spec(mm)]["ms"]) for mm in methods}}
             records.append(rec)
     return records
+
+
+def features(sample):
+    """``choose.scene_features`` as an evaluation method (for timing it next to the
+    methods with ``benchmarks/ssn_bench.py``); returns its hard shadow's darkness."""
+    from pixgraph_nodes.ops.choose import scene_features
+    _, _, lit = scene_features(sample["device"], sample["mask"].astype(np.float32), sample["fg_height"],
+                               sample["bg_height"], sample["light"], sample["camera"])
+    return 1.0 - lit
+
+
+def use_times(records, path: str) -> None:
+    """Replace every record's ms by the interleaved medians of ``ssn_bench.py --json``
+    (the evaluator times methods one after another, under whatever load there was)."""
+    with open(path) as fh:
+        ms = json.load(fh)["ms"]
+    med = {m: ms[spec(m)]["median"] for m in list(CANDIDATES) + [REFERENCE]}
+    feat = ms["pixgraph_lab.auto_table:features"]["median"]
+    for r in records:
+        r["ms"] = dict(med)
+        r["feature_ms"] = feat
 
 
 def _stats(vals) -> dict:
@@ -198,11 +228,17 @@ def main(argv=None) -> int:
     ap.add_argument("--chart", default=None, help="error-vs-time chart (png)")
     ap.add_argument("--target", type=float, action="append", default=None)
     ap.add_argument("--reuse", action="store_true", help="reuse the per-sample rows in --out")
+    ap.add_argument("--refresh", action="append", default=[], choices=list(CANDIDATES) + [REFERENCE],
+                    help="with --reuse: measure this method again (repeatable)")
+    ap.add_argument("--times", default=None,
+                    help="ssn_bench.py --json output: use its interleaved median ms instead of the evaluator's")
     ap.add_argument("--no-progress", action="store_true")
     a = ap.parse_args(argv)
     targets = tuple(a.target or TARGETS)
     os.makedirs(a.out, exist_ok=True)
-    records = measure(a.data, a.out, a.reuse, not a.no_progress)
+    records = measure(a.data, a.out, a.reuse, not a.no_progress, a.refresh)
+    if a.times:
+        use_times(records, a.times)
     with open(os.path.join(a.out, "records.json"), "w") as fh:
         json.dump(records, fh)
     res = cross_check(records, targets)
@@ -222,7 +258,8 @@ def main(argv=None) -> int:
         except ImportError:
             machine = "unknown"
         table["provenance"] = {
-            "command": "python -m pixgraph_lab.auto_table " + " ".join(argv if argv is not None else sys.argv[1:]),
+            "command": "python -m pixgraph_lab.auto_table " + " ".join(
+                x for x in (argv if argv is not None else sys.argv[1:]) if x not in ("--reuse", "--no-progress")),
             "data": {d: sum(r["data"] == os.path.basename(os.path.normpath(d)) for r in records) for d in a.data},
             "date": datetime.date.today().isoformat(), "machine": machine,
             "note": "RMSE vs Mitsuba ground truth at 256^2; ms: median per sample on the shared CPU"}

@@ -111,10 +111,11 @@ def cell_of(table: dict, softness: float, receiver: str) -> tuple[str, dict]:
     edges = table["softness_edges"]
     b = int(np.clip(np.searchsorted(edges, softness, side="right") - 1, 0, len(edges) - 2))
     rec = table["cells"][receiver]
-    name = f"{receiver}, softness {edges[b]:g}-{edges[b + 1]:g}"
+    span = f"{edges[b]:g}-{edges[b + 1]:g}" if edges[b + 1] < 1.0 else f">= {edges[b]:g}"
+    name = f"{receiver}, softness {span}"
     cell = rec["bins"][b]
     if min(st["n"] for st in cell.values()) < MIN_CELL:
-        return f"{receiver}, all softness (bin {edges[b]:g}-{edges[b + 1]:g} has too few samples)", rec["all"]
+        return f"{receiver}, all softness (bin {span} has too few samples)", rec["all"]
     return name, cell
 
 

@@ -139,14 +139,17 @@ def choose_window(H: int, W: int, extent, object_px: float) -> Window:
     return Window(place(ex0, ex1, w, W), place(ey0, ey1, h, H), w, h, out_w, out_h)
 
 
-def reach_gate(channels: dict, reach_px: float = REACH_PX) -> np.ndarray:
+def reach_gate(channels: dict, mask_win: np.ndarray | None = None, reach_px: float = REACH_PX) -> np.ndarray:
     """1 on and near the union of the hard shadows of the light's centre and
-    extreme points (buffer channels), fading to 0 between reach_px / 2 and
-    3 reach_px / 2 px from it; float32 (h, w)."""
+    extreme points (buffer channels) on the background (outside ``mask_win``;
+    the cutout's self-shadow does not count), fading to 0 between reach_px / 2
+    and 3 reach_px / 2 px from it; float32 (h, w)."""
     union = np.zeros(channels["hard_shadow"].shape, bool)
     for name in ("hard_shadow", "sparse_hard_shadow_0", "sparse_hard_shadow_1", "sparse_hard_shadow_2",
                  "sparse_hard_shadow_3"):
         union |= channels[name] > 0.5
+    if mask_win is not None:
+        union &= ~(np.asarray(mask_win) > 0.5)
     r = max(1, int(round(reach_px)))
     box = r + 1 if r % 2 == 0 else r + 2        # odd, about r wide: the fade
     t = torch.from_numpy(union.astype(np.float32))[None, None]
@@ -186,6 +189,6 @@ def render(device, model, mask, fg_height, bg_height, light_center, light_extrem
                                win.light_points(light_extremes), thickness)
     d = ssn.run_network(model, channels, info.softness, norm=ssn.RESOLUTION)
     if gate:
-        d = d * reach_gate(channels)
+        d = d * reach_gate(channels, m)
     d_img = masked_resize(d, m, win.crop(inside.astype(np.float32)), (win.h, win.w))
     return np.clip(win.paste(d_img, H, W), 0.0, 1.0).astype(np.float32), info
