@@ -113,3 +113,13 @@ def test_explain_says_what_auto_will_do_and_what_it_chose(session):
     session.run(g, outputs=["shadow.darkness"])
     row = next(r for r in session.explain(g, outputs=["shadow.darkness"]).splitlines() if r.startswith("shadow"))
     assert "its run logged: auto chose" in row and "memory" in row
+
+
+def test_the_docs_example_runs(capsys):
+    import re
+    text = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "auto.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    assert len(blocks) == 1
+    exec(compile(blocks[0], "auto.md", "exec"), {})
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 2 and all(ln.split()[1] in C.load_table()["methods"] for ln in lines)
