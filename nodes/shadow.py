@@ -1,10 +1,12 @@
 """pixgraph.Shadow: the cutout's shadow by the cheapest method that meets an accuracy target."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+import numpy as np
 
-from ._checks import same_size
+from pixgraph import types as T
+from pixgraph.node import InputError, node, param, port
+
+from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops import choose as C
 from .ops import ssn, ssn_crop
 from .ops.lights import disk_extremes, disk_samples, light_point
@@ -59,12 +61,21 @@ class Shadow:
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+        finite(mask=inputs.mask)
+        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
+        pixel_heights(bg_height=inputs.bg_height)
         light, cam = inputs.light, inputs.camera
         H, W = inputs.mask.shape
+        if not inside(inputs.mask).any():  # nothing casts a shadow
+            lit = np.ones((H, W), np.float32)
+            return {"lit": lit, "darkness": 1.0 - lit}
         method = params.method
         if method == "auto":
-            softness, receiver, _ = C.scene_features(ctx.device, inputs.mask, inputs.fg_height,
-                                                      inputs.bg_height, light, cam, params.thickness)
+            try:
+                softness, receiver, _ = C.scene_features(ctx.device, inputs.mask, inputs.fg_height,
+                                                          inputs.bg_height, light, cam, params.thickness)
+            except ValueError as e:
+                raise InputError(f"input 'fg_height': {e}") from None
             c = C.choose(C.load_table(), softness, receiver, H * W, params.max_rmse)
             ctx.log(f"auto chose {c.method}: {c.reason}; light softness {softness:.3g}, {receiver} receiver, "
                     f"{W}x{H}: expected RMSE mean {c.expected_mean:.3f}, p90 {c.expected_p90:.3f}, "
@@ -80,12 +91,14 @@ class Shadow:
             softness = ssn.softness_of(light, cam, inputs.mask, inputs.fg_height)
             darkness, _ = ssn_crop.render(ctx.device, load_shipped("ssnpp"), inputs.mask, inputs.fg_height,
                                           inputs.bg_height, light_point(light, cam), disk_extremes(light, cam),
-                                          softness, params.thickness)
+                                          softness, params.thickness, check_cancelled=ctx.check_cancelled)
+            finite_outputs(darkness=darkness)
             return {"lit": 1.0 - darkness, "darkness": darkness}
         if method == "hard" or not light.is_area:
             samples = light_point(light, cam)[None]
         else:
             samples = disk_samples(light, cam, int(method.split(":")[1]), 0)
         lit = proxy_soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, samples,
-                                params.thickness, side)
+                                params.thickness, side, progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        finite_outputs(lit=lit)
         return {"lit": lit, "darkness": (1.0 - lit).astype(lit.dtype)}

@@ -4,7 +4,7 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from ._checks import same_size
+from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops.lights import disk_samples, light_point
 from .ops.upsample import AUTO_MAX_SIDE, proxy_soft_shadow
 
@@ -14,6 +14,11 @@ class SoftShadow:
     """Soft shadow in pixel-height space: the fraction of ``samples`` stratified points of
     the disk light (sunflower pattern) that each pixel sees. The pixel-height-space
     reference; its cost grows linearly with ``samples``. A point light needs one.
+
+    All inputs share the camera's size; pixel heights must be finite and >= 0
+    (the cutout's inside its mask), else the node stops with an input error. An
+    empty mask casts no shadow (all lit). Long runs work in bands of image rows:
+    they report progress and stop at the next band when the run is cancelled.
     Images larger than ``proxy`` are traced at a proxy resolution (docs/auto.md)."""
 
     class Inputs:
@@ -40,6 +45,9 @@ class SoftShadow:
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+        finite(mask=inputs.mask)
+        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
+        pixel_heights(bg_height=inputs.bg_height)
         light, cam = inputs.light, inputs.camera
         if light.is_area:
             samples = disk_samples(light, cam, params.samples, params.seed)
@@ -47,5 +55,6 @@ class SoftShadow:
             samples = light_point(light, cam)[None]
         side = max(inputs.mask.shape) if params.proxy == 0 else params.proxy
         lit = proxy_soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, samples,
-                                params.thickness, side)
+                                params.thickness, side, progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        finite_outputs(lit=lit)
         return {"lit": lit, "darkness": (1.0 - lit).astype(lit.dtype)}

@@ -56,12 +56,14 @@ def _parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", parents=[common, graph_opts, cache_opts], help="run a graph")
     r.add_argument("-o", "--output", action="append", default=[], metavar="NAME=PATH",
-                   help="write graph output NAME (or any node output, NODE.OUTPUT) to an image file "
-                        "PATH (png, tif, jpg, exr)")
+                   help="write graph output NAME (or any node output, NODE.OUTPUT) to a file PATH "
+                        "(png, tif, jpg, exr, npy); masks and pixel heights are written as data "
+                        "(no gamma, never clipped: 16-bit PNG for 0..1, else npy/exr/tif)")
     r.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
     r.add_argument("--cache-bytes", type=int, default=None, help="memory cache limit in bytes")
 
-    sub.add_parser("validate", parents=[common, graph_opts], help="check a graph file without running it")
+    sub.add_parser("validate", parents=[common, graph_opts],
+                   help="check a graph file and its input files' headers without running it")
     sub.add_parser("explain", parents=[common, graph_opts, cache_opts],
                    help="show what a run would compute or take from cache, and why")
 
@@ -188,7 +190,7 @@ def _cmd_run(args, registry) -> int:
         if bar is not None:
             bar.close()
     for name, path in targets.items():
-        _write_output(name, values[name], path)
+        _write_output(name, values[name], path, _port_type(s, graph, name))
     if not args.quiet:
         res = s.last_run
         print(f"ran {len(res.ran)} node(s), {len(res.cached)} from cache, "
@@ -202,15 +204,27 @@ def _cmd_run(args, registry) -> int:
     return EXIT_OK
 
 
-def _write_output(name: str, value, path: str) -> None:
+def _port_type(session, graph, name: str):
+    """The declared type of a graph output or ``node.output`` ref."""
+    from .graph import Ref
+
+    ref = graph.outputs.get(name) or Ref.parse(name)
+    return session.registry.get(graph.nodes[ref.node].type).output(ref.output).type
+
+
+def _write_output(name: str, value, path: str, port_type=None) -> None:
     import numpy as np
 
-    from pixgraph_nodes.ops.imageio import write_image
+    from pixgraph_nodes.ops.imageio import write_data, write_image
+
+    from . import types as T
 
     if not isinstance(value, np.ndarray):
         raise UsageError(f"-o {name}={path}: output {name!r} is a {type(value).__name__}, not an image")
+    # a matte, a darkness or a pixel height is data: written as numbers, never as colour
+    data = port_type is not None and issubclass(port_type, (T.Mask, T.PixelHeight))
     try:
-        write_image(path, value)
+        write_data(path, value) if data else write_image(path, value)
     except (ValueError, OSError) as e:
         raise UsageError(f"-o {name}={path}: {e}") from None
 
@@ -229,6 +243,8 @@ def _cmd_validate(args, registry) -> int:
 
     s = Session(registry=reg)
     g = s.graph(args.graph, parse_sets(args.set))
+    if g.outputs:
+        s.check(g)  # file headers: sizes, alpha, placements (reads no pixels)
     if not args.quiet:
         print(f"{args.graph}: ok ({len(g.nodes)} nodes, outputs: {', '.join(g.outputs) or 'none'})")
     return EXIT_OK

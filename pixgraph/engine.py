@@ -27,7 +27,7 @@ from .graph import Graph, GraphError, Ref
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import InputError, Namespace, NodeSpec
 from .registry import Registry
-from .types import nbytes
+from .types import SIZED, Shape, nbytes
 
 
 class NodeError(RuntimeError):
@@ -101,6 +101,9 @@ class Plan:
     #: params as compute receives them: defaults filled in, paths absolute
     params: Mapping[str, Mapping[str, Any]]
     bind: Mapping[str, Any]
+    #: bound node id -> its outputs (a host input's ``bind`` hook applied; else the
+    #: array as the first output)
+    bound: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
 
     def step(self, node_id: str) -> Step:
         return next(s for s in self.steps if s.node_id == node_id)
@@ -155,14 +158,24 @@ class Engine:
             if nid not in graph.nodes:
                 raise GraphError("cannot bind: no such node in the graph", node=nid)
         order = self._ancestors(graph, [r.node for r in requested.values()], bind)
-        keys, parts, params = {}, {}, {}
+        keys, parts, params, bound = {}, {}, {}, {}
         for nid in order:
             inst = graph.nodes[nid]
             spec = self.registry.get(inst.type)
             if nid in bind:
-                keys[nid] = array_key(bind[nid])
-                parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
                 params[nid] = {}
+                if hasattr(spec.cls, "bind"):
+                    # a host input: its params (colour space, alpha...) say how to read the array
+                    p, relevant = self._params(graph, nid, spec, inst.params, read_paths=False)
+                    params[nid] = p
+                    bound[nid] = self._bind(graph, nid, spec, bind[nid], p)
+                    parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant,
+                                          {"bind": array_key(bind[nid])})
+                    keys[nid] = parts[nid].key()
+                else:
+                    keys[nid] = array_key(bind[nid])
+                    parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
+                    bound[nid] = {spec.outputs[0].name: bind[nid]}
                 continue
             p, relevant = self._params(graph, nid, spec, inst.params)
             params[nid] = p
@@ -170,7 +183,43 @@ class Engine:
             parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
             keys[nid] = parts[nid].key()
         steps = self._steps(graph, requested, order, keys, parts, bind, params)
-        return Plan(graph, requested, steps, keys, parts, params, bind)
+        return Plan(graph, requested, steps, keys, parts, params, bind, bound)
+
+    # -- check before running -----------------------------------------------------
+
+    def check(self, graph: Graph, outputs=None) -> dict[str, dict[str, Any]]:
+        """Check what the needed nodes will get, from file headers only, before anything
+        runs: returns ``{node: {output: info}}`` (a ``types.Shape`` where known).
+
+        A node with an ``infer(self, ctx, inputs, params)`` hook turns its inputs'
+        infos into its outputs' (a loader reads its file's header; ``ctx.node_id``
+        names the node) and raises ``InputError`` for inputs that cannot work. Any
+        other node needs inputs of one size: its sized outputs get that size. The
+        first problem is a ``GraphError`` naming the node, its line, and the files.
+        """
+        requested = self._requested(graph, outputs)
+        order = self._ancestors(graph, [r.node for r in requested.values()], {})
+        infos: dict[str, dict[str, Any]] = {}
+        for nid in order:
+            inst = graph.nodes[nid]
+            spec = self.registry.get(inst.type)
+            params = spec.coerce_params(inst.params)
+            for p in spec.params:
+                if p.kind == "path" and params[p.name] is not None:
+                    params[p.name] = graph.resolve_path(params[p.name])
+            ins = {p.name: None for p in spec.inputs}
+            for port, ref in inst.inputs.items():
+                ins[port] = infos[ref.node].get(ref.output)
+            infer = getattr(spec.cls, "infer", None)
+            try:
+                if infer is not None:
+                    ctx = NodeContext(nid, graph.base_dir, _no_device, None, _ignore)
+                    infos[nid] = dict(spec.cls().infer(ctx, Namespace(ins), Namespace(params)) or {})
+                else:
+                    infos[nid] = _same_size(spec, ins)
+            except InputError as e:
+                raise graph.error(str(e).splitlines()[0], node=nid) from None
+        return infos
 
     def _requested(self, graph: Graph, outputs) -> dict[str, Ref]:
         if outputs is None:
@@ -220,10 +269,29 @@ class Engine:
                             stack.append((ref.node, False))
         return order
 
-    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values) -> tuple[dict, dict]:
+    @staticmethod
+    def _bind(graph: Graph, nid: str, spec: NodeSpec, value, params) -> dict[str, Any]:
+        """A host input's outputs from the array bound to it (its ``bind`` hook),
+        checked like computed outputs; a bad array is a ``GraphError`` naming the node."""
+        try:
+            out = spec.cls().bind(value, Namespace(params))
+        except (InputError, TypeError, ValueError) as e:
+            raise graph.error(f"bound value does not fit {spec.type_id}: {str(e).splitlines()[0]}",
+                              node=nid) from None
+        for p in spec.outputs:
+            try:
+                p.type.validate(out[p.name])
+            except (KeyError, TypeError) as e:
+                raise NodeError(nid, spec.type_id, f"bind gave no valid output {p.name!r}: {e}") from None
+            _freeze(out[p.name])
+        return out
+
+    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values, read_paths: bool = True) -> tuple[dict, dict]:
         params = spec.coerce_params(values)
         relevant = {}
         for p in spec.params:
+            if p.kind == "path" and not read_paths:
+                continue  # a bound host input reads no file
             if p.kind == "path":
                 params[p.name] = graph.resolve_path(params[p.name])
                 if p.writes:
@@ -322,7 +390,7 @@ class Engine:
             spec = self.registry.get(inst.type)
             key = plan.keys[nid]
             if nid in plan.bind:
-                results[nid] = {spec.outputs[0].name: plan.bind[nid]}
+                results[nid] = dict(plan.bound[nid])
                 cached.append(nid)
                 emit(E.NodeCached(nid, "bound"))
                 stack.pop()
@@ -403,7 +471,9 @@ class Engine:
         except (E.Cancelled, DeviceError):
             raise  # not the node's fault: no device could be opened
         except InputError as exc:
-            raise NodeInputError(nid, spec.type_id, str(exc).splitlines()[0]) from exc
+            files = _files_upstream(plan, nid)
+            where = f" (inputs from {files})" if files else ""
+            raise NodeInputError(nid, spec.type_id, str(exc).splitlines()[0] + where) from exc
         except Exception as exc:
             raise NodeError(nid, spec.type_id, f"failed: {type(exc).__name__}: {exc}".splitlines()[0]) from exc
         if not isinstance(out, dict):
@@ -435,6 +505,55 @@ class Engine:
                 self.memory_only[spec.type_id] = str(e)
                 where += f"; memory only: {e}"
         return where
+
+
+def _same_size(spec: NodeSpec, ins: Mapping[str, Any]) -> dict[str, Any]:
+    """The default check: every input of known size has the same size, and the node's
+    sized outputs get it."""
+    shapes = {port: v for port, v in ins.items() if isinstance(v, Shape)}
+    sizes = {(v.height, v.width) for v in shapes.values()}
+    if len(sizes) > 1:
+        listing = ", ".join(f"{port} {v.described()}" for port, v in shapes.items())
+        raise InputError(f"inputs differ in size: {listing}")
+    if not sizes:
+        return {}
+    (h, w), = sizes
+    source = next(iter(shapes.values())).source
+    return {p.name: Shape(h, w, None, source) for p in spec.outputs if issubclass(p.type, SIZED)}
+
+
+def _files_upstream(plan: Plan, nid: str) -> str:
+    """``"mask: 'small.png' (node 'cutout'), ..."``: for each input of a node, the files
+    read by its nearest ancestors that read files, so an error names the user's files."""
+    graph = plan.graph
+    out = []
+    for port, ref in graph.nodes[nid].inputs.items():
+        seen, stack, files = set(), [ref.node], []
+        while stack:
+            n = stack.pop()
+            if n in seen:
+                continue
+            seen.add(n)
+            paths = [v for k, v in plan.parts[n].params.items() if isinstance(v, dict) and "file_sha256" in v] \
+                if n in plan.parts else []
+            if paths:
+                for p in plan.params.get(n, {}).values():
+                    if isinstance(p, str) and os.path.isfile(p):
+                        files.append(f"{_short(p)!r} (node {n!r})")
+                continue
+            if n in plan.bind:
+                files.append(f"the array bound to {n!r}")
+                continue
+            stack.extend(r.node for r in graph.nodes[n].inputs.values())
+        if files:
+            out.append(f"{port}: {', '.join(dict.fromkeys(files))}")
+    return "; ".join(out)
+
+
+def _short(path: str) -> str:
+    """A path as short as it is clear: relative to the current folder when inside it."""
+    rel = os.path.relpath(path)
+    return path if rel.startswith("..") else rel
 
 
 def _freeze(value) -> None:

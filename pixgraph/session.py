@@ -128,6 +128,12 @@ class Session:
     def plan(self, graph_or_path, outputs=None, params=None, bind=None) -> Plan:
         return self.engine.plan(self.graph(graph_or_path, params), outputs, bind)
 
+    def check(self, graph_or_path, outputs=None, params=None) -> dict:
+        """Check before running, from file headers only (``Engine.check``): sizes that
+        do not fit, cutouts without alpha, placements off the canvas... Raises the
+        first problem as a ``GraphError`` naming the node and the files."""
+        return self.engine.check(self.graph(graph_or_path, params), outputs)
+
     def explain(self, graph_or_path, outputs=None, params=None, bind=None) -> str:
         return self.plan(graph_or_path, outputs, params, bind).table()
 
@@ -137,8 +143,11 @@ class Session:
 
         outputs: names from the graph's ``outputs`` or ``"node.output"`` refs;
             default all of the graph's outputs.
-        bind: ``{node_id: array}`` replaces that node's first output with a host
-            array (keyed by its bytes, shape and dtype); its inputs are not run.
+        bind: ``{node_id: array}``: a host array for that node (keyed by its bytes,
+            shape and dtype); its inputs are not run. A host input node (one with a
+            ``bind`` method: ``pixgraph.InputImage``, ``InputMask``,
+            ``InputPixelHeight``, ``LoadImage``...) turns the array into all its
+            outputs; any other node's first output is replaced by the array.
         cancel: a ``CancelToken``; cancelling raises ``events.Cancelled``.
         on_event: called with each ``pixgraph.events`` event.
         """
@@ -146,7 +155,10 @@ class Session:
         for nid, value in (bind or {}).items():
             if nid not in graph.nodes:
                 raise GraphError("cannot bind: no such node in the graph", file=graph.file, node=nid)
-            port = self.registry.get(graph.nodes[nid].type).outputs[0]
+            spec = self.registry.get(graph.nodes[nid].type)
+            if hasattr(spec.cls, "bind"):
+                continue  # a host input checks the array itself, in the plan
+            port = spec.outputs[0]
             try:
                 port.type.validate(value)
             except TypeError as e:

@@ -161,14 +161,16 @@ def reach_gate(channels: dict, mask_win: np.ndarray | None = None, reach_px: flo
 
 
 def render(device, model, mask, fg_height, bg_height, light_center, light_extremes, softness,
-           thickness=1.0, gate: bool = True) -> tuple[np.ndarray, CropInfo]:
+           thickness=1.0, gate: bool = True, *, threads=None, progress=None,
+           check_cancelled=None) -> tuple[np.ndarray, CropInfo]:
     """SSN++ darkness float32 (H, W) in [0, 1] for an image of any size, and how it was run.
 
     light_center (4,), light_extremes (4, 4): the disk light in the image's
     pixel-height space (``lights.light_point``, ``lights.disk_extremes``);
     softness: radius / distance (``ssn.softness_of``), clamped to SOFTNESS_RANGE;
     thickness: of the buffer channels' hard shadows, in network pixels (the
-    scale the model was trained at).
+    scale the model was trained at). threads: torch's (``ssn.run_network``);
+    progress, check_cancelled: passed to the buffer channels' banded trace.
     """
     mask = np.asarray(mask)
     H, W = mask.shape
@@ -186,8 +188,11 @@ def render(device, model, mask, fg_height, bg_height, light_center, light_extrem
     info = CropInfo(win, extent, clamp_softness(softness), float(softness), object_px)
     m, fg, bg = win.scene(mask, fg_height, bg_height)
     channels = buffer_channels(device, m, fg, bg, win.light_points(light_center),
-                               win.light_points(light_extremes), thickness)
-    d = ssn.run_network(model, channels, info.softness, norm=ssn.RESOLUTION)
+                               win.light_points(light_extremes), thickness, progress=progress,
+                               check_cancelled=check_cancelled)
+    if check_cancelled is not None:
+        check_cancelled()
+    d = ssn.run_network(model, channels, info.softness, norm=ssn.RESOLUTION, threads=threads)
     if gate:
         d = d * reach_gate(channels, m)
     d_img = masked_resize(d, m, win.crop(inside.astype(np.float32)), (win.h, win.w))

@@ -62,20 +62,23 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
 
 
 def proxy_soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness=1.0,
-                      max_side: int = AUTO_MAX_SIDE) -> np.ndarray:
+                      max_side: int = AUTO_MAX_SIDE, *, progress=None, check_cancelled=None) -> np.ndarray:
     """Lit fraction float32 (H, W) of :func:`shadow.soft_shadow`, traced on a copy of
     the scene whose longer side is ``max_side`` pixels and enlarged with
     :func:`masked_resize`. ``thickness`` is in image pixels, scaled with the
     proxy but never below ``MIN_PROXY_THICKNESS`` proxy pixels. At or below
-    ``max_side`` it is exactly ``soft_shadow``."""
+    ``max_side`` it is exactly ``soft_shadow``. progress, check_cancelled: as
+    ``soft_shadow``'s (banded trace)."""
     mask = np.asarray(mask)
     H, W = mask.shape
     if max_side < 16:
         raise ValueError(f"a proxy needs a longer side of at least 16 px, got {max_side}")
     win = Window.whole(H, W, max_side)
     if (win.out_h, win.out_w) == (H, W):
-        return soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness)
+        return soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness,
+                           progress=progress, check_cancelled=check_cancelled)
     m, fg, bg = win.scene(mask, fg_height, bg_height)
     lit = soft_shadow(device, m, fg, bg, win.light_points(light_samples),
-                      max(thickness * win.ky, MIN_PROXY_THICKNESS))
+                      max(thickness * win.ky, MIN_PROXY_THICKNESS), progress=progress,
+                      check_cancelled=check_cancelled)
     return np.clip(masked_resize(lit, m, mask, (H, W)), 0.0, 1.0).astype(np.float32)
