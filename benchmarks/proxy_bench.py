@@ -12,10 +12,11 @@ Benchmark scenes (256^2) are enlarged ``--factor`` times (``pixgraph_lab.rescale
   trace's, over background pixels (outside the cutout), and the max |error|;
 * ``rmse_gt``: both shrunk back to 256^2 against the Mitsuba ground truth
   (does the proxy change the accuracy that counts?);
-* ``s``: wall-clock seconds of one call (after a warm-up at a 256-px proxy),
-  and with ``--memory`` the peak resident memory of a fresh process doing only
-  that call, and how much the call added to what the process (torch, the
-  full-size inputs) already held (one subprocess per measurement).
+* ``s``: wall-clock seconds of one call (after a warm-up at a 256-px proxy);
+  with ``--memory`` each call runs in a fresh process, which also reports
+  ``added_mib``: the peak resident memory during the call above what the
+  process (torch, OpenCL, the full-size inputs) held just before it (Linux:
+  the peak is reset through /proc/self/clear_refs).
 
 Machine and medians are printed. Nothing here is asserted by the tests.
 """
@@ -23,10 +24,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -53,17 +56,31 @@ def _trace(dev, big, samples, side):
 
 
 def one(a) -> int:
-    """Subprocess mode: one trace, print seconds and peak RSS (MiB) as JSON."""
+    """Subprocess mode: one trace; prints seconds and the peak resident memory it
+    added (Linux: the peak is reset just before the trace) as JSON, and saves the
+    darkness to ``--save``."""
     s, big, dev = _scene(a.data, a.index, a.factor)
     side = a.one if a.one > 0 else max(big["mask"].shape)
     _trace(dev, big, a.samples, 256)          # build the OpenCL program off the clock
     before = _rss_mib()
+    with open("/proc/self/clear_refs", "w") as fh:   # reset the peak (VmHWM) to the current RSS
+        fh.write("5")
     t0 = time.perf_counter()
-    _trace(dev, big, a.samples, side)
+    d = _trace(dev, big, a.samples, side)
     sec = time.perf_counter() - t0
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(json.dumps({"s": sec, "rss_mib": peak, "rss_before_mib": before}))
+    peak = _hwm_mib()
+    if a.save:
+        np.save(a.save, d.astype(np.float32))
+    print(json.dumps({"s": sec, "peak_mib": peak, "before_mib": before}))
     return 0
+
+
+def _hwm_mib() -> float:
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    return float("nan")
 
 
 def _rss_mib() -> float:
@@ -84,6 +101,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=None)
     ap.add_argument("--one", type=int, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--index", type=int, default=0, help=argparse.SUPPRESS)
+    ap.add_argument("--save", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.one is not None:
         return one(a)
@@ -99,31 +117,38 @@ def main(argv=None) -> int:
         inside = big["mask"]
         g = s["shadow"].astype(np.float64)
         valid = ~s["mask"] & s["bg_valid"]
-        _trace(dev, big, a.samples, 256)                       # warm-up
         res = {"index": i, "size": f"{W}x{H}"}
+
+        def run(side):
+            if not a.memory:
+                t0 = time.perf_counter()
+                d = _trace(dev, big, a.samples, side)
+                return d, time.perf_counter() - t0, None
+            with tempfile.TemporaryDirectory() as tmp:
+                path = os.path.join(tmp, "d.npy")
+                out = subprocess.run([sys.executable, __file__, "--data", a.data, "--factor", str(a.factor),
+                                      "--samples", str(a.samples), "--index", str(i), "--one", str(side),
+                                      "--save", path], capture_output=True, text=True, check=True).stdout
+                got = json.loads(out.strip().splitlines()[-1])
+                return np.load(path), got["s"], got["peak_mib"] - got["before_mib"]
+
+        if not a.memory:
+            _trace(dev, big, a.samples, 256)                   # warm-up
         full = None
         if not a.no_full:
-            t0 = time.perf_counter()
-            full = _trace(dev, big, a.samples, max(H, W))
-            res["full_s"] = time.perf_counter() - t0
+            full, res["full_s"], mem = run(max(H, W))
+            if mem is not None:
+                res["full_added_mib"] = mem
             res["full_rmse_gt"] = shadow_metrics(resize(full, s["shadow"].shape), g, valid)["rmse"]
         for p in proxies:
-            t0 = time.perf_counter()
-            d = _trace(dev, big, a.samples, p)
-            res[f"p{p}_s"] = time.perf_counter() - t0
+            d, res[f"p{p}_s"], mem = run(p)
+            if mem is not None:
+                res[f"p{p}_added_mib"] = mem
             res[f"p{p}_rmse_gt"] = shadow_metrics(resize(d, s["shadow"].shape), g, valid)["rmse"]
             if full is not None:
                 e = (d - full)[~inside]
                 res[f"p{p}_rmse_full"] = float(np.sqrt(np.mean(e ** 2)))
                 res[f"p{p}_max_full"] = float(np.abs(e).max())
-        if a.memory:
-            for p in ([max(H, W)] if not a.no_full else []) + proxies:
-                out = subprocess.run([sys.executable, __file__, "--data", a.data, "--factor", str(a.factor),
-                                      "--samples", str(a.samples), "--index", str(i), "--one", str(p)],
-                                     capture_output=True, text=True, check=True).stdout
-                got = json.loads(out.strip().splitlines()[-1])
-                res[f"mem_{p}_mib"] = got["rss_mib"]                  # peak of the whole process
-                res[f"mem_{p}_added_mib"] = got["rss_mib"] - got["rss_before_mib"]   # by the trace
         print(json.dumps(res), flush=True)
         rows.append(res)
     keys = [k for k in rows[0] if k not in ("index", "size")]
@@ -131,8 +156,8 @@ def main(argv=None) -> int:
           f" {cpu_model()}")
     for k in keys:
         v = [r[k] for r in rows if k in r]
-        agg = statistics.median(v) if k.endswith("_s") or k.startswith("mem") else float(np.mean(v))
-        what = "median" if k.endswith("_s") or k.startswith("mem") else ("max" if "max" in k else "mean")
+        agg = statistics.median(v) if k.endswith(("_s", "_mib")) else float(np.mean(v))
+        what = "median" if k.endswith(("_s", "_mib")) else ("max" if "max" in k else "mean")
         if what == "max":
             agg = float(np.max(v))
         print(f"{k}: {agg:.4g} ({what})")
