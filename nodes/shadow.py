@@ -46,7 +46,8 @@ class Shadow:
         lit: T.Mask = port(doc="1 - darkness")
         darkness: T.Mask = port(doc="1 = full shadow (what Composite takes)")
 
-    impl_version = "1"
+    # the choice depends on the shipped table: a new table is a new implementation
+    impl_version = "1+table." + C.table_digest()
 
     @staticmethod
     def describe(params) -> str:

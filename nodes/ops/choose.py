@@ -82,6 +82,16 @@ def load_table(path=TABLE) -> dict:
     return _load(str(path), path.stat().st_mtime_ns)
 
 
+def table_digest(path=TABLE) -> str:
+    """First 12 hex digits of the table file's sha256 ("none" if absent): part of the
+    Shadow node's impl_version, so regenerating the table invalidates cached choices."""
+    import hashlib
+    try:
+        return hashlib.sha256(pathlib.Path(path).read_bytes()).hexdigest()[:12]
+    except OSError:
+        return "none"
+
+
 def cost_ms(table: dict, method: str, pixels: int) -> float:
     """Expected ms of ``method`` on an image of ``pixels`` pixels: the table's median
     at 256^2, scaled by the pixels traced (classical methods: the image, capped at
