@@ -11,7 +11,11 @@ for each thickness, using the true cutout heights and the contact-line heuristic
 (what the example graphs use). Thickness is in pixels at the render's size; we
 measure two sizes to see how it scales.
 
-    python -m pixgraph_lab.thickness_study --n 24 --res 128 256
+For reflections, the marched mirror on the floor against the exact planar mirror
+(closed form) of the same cutout: holes (rays slipping through) against extra
+pixels (the object reaching too far behind itself).
+
+    python -m pixgraph_lab.thickness_study --n 24 --res 128 256 [--reflection]
 """
 from __future__ import annotations
 
@@ -52,12 +56,45 @@ def study(device, data_dir: str, thicknesses=THICKNESSES) -> dict:
     return {k: {m: float(np.mean(v)) for m, v in d.items()} | {"n": len(d["iou"])} for k, d in rows.items()}
 
 
+def reflection_study(device, data_dir: str, thicknesses=THICKNESSES) -> dict:
+    """Mirror reflection on the floor marched with each thickness against the exact
+    planar mirror (``reflection_cl(planar=True)``, the closed form on flat ground)
+    of the same cutout and true heights: the fraction of the exact reflection's
+    pixels the march misses (holes) and of the marched pixels the exact one does not
+    have (extra: the object reaching too far behind itself), on floor receivers."""
+    from pixgraph_nodes.ops.reflection import reflection_cl
+
+    from .datagen.dataset import load_sample, sample_files
+
+    rows = {t: {"holes": [], "extra": []} for t in thicknesses}
+    for f in sample_files(data_dir):
+        s = load_sample(f)
+        cam = s["camera"]
+        a = s["alpha"].astype(np.float32)
+        cut = np.concatenate([np.repeat(a[:, :, None], 3, axis=2) * 0.5, a[:, :, None]], axis=2)
+        fg, bg = s["fg_height"].astype(np.float32), s["bg_height"].astype(np.float32)
+        floor = (bg <= 0.5) & (a == 0)
+        mirror = dict(roughness=0.0, conductor=True, f0=(1.0, 1.0, 1.0))   # full reflectance: alpha is coverage
+        exact = reflection_cl(device, cam, cut, fg, bg, planar=True, **mirror)["layer"][..., 3] > 0.5
+        exact &= floor
+        if exact.sum() < 20:
+            continue
+        for t in thicknesses:
+            marched = reflection_cl(device, cam, cut, fg, bg, planar=False, thickness=t,
+                                    **mirror)["layer"][..., 3] > 0.5
+            marched &= floor
+            rows[t]["holes"].append(float((exact & ~marched).sum() / exact.sum()))
+            rows[t]["extra"].append(float((marched & ~exact).sum() / exact.sum()))
+    return {t: {m: float(np.mean(v)) for m, v in d.items()} | {"n": len(d["holes"])} for t, d in rows.items()}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=24)
     ap.add_argument("--res", type=int, nargs="+", default=[128, 256])
     ap.add_argument("--seed", type=int, default=3)
     ap.add_argument("--data", default=None, help="folder for the generated samples (default: a temp folder)")
+    ap.add_argument("--reflection", action="store_true", help="also the mirror reflection's thickness")
     args = ap.parse_args(argv)
     from pixgraph.device import Device
 
@@ -76,6 +113,12 @@ def main(argv=None) -> int:
         for t in THICKNESSES:
             a, b = r[("true", t)], r[("contact_line", t)]
             print(f"{t:12.1f}  {a['iou']:12.4f}  {a['rmse']:13.4f}  {b['iou']:15.4f}  {b['rmse']:16.4f}")
+        if args.reflection:
+            rr = reflection_study(device, out)
+            print(f"mirror reflection on the floor, marched vs exact planar ({rr[THICKNESSES[0]]['n']} scenes)")
+            print("thickness_px  holes  extra")
+            for t in THICKNESSES:
+                print(f"{t:12.1f}  {rr[t]['holes']:.4f}  {rr[t]['extra']:.4f}")
     return 0
 
 

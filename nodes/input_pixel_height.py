@@ -11,8 +11,9 @@ from .ops.imageio import host_pixels
 @node("pixgraph.InputPixelHeight", version=1)
 class InputPixelHeight:
     """A host's pixel height: bind an (H, W) float array in pixels (of that array's
-    own size; 0 on the ground). NaN or infinite values are an error. Unbound, the
-    node is an error."""
+    own size; 0 on the ground). Values are passed on as they are: the nodes that
+    use a height refuse NaN or infinite values where they matter (inside the
+    cutout), naming the pixel. Unbound, the node is an error."""
 
     class Outputs:
         height: T.PixelHeight = port(doc="pixel height [px]")

@@ -11,7 +11,6 @@ from pixgraph.node import InputError, node, param, port
 from pixgraph.types import Shape
 
 from ._checks import file_shape, source
-
 from .ops.heightmaps import load_pixel_height
 
 
@@ -45,7 +44,7 @@ class LoadPixelHeight:
             # an .npy map is read as it is mapped (no decoding): NaN is found before running
             a = np.load(params.path, mmap_mode="r", allow_pickle=False)
             if a.dtype.kind == "f" and not np.isfinite(a).all():
-                raise InputError(f"{shape.source}: pixel height has NaN or infinite values")
+                raise InputError(f"param 'path': {shape.source}: pixel height has non-finite values")
         return {"height": Shape(shape.height, shape.width, 1, shape.source)}
 
     def compute(self, ctx, inputs, params):
@@ -55,7 +54,7 @@ class LoadPixelHeight:
         try:
             height = load_pixel_height(p, params.scale)
         except (OSError, ValueError) as e:  # the file's content is the user's data
-            raise InputError(f"{source(str(p), ctx.node_id)}: {str(e).splitlines()[0]}") from None
+            raise InputError(f"param 'path': {str(e).splitlines()[0]}") from None
         if not np.all(np.isfinite(height)):
             raise InputError(f"param 'scale': {params.scale} times the file's heights overflows float32")
         return {"height": height}

@@ -4,24 +4,39 @@ from __future__ import annotations
 import functools
 import pathlib
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
-
 import numpy as np
 
-from pixgraph.node import InputError
+from pixgraph import types as T
+from pixgraph.node import InputError, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
+<<<<<<< HEAD
 from .ops import ssn, ssn_crop
+=======
+from .ops.buffers import buffer_channels
+>>>>>>> main
 from .ops.lights import disk_extremes, light_point
 
 WEIGHTS = pathlib.Path(__file__).parent / "weights"
 
 
+def _ssn():
+    """``ops.ssn``, imported when SSN++ first runs: it needs torch (the ``ssn`` extra),
+    which a graph without this node never loads."""
+    try:
+        from .ops import ssn
+    except ModuleNotFoundError as e:
+        if e.name != "torch":
+            raise
+        raise ModuleNotFoundError("pixgraph.SoftShadowSSN needs torch: pip install 'pixgraph[ssn]'",
+                                  name="torch") from None
+    return ssn
+
+
 @functools.lru_cache(maxsize=4)
 def _load(path: str, mtime_ns: int):
     # keyed on mtime too, so retrained weights are picked up without a restart
-    return ssn.load_model(path)
+    return _ssn().load_model(path)
 
 
 def load_shipped(name: str):
@@ -82,6 +97,7 @@ class SoftShadowSSN:
         if not inside(inputs.mask).any():  # nothing casts a shadow
             darkness = np.zeros(inputs.mask.shape, np.float32)
             return {"lit": 1.0 - darkness, "darkness": darkness}
+        ssn = _ssn()
         try:
             softness = ssn.softness_of(light, cam, inputs.mask, inputs.fg_height)
         except ValueError as e:

@@ -16,7 +16,7 @@ from typing import Any
 import yaml
 
 from .engine import NodeInputError
-from .graph import GraphError
+from .graph import GraphError, one_line
 from .registry import Registry
 
 EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_CANCELLED = 0, 1, 2, 130
@@ -44,6 +44,10 @@ def _parser() -> argparse.ArgumentParser:
     graph_opts.add_argument("graph", help="graph file (YAML)")
     graph_opts.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
                             help="override a param; VALUE is a YAML scalar or list")
+
+    graph_opts.add_argument("--allow-path", action="append", default=[], metavar="DIR",
+                            help="let the graph read and write files under DIR too (repeatable; "
+                                 "also PIXGRAPH_ALLOW_PATHS, separated by os.pathsep)")
 
     cache_opts = argparse.ArgumentParser(add_help=False)
     cache_opts.add_argument("--disk-cache", metavar="DIR", default=None,
@@ -111,6 +115,8 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("pixgraph: cancelled", file=sys.stderr)
+        if argv is None:
+            _exit_now(EXIT_CANCELLED)
         return EXIT_CANCELLED
     except Exception as e:
         from .device import DeviceError
@@ -123,9 +129,23 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         return EXIT_BAD_INPUT if isinstance(e, DeviceError) and "matches" in str(e) else EXIT_INTERNAL
 
 
+def _exit_now(code: int) -> None:
+    """End the process at once after Ctrl-C on the command line. Nothing is left to
+    save: the interrupted node stored nothing, and every finished node's cache
+    entry was written atomically when it finished. Python's normal teardown would
+    first finalise torch, PoCL and every module (torch alone: 1.7 s on a loaded
+    2-core machine), delaying the exit the user asked for (benchmarks/cancel_bench.py)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 def _fail(args, e: BaseException, prefix: str = "") -> None:
-    line = str(e).replace("\n", " ") if not isinstance(e, GraphError) else str(e)
-    print(f"{prefix}{line}" if prefix else line, file=sys.stderr)
+    try:
+        text = str(e)
+    except Exception:  # noqa: BLE001 - a message that cannot even be formatted
+        text = type(e).__name__
+    print(one_line(f"{prefix}{text}"), file=sys.stderr)
     if getattr(args, "debug", False):
         traceback.print_exception(e, file=sys.stderr)
 
@@ -152,7 +172,7 @@ def _session(args, registry, disk: bool = True):
         except DeviceError as e:
             raise UsageError(str(e)) from None
     return Session(device=getattr(args, "device", None), cache_bytes=getattr(args, "cache_bytes", None),
-                   disk_cache=disk_dir, registry=registry)
+                   disk_cache=disk_dir, registry=registry, allow_paths=getattr(args, "allow_path", []))
 
 
 def _cmd_run(args, registry) -> int:
@@ -165,7 +185,10 @@ def _cmd_run(args, registry) -> int:
             raise UsageError(f"-o {item}: expected NAME=PATH")
         targets[name] = path
     s = _session(args, registry)
-    graph = s.graph(args.graph, parse_sets(args.set))
+    sets = parse_sets(args.set)
+    graph = s.graph(args.graph, sets)
+    _allow_typed_paths(s, graph, sets)
+    _check_output_paths(targets, graph, s.registry)
     # unknown names or node outputs are reported by the engine's plan (exit 2)
     bar = None
     show_bar = not args.quiet and sys.stderr.isatty()
@@ -212,6 +235,41 @@ def _port_type(session, graph, name: str):
     return session.registry.get(graph.nodes[ref.node].type).output(ref.output).type
 
 
+def _allow_typed_paths(s, graph, sets: dict[str, Any]) -> None:
+    """A path given with ``--set`` is the user's own, like ``-o``: allow that one file."""
+    files = []
+    for name, value in sets.items():
+        nid, _, pname = name.partition(".")
+        inst = graph.nodes.get(nid)
+        p = s.registry.get(inst.type).param(pname) if inst is not None else None
+        if p is not None and p.kind == "path" and isinstance(value, str) and value:
+            from .paths import bad_characters
+
+            if not bad_characters(value):
+                files.append(graph.resolve_path(value))
+    if files:
+        s.allow_files(files)
+
+
+def _check_output_paths(targets: dict[str, str], graph, registry) -> None:
+    """``-o`` paths are the user's own (any folder), but never hold control
+    characters and never overwrite a file this graph reads."""
+    from .paths import bad_characters, quote
+
+    reads = {os.path.realpath(graph.file)} if graph.file else set()
+    for nid, inst in graph.nodes.items():
+        spec = registry.get(inst.type)
+        for p in spec.params:
+            if p.kind == "path" and not p.writes and inst.params.get(p.name) is not None:
+                reads.add(os.path.realpath(graph.resolve_path(os.fspath(inst.params[p.name]))))
+    for name, path in targets.items():
+        why = bad_characters(path)
+        if why:
+            raise UsageError(f"-o {name}=...: path {quote(path)} {why}")
+        if os.path.realpath(path) in reads:
+            raise UsageError(f"-o {name}={quote(path)}: would write over a file this graph reads")
+
+
 def _write_output(name: str, value, path: str, port_type=None) -> None:
     import numpy as np
 
@@ -241,8 +299,11 @@ def _cmd_validate(args, registry) -> int:
     reg = registry if registry is not None else Registry.discover()
     from .session import Session
 
-    s = Session(registry=reg)
-    g = s.graph(args.graph, parse_sets(args.set))
+    s = Session(registry=reg, allow_paths=args.allow_path)
+    sets = parse_sets(args.set)
+    g = s.graph(args.graph, sets)
+    _allow_typed_paths(s, g, sets)
+    s.check_paths(g)
     if g.outputs:
         s.check(g)  # file headers: sizes, alpha, placements (reads no pixels)
     if not args.quiet:
@@ -252,7 +313,10 @@ def _cmd_validate(args, registry) -> int:
 
 def _cmd_explain(args, registry) -> int:
     s = _session(args, registry)
-    print(s.explain(args.graph, params=parse_sets(args.set)))
+    sets = parse_sets(args.set)
+    graph = s.graph(args.graph, sets)
+    _allow_typed_paths(s, graph, sets)
+    print(s.explain(graph))
     return EXIT_OK
 
 
@@ -293,11 +357,11 @@ def _cmd_schema(args, registry) -> int:
 
 
 def _cmd_devices(args, registry) -> int:
-    from .device import DeviceError, build_problem, choose, list_devices
+    from .device import DeviceError, build_problem, choose, list_devices, no_device_hint
 
     devices = list_devices()
     if not devices:
-        print("no OpenCL device found", file=sys.stderr)
+        print(f"no OpenCL device found: {no_device_hint()}", file=sys.stderr)
         return EXIT_INTERNAL
     try:
         default = choose().spec

@@ -26,8 +26,20 @@ from .cache import MISS, DiskCache, MemoryCache, Unstorable
 from .graph import Graph, GraphError, Ref
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import InputError, Namespace, NodeSpec
+from .paths import PathError, PathPolicy
 from .registry import Registry
 from .types import SIZED, Shape, nbytes
+
+
+DEFAULT_MAX_FILE_BYTES = 4 << 30
+
+
+def _env_int(name: str, default: int) -> int:
+    raw = os.environ.get(name, "")
+    try:
+        return int(float(raw)) if raw.strip() else default
+    except ValueError:
+        raise GraphError(f"{name} must be a number, got {raw[:40]!r}") from None
 
 
 class NodeError(RuntimeError):
@@ -136,8 +148,13 @@ class Engine:
     """
 
     def __init__(self, registry: Registry, memory: MemoryCache, disk: DiskCache | None = None,
-                 device: Callable[[], Any] | None = None, hasher: FileHasher | None = None):
+                 device: Callable[[], Any] | None = None, hasher: FileHasher | None = None,
+                 paths: PathPolicy | None = None):
         self.registry = registry
+        #: where path params may point; the graph's own folder is added per graph
+        self.paths = paths if paths is not None else PathPolicy()
+        #: largest file a path param may read (hashing reads it all)
+        self.max_file_bytes = _env_int("PIXGRAPH_MAX_FILE_BYTES", DEFAULT_MAX_FILE_BYTES)
         self.memory = memory
         self.disk = disk
         self._device = device or _no_device
@@ -158,6 +175,7 @@ class Engine:
             if nid not in graph.nodes:
                 raise GraphError("cannot bind: no such node in the graph", node=nid)
         order = self._ancestors(graph, [r.node for r in requested.values()], bind)
+        policy = self.policy_for(graph)
         keys, parts, params, bound = {}, {}, {}, {}
         for nid in order:
             inst = graph.nodes[nid]
@@ -177,11 +195,12 @@ class Engine:
                     parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
                     bound[nid] = {spec.outputs[0].name: bind[nid]}
                 continue
-            p, relevant = self._params(graph, nid, spec, inst.params)
+            p, relevant = self._params(graph, nid, spec, inst.params, policy)
             params[nid] = p
             inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
             parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
             keys[nid] = parts[nid].key()
+        self._check_overwrites(graph, params, order, bind)
         steps = self._steps(graph, requested, order, keys, parts, bind, params)
         return Plan(graph, requested, steps, keys, parts, params, bind, bound)
 
@@ -286,18 +305,81 @@ class Engine:
             _freeze(out[p.name])
         return out
 
-    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values, read_paths: bool = True) -> tuple[dict, dict]:
+
+    # -- paths ------------------------------------------------------------------
+
+    def policy_for(self, graph: Graph) -> PathPolicy:
+        """The path policy for one graph: the engine's roots plus the graph's folder."""
+        return self.paths.with_roots([graph.base_dir])
+
+    def check_paths(self, graph: Graph) -> None:
+        """Check every path param of every node against the policy (``validate``)."""
+        policy = self.policy_for(graph)
+        params = {}
+        for nid, inst in graph.nodes.items():
+            spec = self.registry.get(inst.type)
+            values = spec.coerce_params(inst.params)
+            for p in spec.params:
+                if p.kind == "path" and values.get(p.name) is not None:
+                    values[p.name] = self._checked_path(graph, policy, nid, p, values[p.name])
+            params[nid] = values
+        self._check_overwrites(graph, params, list(graph.nodes), {})
+
+    @staticmethod
+    def _checked_path(graph: Graph, policy: PathPolicy, nid: str, p, raw) -> str:
+        field = f"params.{p.name}"
+        try:
+            resolved = graph.resolve_path(os.fspath(raw))
+            checked = (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
+        except PathError as e:
+            located = graph.error(e.message, node=nid, field=field)
+            raise PathError(e.message, file=located.file, line=located.line, node=nid, field=field) from None
+        except ValueError as e:  # e.g. embedded NUL in a home-folder lookup
+            located = graph.error(f"bad path: {e}"[:200], node=nid, field=field)
+            raise PathError(located.message, file=located.file, line=located.line, node=nid, field=field) from None
+        return os.fspath(checked)
+
+    def _check_overwrites(self, graph: Graph, params, order, bind) -> None:
+        """A node may not write over a file that this run reads (or the graph file)."""
+        reads = {os.path.realpath(graph.file): "the graph file"} if graph.file else {}
+        writes = []
+        for nid in order:
+            if nid in bind:
+                continue
+            spec = self.registry.get(graph.nodes[nid].type)
+            for p in spec.params:
+                if p.kind == "path" and params[nid].get(p.name) is not None:
+                    if p.writes:
+                        writes.append((nid, p.name, params[nid][p.name]))
+                    else:
+                        reads.setdefault(params[nid][p.name], f"node {nid!r} param {p.name!r}")
+        for nid, pname, path in writes:
+            if path in reads:
+                raise self._located(graph, f"would write over {reads[path]}, read by this run ({path})",
+                                    nid, f"params.{pname}")
+
+    @staticmethod
+    def _located(graph: Graph, message: str, nid: str, field: str) -> PathError:
+        e = graph.error(message, node=nid, field=field)
+        return PathError(e.message, file=e.file, line=e.line, node=nid, field=field)
+
+    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values, policy: PathPolicy | None = None,
+                read_paths: bool = True) -> tuple[dict, dict]:
         params = spec.coerce_params(values)
         relevant = {}
         for p in spec.params:
             if p.kind == "path" and not read_paths:
                 continue  # a bound host input reads no file
             if p.kind == "path":
-                params[p.name] = graph.resolve_path(params[p.name])
+                params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
                 if p.writes:
                     relevant[p.name] = params[p.name]
                 else:
                     try:
+                        size = os.path.getsize(params[p.name])
+                        if size > self.max_file_bytes:
+                            raise graph.error(f"file is {size} bytes, more than the limit of {self.max_file_bytes} "
+                                              "(PIXGRAPH_MAX_FILE_BYTES)", node=nid, field=f"params.{p.name}")
                         relevant[p.name] = {"file_sha256": self._hash_file(params[p.name])}
                     except OSError as e:
                         raise graph.error(f"cannot read {params[p.name]}: {e.strerror}", node=nid,
@@ -342,6 +424,8 @@ class Engine:
                     why = ["not in cache"]
                 if type_id in self.memory_only:
                     why.append(f"memory only: {self.memory_only[type_id]}")
+                if self.disk is not None and keys[nid] in self.disk.discarded:
+                    why.append(f"disk entry discarded: {self.disk.discarded[keys[nid]]}")
             elif not why:
                 why = ["unchanged"]
             elif status[nid] in ("memory", "disk"):
@@ -377,6 +461,7 @@ class Engine:
         emit(E.RunStarted(sum(s.status == "run" for s in plan.steps),
                           sum(s.status != "run" for s in plan.steps)))
         missed: set[str] = set()
+        tainted: set[str] = set()
         # a stack: reversed, so outputs (and inputs, below) are pulled in the order given
         stack = list(reversed(dict.fromkeys(r.node for r in plan.outputs.values())))
         while stack:
@@ -396,14 +481,18 @@ class Engine:
                 stack.pop()
                 continue
             if not spec.side_effects and nid not in missed:
-                value, where = self._fetch(key)
+                value, where = self._fetch(key, spec)
                 if value is not MISS:
                     results[nid] = value
                     cached.append(nid)
                     emit(E.NodeCached(nid, where))
                     stack.pop()
                     continue
-                missed.add(nid)  # evicted since the plan: run it after its inputs
+                missed.add(nid)  # evicted (or discarded) since the plan: run it after its inputs
+                why = self.disk.discarded.get(key) if self.disk is not None else None
+                if why:
+                    reasons[nid] = f"disk cache entry discarded ({why}); recomputing"
+                    emit(E.NodeLog(nid, reasons[nid]))
             waiting = [ref.node for ref in inst.inputs.values() if ref.node not in results]
             if waiting:
                 stack.extend(reversed(waiting))
@@ -415,7 +504,15 @@ class Engine:
             timings[nid] = time.perf_counter() - t0
             results[nid] = value
             ran.append(nid)
-            stored = self._store(spec, key, value)
+            changed = self._sources_changed(nid, spec, plan)
+            if changed or any(ref.node in tainted for ref in inst.inputs.values()):
+                # computed on bytes the key does not describe: never cache it, nor what uses it
+                tainted.add(nid)
+                stored = ("not cached: " + (f"file changed during the run ({', '.join(changed)})" if changed
+                                            else "an input was computed from a file that changed during the run"))
+                emit(E.NodeLog(nid, stored))
+            else:
+                stored = self._store(spec, key, value)
             emit(E.NodeFinished(nid, timings[nid], stored))
         last = self._last_run_parts(graph.file)
         for nid in results:
@@ -449,17 +546,36 @@ class Engine:
             self._last_parts[file] = last
         return last
 
-    def _fetch(self, key: str):
+    def _fetch(self, key: str, spec: NodeSpec):
         value = self.memory.get(key)
         if value is not MISS:
             return value, "memory"
         if self.disk is not None:
             value = self.disk.get(key)
             if value is not MISS:
+                why = _misfit(spec, value)
+                if why:  # a well-formed entry that is not this node's outputs
+                    self.disk._discard(key, self.disk.path(key), why)
+                    return MISS, ""
                 _freeze(value)
                 self.memory.put(key, value)
                 return value, "disk"
         return MISS, ""
+
+    def _sources_changed(self, nid: str, spec: NodeSpec, plan: Plan) -> list[str]:
+        """Read-path params whose file no longer has the content hashed into the
+        key (it changed between planning and the end of the compute)."""
+        changed = []
+        for p in spec.params:
+            if p.kind == "path" and not p.writes:
+                expect = plan.parts[nid].params.get(p.name)
+                try:
+                    now = {"file_sha256": self._hash_file.fresh(plan.params[nid][p.name])}
+                except OSError:
+                    now = None
+                if now != expect:
+                    changed.append(f"params.{p.name}")
+        return changed
 
     def _compute(self, nid, spec: NodeSpec, inst, plan: Plan, results, cancel, emit) -> dict[str, Any]:
         inputs = {p.name: None for p in spec.inputs}
@@ -554,6 +670,20 @@ def _short(path: str) -> str:
     """A path as short as it is clear: relative to the current folder when inside it."""
     rel = os.path.relpath(path)
     return path if rel.startswith("..") else rel
+
+
+def _misfit(spec: NodeSpec, value) -> str | None:
+    """Why a cached value is not a valid output dict of ``spec``, or None."""
+    names = [p.name for p in spec.outputs]
+    if not isinstance(value, dict) or sorted(value) != sorted(names):
+        return f"holds outputs {sorted(value)[:8] if isinstance(value, dict) else type(value).__name__}, " \
+               f"not {names}"
+    for p in spec.outputs:
+        try:
+            p.type.validate(value[p.name])
+        except TypeError as e:
+            return f"output {p.name!r} is not a valid {p.type.type_name()}: {e}"[:200]
+    return None
 
 
 def _freeze(value) -> None:

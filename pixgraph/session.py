@@ -20,6 +20,7 @@ from .cache import DiskCache, MemoryCache
 from .engine import Engine, Plan, RunResult
 from .events import CancelToken
 from .graph import Graph, GraphBuilder, GraphError
+from .paths import PathPolicy
 from .registry import Registry
 
 #: defaults, each overridable by a Session argument or an environment variable
@@ -51,10 +52,16 @@ class Session:
         passes ``--disk-cache``, ``PIXGRAPH_DISK_CACHE`` or ``~/.cache/pixgraph``).
     disk_cache_bytes: disk cache limit (default ``PIXGRAPH_DISK_CACHE_BYTES`` or 20 GiB).
     registry: node types; default ``Registry.discover()``.
+    allow_paths: folders that path params may read and write besides the graph
+        file's folder (a built graph's ``base_dir``, by default the current
+        directory); ``PIXGRAPH_ALLOW_PATHS`` adds more unless ``strict_paths``.
+    strict_paths: only the graph's folder and ``allow_paths`` (the HTTP server).
+        See ``pixgraph.paths`` and docs/security.md.
     """
 
     def __init__(self, device=None, cache_bytes: int | None = None, disk_cache: str | os.PathLike | None = None,
-                 registry: Registry | None = None, disk_cache_bytes: int | None = None):
+                 registry: Registry | None = None, disk_cache_bytes: int | None = None,
+                 allow_paths=(), strict_paths: bool = False):
         self.registry = registry if registry is not None else Registry.discover()
         if cache_bytes is None:
             cache_bytes = _env_bytes("PIXGRAPH_CACHE_BYTES", DEFAULT_CACHE_BYTES)
@@ -64,7 +71,8 @@ class Session:
         self.disk = DiskCache(disk_cache, disk_cache_bytes) if disk_cache is not None else None
         self._device_arg = device
         self._device = None
-        self.engine = Engine(self.registry, self.memory, self.disk, self._get_device)
+        self.paths = PathPolicy(allow_paths, strict=strict_paths)
+        self.engine = Engine(self.registry, self.memory, self.disk, self._get_device, paths=self.paths)
         self.last_run: RunResult | None = None
 
     @property
@@ -122,6 +130,18 @@ class Session:
                 raise GraphError(f"{e.message} (set by a param override)", file=graph.file,
                                  node=e.node, field=e.field) from None
             raise
+
+    def allow_files(self, files) -> None:
+        """Allow these exact files too (paths a person typed, not ones from a graph file)."""
+        self.paths = self.paths.with_files(files)
+        self.engine.paths = self.paths
+
+    def check_paths(self, graph_or_path, params=None) -> Graph:
+        """The graph, after checking every path param against the path policy
+        (raises ``paths.PathError``); ``plan`` and ``run`` check the nodes they need."""
+        graph = self.graph(graph_or_path, params)
+        self.engine.check_paths(graph)
+        return graph
 
     # -- plan and run -----------------------------------------------------------
 

@@ -57,7 +57,6 @@ def test_mask_and_pixel_height(session):
 
 
 @pytest.mark.parametrize("type_id,value,match", [
-    ("pixgraph.InputPixelHeight", np.array([[np.nan, 1.0]]), "NaN"),
     ("pixgraph.InputPixelHeight", np.zeros((2, 2), np.uint8), "float"),
     ("pixgraph.InputMask", np.zeros((2, 2, 3), np.float32), "shape"),
     ("pixgraph.InputImage", np.zeros((2, 2, 5), np.float32), "shape"),

@@ -20,8 +20,27 @@ import pathlib
 
 import numpy as np
 
+from pixgraph.node import InputError
+
 #: file extensions whose colour is linear float (everything else is sRGB-encoded)
 LINEAR_EXTENSIONS = (".exr", ".hdr")
+#: largest image read, in pixels (width x height x depth), checked from the file's
+#: header before any pixel is decoded; ``PIXGRAPH_MAX_PIXELS`` overrides it
+DEFAULT_MAX_PIXELS = 64 * 1024 * 1024
+
+
+class ImageFileError(InputError, OSError):
+    """An image file that cannot be read or is larger than allowed: bad input (exit 2),
+    and an ``OSError`` for callers that catch those."""
+
+
+def max_pixels() -> int:
+    """The pixel limit for image reads (``PIXGRAPH_MAX_PIXELS``, default 64 Mpx)."""
+    raw = os.environ.get("PIXGRAPH_MAX_PIXELS", "")
+    try:
+        return int(float(raw)) if raw.strip() else DEFAULT_MAX_PIXELS
+    except ValueError:
+        raise ImageFileError(f"PIXGRAPH_MAX_PIXELS must be a number, got {raw[:40]!r}") from None
 
 
 def srgb_to_linear(x: np.ndarray) -> np.ndarray:
@@ -115,8 +134,9 @@ def host_pixels(array, channels: tuple[int, ...], what: str) -> np.ndarray:
     """A host's numpy array as float32 values: float dtypes as they are, unsigned
     integers normalised (``v / 255``, ``v / 65535``); (H, W) becomes (H, W, 1).
 
-    Raises ``ValueError`` (one line) for another type, shape or channel count, or
-    for NaN / infinite values.
+    Raises ``ValueError`` (one line) for another type, shape or channel count.
+    NaN / infinite values are passed on: the nodes that use them refuse them where
+    they matter (inside the cutout), naming the input and the pixel.
     """
     if not isinstance(array, np.ndarray):
         raise ValueError(f"{what} must be a numpy array, got {type(array).__name__}")
@@ -131,8 +151,6 @@ def host_pixels(array, channels: tuple[int, ...], what: str) -> np.ndarray:
     if a.ndim != 3 or a.shape[2] not in channels or a.shape[0] < 1 or a.shape[1] < 1:
         want = " or ".join(f"(H, W, {c})" for c in channels)
         raise ValueError(f"{what} must have shape {want}, got {array.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{what} has NaN or infinite values")
     return np.ascontiguousarray(a)
 
 
@@ -405,12 +423,20 @@ def _read_float(oiio, path, config=None) -> tuple[np.ndarray, list[str]]:
     """All pixels of an image file as float32 (H, W, C), and its channel names."""
     inp = oiio.ImageInput.open(str(path), config) if config is not None else oiio.ImageInput.open(str(path))
     if inp is None:
-        raise OSError(f"cannot read image {path}: {oiio.geterror()}")
+        raise ImageFileError(f"cannot read image {path}: {oiio.geterror()}"[:300])
     try:
-        names = list(inp.spec().channelnames)
+        spec = inp.spec()
+        pixels = max(spec.width, 0) * max(spec.height, 0) * max(spec.depth, 1)
+        limit = max_pixels()
+        if pixels > limit or spec.nchannels > 64:
+            raise ImageFileError(f"image {path} is {spec.width}x{spec.height}x{spec.depth} with {spec.nchannels} "
+                                 f"channels: more than the limit of {limit} pixels (PIXGRAPH_MAX_PIXELS)")
+        if pixels == 0 or spec.nchannels < 1:
+            raise ImageFileError(f"image {path} has no pixels ({spec.width}x{spec.height}, {spec.nchannels} channels)")
+        names = list(spec.channelnames)
         data = inp.read_image("float")
         if data is None:
-            raise OSError(f"cannot read image {path}: {inp.geterror()}")
+            raise ImageFileError(f"cannot read image {path}: {inp.geterror()}"[:300])
     finally:
         inp.close()
     data = np.asarray(data, dtype=np.float32)
