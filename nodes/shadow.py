@@ -8,9 +8,14 @@ from pixgraph.node import InputError, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops import choose as C
-from .ops import ssn, ssn_crop
+from .ops.softness import softness_of
 from .ops.lights import disk_extremes, disk_samples, light_point
 from .ops.upsample import AUTO_MAX_SIDE, proxy_soft_shadow
+
+
+def _has_torch() -> bool:
+    import importlib.util
+    return importlib.util.find_spec("torch") is not None
 
 
 @node("pixgraph.Shadow", version=1)
@@ -77,7 +82,11 @@ class Shadow:
                                                           inputs.bg_height, light, cam, params.thickness)
             except ValueError as e:
                 raise InputError(f"input 'fg_height': {e}") from None
-            c = C.choose(C.load_table(), softness, receiver, H * W, params.max_rmse)
+            table = C.load_table()
+            methods = [m for m in table["methods"] if m != "ssn" or _has_torch()]
+            if len(methods) < len(table["methods"]):
+                ctx.log("ssn is not a candidate: torch is not installed (pip install 'pixgraph[ssn]')")
+            c = C.choose(table, softness, receiver, H * W, params.max_rmse, methods)
             ctx.log(f"auto chose {c.method}: {c.reason}; light softness {softness:.3g}, {receiver} receiver, "
                     f"{W}x{H}: expected RMSE mean {c.expected_mean:.3f}, p90 {c.expected_p90:.3f}, "
                     f"~{c.ms:.0f} ms")
@@ -88,8 +97,9 @@ class Shadow:
             method = f"soft:{params.samples}"
         side = max(H, W) if params.proxy == 0 else params.proxy
         if method == "ssn":
+            from .ops import ssn_crop                     # torch: imported only when SSN++ runs
             from .ssn_soft_shadow import load_shipped
-            softness = ssn.softness_of(light, cam, inputs.mask, inputs.fg_height)
+            softness = softness_of(light, cam, inputs.mask, inputs.fg_height)
             darkness, _ = ssn_crop.render(ctx.device, load_shipped("ssnpp"), inputs.mask, inputs.fg_height,
                                           inputs.bg_height, light_point(light, cam), disk_extremes(light, cam),
                                           softness, params.thickness, check_cancelled=ctx.check_cancelled)

@@ -10,11 +10,6 @@ from pixgraph import types as T
 from pixgraph.node import InputError, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
-<<<<<<< HEAD
-from .ops import ssn, ssn_crop
-=======
-from .ops.buffers import buffer_channels
->>>>>>> main
 from .ops.lights import disk_extremes, light_point
 
 WEIGHTS = pathlib.Path(__file__).parent / "weights"
@@ -85,7 +80,7 @@ class SoftShadowSSN:
         darkness: T.Mask = port(doc="soft shadow, 1 = full shadow (what Composite takes)")
 
     # bump when the shipped weights or the inference change (2: NHWC layout; 3: softness clamped to 1;
-    # 4: window at the trained scale)
+    # 4: window at the trained scale, softness clamped to the trained range)
     impl_version = "4"
 
     def compute(self, ctx, inputs, params):
@@ -107,6 +102,7 @@ class SoftShadowSSN:
         except ValueError as e:  # the host's setting, not the node's fault
             raise InputError(str(e)) from None
         model = load_shipped(params.model)
+        from .ops import ssn_crop
         darkness, info = ssn_crop.render(ctx.device, model, inputs.mask, inputs.fg_height, inputs.bg_height,
                                          light_point(light, cam), disk_extremes(light, cam), softness,
                                          params.thickness, threads=threads,

@@ -54,15 +54,15 @@ def receiver_kind(shadowed: np.ndarray, mask: np.ndarray, bg_height: np.ndarray)
 
 def scene_features(device, mask, fg_height, bg_height, light, camera, thickness=1.0):
     """(softness, receiver, lit) of a scene: the light's softness
-    (``ssn.softness_of``), the receiver kind of its hard shadow (from the light's
+    (``softness.softness_of``), the receiver kind of its hard shadow (from the light's
     centre, traced at a proxy of at most 512 px) and that hard shadow's lit map
     at the proxy's size (reused when the choice is ``hard`` and no proxy was needed)."""
-    from . import ssn
     from .lights import light_point
     from .resample import Window
     from .shadow import hard_shadow
     mask = np.asarray(mask)
-    softness = ssn.softness_of(light, camera, mask, fg_height)
+    from .softness import softness_of
+    softness = softness_of(light, camera, mask, fg_height)
     H, W = mask.shape
     win = Window.whole(H, W, 512)
     m, fg, bg = win.scene(mask, fg_height, bg_height)

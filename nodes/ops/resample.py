@@ -16,7 +16,9 @@ pixel-height tracer: a hard shadow traced in the window is the image's hard
 shadow resampled (up to the resampling of the occluder itself).
 
 Arrays are float32 (H, W); resizing is bilinear, antialiased when shrinking
-(torch ``F.interpolate``).
+(a triangle filter widened by the shrink factor, taps outside the image
+dropped and the rest renormalised: what torch's ``interpolate(mode="bilinear",
+antialias=True)`` and PIL compute), in numpy: no torch needed.
 """
 from __future__ import annotations
 
@@ -24,8 +26,6 @@ import dataclasses
 import math
 
 import numpy as np
-import torch
-import torch.nn.functional as F
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,16 +118,39 @@ class Window:
         return out
 
 
+def _axis_weights(n_in: int, n_out: int):
+    """(index (n_out, taps), weight (n_out, taps)) of a 1-D bilinear resize."""
+    scale = n_in / n_out
+    support = max(scale, 1.0)                      # triangle half-width in input px
+    centre = (np.arange(n_out) + 0.5) * scale - 0.5
+    taps = int(np.ceil(2 * support)) + 1
+    first = np.floor(centre - support).astype(np.int64) + 1
+    idx = first[:, None] + np.arange(taps)[None, :]
+    w = np.maximum(0.0, 1.0 - np.abs(idx - centre[:, None]) / support)
+    w[(idx < 0) | (idx >= n_in)] = 0.0
+    w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-12)
+    return np.clip(idx, 0, n_in - 1), w.astype(np.float32)
+
+
+def _resize_axis(a: np.ndarray, n_out: int, axis: int) -> np.ndarray:
+    if a.shape[axis] == n_out:
+        return a
+    idx, w = _axis_weights(a.shape[axis], n_out)
+    a = np.moveaxis(a, axis, -1)
+    out = np.empty(a.shape[:-1] + (n_out,), np.float32)
+    step = max(1, (1 << 24) // max(1, n_out * idx.shape[1]))   # rows per chunk: ~64 MB of taps
+    for r in range(0, a.shape[0], step):
+        out[r:r + step] = np.einsum("rot,ot->ro", a[r:r + step][:, idx], w)
+    return np.moveaxis(out, -1, axis)
+
+
 def resize(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """Bilinear resize of a float (H, W) map to ``shape`` (antialiased when shrinking)."""
     a = np.asarray(a, dtype=np.float32)
-    if a.shape == tuple(shape):
+    shape = tuple(int(s) for s in shape)
+    if a.shape == shape:
         return a
-    t = torch.from_numpy(np.ascontiguousarray(a))[None, None]
-    shrink = shape[0] < a.shape[0] or shape[1] < a.shape[1]
-    y = F.interpolate(t, size=tuple(int(s) for s in shape), mode="bilinear", align_corners=False,
-                      antialias=shrink)
-    return y[0, 0].numpy()
+    return np.ascontiguousarray(_resize_axis(_resize_axis(a, shape[1], 1), shape[0], 0))
 
 
 def ceil_to(x: float, m: int) -> int:

@@ -296,22 +296,6 @@ def run_network(model: SSN, buffers: dict[str, np.ndarray], softness: float,
         return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
 
 
-def softness_of(light, camera, mask: np.ndarray, fg_height: np.ndarray) -> float:
-    """The light's softness as the training data defines it: disk radius over the
-    distance from the light's centre to the object's centre (dimensionless).
-
-    The object's centre is the mean of the cutout's reconstructed 3D points
-    (``camera.back_project``); a directional light's softness is the tangent of
-    its angular radius. Point lights have softness 0.
-    """
-    if light.kind == "directional":
-        return float(np.tan(light.angular_radius))
-    if light.radius <= 0.0:
-        return 0.0
-    inside = np.asarray(mask) > 0.5
-    u, v = camera.pixel_grid()
-    P, valid = camera.back_project(u[inside], v[inside], np.asarray(fg_height, np.float64)[inside])
-    if not valid.any():
-        raise ValueError("the cutout has no pixel below the horizon: cannot place it in 3D")
-    centre = P[valid].mean(axis=0)
-    return float(light.radius / max(np.linalg.norm(np.asarray(light.position) - centre), 1e-9))
+# the definition lives in a torch-free module (pixgraph.Shadow's method choice needs
+# it without SSN++); re-exported here, where the training code and the node read it
+from .softness import softness_of  # noqa: E402,F401
