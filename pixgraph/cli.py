@@ -237,6 +237,9 @@ def _cmd_run(args, registry) -> int:
         res = s.last_run
         print(f"ran {len(res.ran)} node(s), {len(res.cached)} from cache, "
               f"{sum(res.timings.values()):.3f} s compute", file=sys.stderr)
+        for nid, messages in res.logs.items():
+            for m in messages:
+                print(f"{nid}: {m}", file=sys.stderr)
         for name, v in values.items():
             where = f" -> {targets[name]}" if name in targets else ""
             print(f"{name}: {_describe(v)}{where}")

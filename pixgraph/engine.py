@@ -138,6 +138,8 @@ class RunResult:
     ran: tuple[str, ...]
     cached: tuple[str, ...]
     plan: Plan
+    #: messages each node that ran logged (``ctx.log``), by node id
+    logs: dict[str, list[str]] = dataclasses.field(default_factory=dict)
 
 
 class Engine:
@@ -163,6 +165,8 @@ class Engine:
         self._last_parts: dict[str | None, dict[str, KeyParts]] = {}
         #: node types whose outputs had no disk form last time they ran
         self.memory_only: dict[str, str] = {}
+        #: cache key -> what the node logged when it computed that key (this process)
+        self._logs_by_key: dict[str, list[str]] = {}
 
     # -- plan -------------------------------------------------------------------
 
@@ -199,7 +203,7 @@ class Engine:
             parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
             keys[nid] = parts[nid].key()
         self._check_overwrites(graph, params, order, bind)
-        steps = self._steps(graph, requested, order, keys, parts, bind)
+        steps = self._steps(graph, requested, order, keys, parts, bind, params)
         return Plan(graph, requested, steps, keys, parts, params, bind, bound)
 
     # -- check before running -----------------------------------------------------
@@ -388,7 +392,7 @@ class Engine:
                 relevant[p.name] = list(v) if isinstance(v, tuple) else v
         return params, relevant
 
-    def _steps(self, graph, requested, order, keys, parts, bind) -> tuple[Step, ...]:
+    def _steps(self, graph, requested, order, keys, parts, bind, params) -> tuple[Step, ...]:
         last = self._last_run_parts(graph.file)
         needed, status = set(), {}
         stack = [r.node for r in requested.values()]
@@ -430,6 +434,13 @@ class Engine:
             elif status[nid] in ("memory", "disk"):
                 # changed since the last run, but an earlier run left this key cached
                 why.append(f"an earlier result is in the {status[nid]} cache")
+            # a node may say what it will do with these params (``describe(params)``),
+            # and what it logged when it made the result now in the cache
+            describe = getattr(self.registry.get(type_id).cls, "describe", None)
+            if callable(describe) and nid not in bind:
+                why.append(str(describe(params[nid])))
+            if status[nid] != "run" and keys[nid] in self._logs_by_key:
+                why.append("its run logged: " + " | ".join(self._logs_by_key[keys[nid]]))
             steps.append(Step(nid, type_id, keys[nid], status[nid], "; ".join(why)))
         return tuple(steps)
 
@@ -437,7 +448,13 @@ class Engine:
 
     def run(self, plan: Plan, cancel: E.CancelToken | None = None,
             on_event: Callable[[Any], None] | None = None) -> RunResult:
-        emit = on_event or _ignore
+        forward = on_event or _ignore
+        logs: dict[str, list[str]] = {}
+
+        def emit(ev):
+            if isinstance(ev, E.NodeLog):
+                logs.setdefault(ev.node_id, []).append(ev.message)
+            forward(ev)
         graph = plan.graph
         results: dict[str, dict[str, Any]] = {}
         timings: dict[str, float] = {}
@@ -507,8 +524,15 @@ class Engine:
         if self.disk is not None and graph.file is not None:
             self.disk.save_record(_record_name(graph.file), {n: p.to_dict() for n, p in last.items()})
         values = {name: results[ref.node][ref.output] for name, ref in plan.outputs.items()}
+        for nid in ran:
+            if nid in logs:
+                self._logs_by_key[plan.keys[nid]] = logs[nid]
+                if len(self._logs_by_key) > 4096:      # bounded: drop the oldest
+                    self._logs_by_key.pop(next(iter(self._logs_by_key)))
+            else:
+                self._logs_by_key.pop(plan.keys[nid], None)
         emit(E.RunFinished(time.perf_counter() - t_run, len(ran), len(cached)))
-        return RunResult(values, timings, tuple(ran), tuple(cached), plan)
+        return RunResult(values, timings, tuple(ran), tuple(cached), plan, logs)
 
     def _last_run_parts(self, file: str | None) -> dict[str, KeyParts]:
         """Last-run key parts by node id for a graph file; read from the disk
