@@ -138,12 +138,12 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", required=True)
     ap.add_argument("--out", required=True)
-    ap.add_argument("--size", type=int, default=96)
+    ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--base", type=int, default=8)
     ap.add_argument("--levels", type=int, default=4)
     ap.add_argument("--batch", type=int, default=16)
     ap.add_argument("--lr", type=float, default=2e-3)
-    ap.add_argument("--steps", type=int, default=6000, help="total steps (cosine schedule length)")
+    ap.add_argument("--steps", type=int, default=2500, help="total steps (cosine schedule length)")
     ap.add_argument("--minutes", type=float, default=1e9, help="stop (with a checkpoint) after this long")
     ap.add_argument("--val-every", type=int, default=250)
     ap.add_argument("--checkpoint-minutes", type=float, default=3.0)
@@ -165,7 +165,7 @@ def main(argv=None) -> int:
     model = build_model(a.base, a.levels).to(device)
     opt = torch.optim.AdamW(model.parameters(), lr=a.lr, weight_decay=1e-4)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=a.lr, total_steps=a.steps,
-                                                pct_start=max(0.05, 3.0 / a.steps))
+                                                pct_start=min(0.5, max(0.05, 3.0 / a.steps)))
     gen = torch.Generator().manual_seed(a.seed)
     rng = np.random.default_rng(a.seed)
     config = {"size": a.size, "base": a.base, "levels": a.levels, "in_channels": 6,
