@@ -4,6 +4,7 @@ import os
 import pathlib
 import re
 import shlex
+import shutil
 
 import numpy as np
 import pytest
@@ -43,7 +44,9 @@ def test_page_command_prints_what_the_page_says(index, tmp_path, monkeypatch, ca
     line, expect = COMMANDS[index]
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("PIXGRAPH_DISK_CACHE", str(tmp_path / "cache"))
-    (tmp_path / "graphs").symlink_to(ROOT / "graphs")
+    # a copy, not a symlink: the path policy resolves symlinks, and errors would name
+    # the files by their real (absolute) paths instead of as the page shows them
+    shutil.copytree(ROOT / "graphs", tmp_path / "graphs")
     argv = shlex.split(line.replace("$PWD", str(tmp_path)))[1:]
     rc = cli.main(argv)
     captured = capsys.readouterr()
