@@ -333,14 +333,16 @@ class Engine:
         field = f"params.{p.name}"
         try:
             resolved = graph.resolve_path(os.fspath(raw))
-            checked = (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
+            (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
         except PathError as e:
             located = graph.error(e.message, node=nid, field=field)
             raise PathError(e.message, file=located.file, line=located.line, node=nid, field=field) from None
         except ValueError as e:  # e.g. embedded NUL in a home-folder lookup
             located = graph.error(f"bad path: {e}"[:200], node=nid, field=field)
             raise PathError(located.message, file=located.file, line=located.line, node=nid, field=field) from None
-        return os.fspath(checked)
+        # the node gets the path as the graph names it (made absolute), so its messages
+        # name the user's path; the check above resolved every symlink in it
+        return resolved
 
     def _check_overwrites(self, graph: Graph, params, order, bind) -> None:
         """A node may not write over a file that this run reads (or the graph file)."""
@@ -352,10 +354,11 @@ class Engine:
             spec = self.registry.get(graph.nodes[nid].type)
             for p in spec.params:
                 if p.kind == "path" and params[nid].get(p.name) is not None:
+                    real = os.path.realpath(params[nid][p.name])
                     if p.writes:
-                        writes.append((nid, p.name, params[nid][p.name]))
+                        writes.append((nid, p.name, real))
                     else:
-                        reads.setdefault(params[nid][p.name], f"node {nid!r} param {p.name!r}")
+                        reads.setdefault(real, f"node {nid!r} param {p.name!r}")
         for nid, pname, path in writes:
             if path in reads:
                 raise self._located(graph, f"would write over {reads[path]}, read by this run ({path})",
