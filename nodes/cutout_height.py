@@ -1,29 +1,76 @@
-"""pixgraph.CutoutHeight: cutout pixel height from a predictor (heuristic for now)."""
+"""pixgraph.CutoutHeight: cutout pixel height from the contact-line heuristic or a
+learned predictor."""
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
 from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import InputError, node, param, port
 
+from ._checks import same_size
 from .ops.heightmaps import ContactLinePredictor
+
+NO_TORCH = ("method 'learned' needs torch, which is not installed (pip install torch); "
+            "using the contact-line heuristic instead")
+
+
+@functools.lru_cache(maxsize=2)
+def _learned(path: str, mtime_ns: int):
+    # keyed on mtime too, so retrained weights are picked up without a restart
+    from .ops.learned_height import LearnedHeightPredictor
+    return LearnedHeightPredictor(path)
+
+
+def learned_predictor():
+    """The shipped learned predictor (``weights/cutout_height.pt``), loaded once;
+    None when torch is missing."""
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        return None
+    from .ops.learned_height import WEIGHTS
+    if not WEIGHTS.exists():
+        raise FileNotFoundError(f"no shipped cutout-height weights {WEIGHTS}")
+    return _learned(str(WEIGHTS), WEIGHTS.stat().st_mtime_ns)
+
+
+def cutout_rgba(mask: np.ndarray, image: np.ndarray) -> np.ndarray:
+    """Premultiplied (H, W, 4) of the cutout: the image's straight colour (its own
+    alpha divided out when it has one) with ``mask`` as alpha."""
+    img = np.asarray(image, np.float32)
+    if img.ndim == 2:
+        img = img[..., None]
+    rgb = img[..., :3] if img.shape[2] >= 3 else np.repeat(img[..., :1], 3, axis=2)
+    if img.shape[2] in (2, 4):
+        a = img[..., -1:]
+        rgb = np.where(a > 0, rgb / np.maximum(a, 1e-6), 0.0)
+    m = np.clip(np.asarray(mask, np.float32), 0, 1)
+    return np.concatenate([rgb * m[..., None], m[..., None]], axis=2).astype(np.float32)
 
 
 @node("pixgraph.CutoutHeight", version=1)
 class CutoutHeight:
-    """Pixel height of an upright cutout standing on the ground: distance in rows to its
-    contact line (``contact_line``: one line fitted to the object's lowest pixels, the
-    default; ``column_bottom``: each column's lowest pixel). See
-    pixgraph_nodes.ops.heightmaps.contact_line_height for why. A file-based height map
+    """Pixel height of a cutout standing on the ground. ``contact_line`` (default, alpha
+    only): distance in rows to one line fitted to the object's lowest pixels, right for
+    upright objects; ``column_bottom``: to each column's lowest pixel (see
+    pixgraph_nodes.ops.heightmaps.contact_line_height); ``learned``: a small U-Net
+    trained on rendered cutouts (upright, tilted, lying, overhanging objects) reads the
+    colour (``image``) and alpha, any size (pixgraph_nodes.ops.learned_height; needs
+    torch, else falls back to contact_line with a log message). A file-based height map
     comes from pixgraph.LoadPixelHeight instead.
     """
 
     class Inputs:
         mask: T.Mask = port(doc="cutout coverage")
+        image: T.Image = port(optional=True, doc="cutout colour (linear, premultiplied when it has "
+                                                 "alpha), same size as mask; needed by method learned")
 
     class Params:
-        method: str = param("contact_line", choices=("contact_line", "column_bottom"),
-                            doc="where each column's foot is")
+        method: str = param("contact_line", choices=("contact_line", "column_bottom", "learned"),
+                            doc="contact_line / column_bottom: where each column's foot is; "
+                                "learned: the trained predictor")
         tolerance: float = param(2.0, min=0.0, unit="px",
                                  doc="contact_line: columns whose bottom is this close to the lowest "
                                      "row take part in the fit")
@@ -31,11 +78,22 @@ class CutoutHeight:
     class Outputs:
         height: T.PixelHeight = port(doc="cutout pixel height [px], 0 outside the mask")
 
-    impl_version = "1"
+    impl_version = "2"  # 2: method learned; bump when weights/cutout_height.pt changes
 
     def compute(self, ctx, inputs, params):
-        predictor = ContactLinePredictor(params.method, params.tolerance)
         mask = np.asarray(inputs.mask, dtype=np.float32)
+        if params.method == "learned":
+            if inputs.image is None:
+                raise InputError("method 'learned' reads the cutout's colour: connect input 'image' "
+                                 "(e.g. image: cutout.image)")
+            same_size(mask=mask, image=inputs.image)
+            predictor = learned_predictor()
+            if predictor is not None:
+                return {"height": predictor.predict(cutout_rgba(mask, inputs.image))}
+            ctx.log(NO_TORCH)
+            predictor = ContactLinePredictor("contact_line", params.tolerance)
+        else:
+            predictor = ContactLinePredictor(params.method, params.tolerance)
         rgba = np.zeros(mask.shape + (4,), np.float32)
         rgba[..., 3] = mask
         return {"height": predictor.predict(rgba)}

@@ -406,6 +406,10 @@ class DiskCache:
         # a temp file is only ever half an entry: the writer was killed, or is
         # still writing (hence the age threshold)
         now, removed = time.time(), 0
+        for d, _, files in os.walk(self.root):  # entries of the older .npz format: never read again
+            for n in files:
+                if n.endswith(".npz") and len(os.path.basename(d)) == 2:
+                    self._remove(os.path.join(d, n))
         for p in self.temporaries():
             try:
                 if now - os.stat(p).st_mtime > older_than_s:

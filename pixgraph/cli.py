@@ -75,9 +75,28 @@ def _parser() -> argparse.ArgumentParser:
     n.add_argument("name", nargs="?", help="node type id")
     n.add_argument("--errors", action="store_true", help="show plugins that failed to load")
     n.add_argument("--markdown", action="store_true", help="print the node reference as Markdown")
+    n.add_argument("--json", action="store_true", help="print the node declarations as JSON")
 
     sub.add_parser("schema", parents=[common], help="print the JSON Schema of graph files")
     sub.add_parser("devices", parents=[common], help="list OpenCL platforms and devices")
+
+    sv = sub.add_parser("serve", parents=[common],
+                        help="serve a graph: browser UI (drag the light) and a local HTTP API")
+    sv.add_argument("graph", help="graph file (YAML); it may read and write only in its folder and --allow folders")
+    sv.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
+    sv.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")
+    sv.add_argument("--allow-path", action="append", default=[], metavar="DIR",
+                    help="another folder the graph may read and write (repeatable)")
+    sv.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
+    sv.add_argument("--max-pixels", type=int, default=None, help="largest image, width x height (default 4096^2)")
+    sv.add_argument("--max-body", type=int, default=None, metavar="BYTES",
+                    help="largest request body (default 32 MiB)")
+
+    b = sub.add_parser("batch", parents=[common, graph_opts, cache_opts],
+                       help="run a graph over a manifest's rows or a sweep (see docs/batch.md)")
+    from .batch import add_arguments as _batch_arguments
+
+    _batch_arguments(b)
 
     c = sub.add_parser("cache", parents=[common, cache_opts], help="disk cache statistics or clearing")
     c.add_argument("action", choices=["stats", "clear"])
@@ -218,6 +237,9 @@ def _cmd_run(args, registry) -> int:
         res = s.last_run
         print(f"ran {len(res.ran)} node(s), {len(res.cached)} from cache, "
               f"{sum(res.timings.values()):.3f} s compute", file=sys.stderr)
+        for nid, messages in res.logs.items():
+            for m in messages:
+                print(f"{nid}: {m}", file=sys.stderr)
         for name, v in values.items():
             where = f" -> {targets[name]}" if name in targets else ""
             print(f"{name}: {_describe(v)}{where}")
@@ -332,11 +354,17 @@ def _cmd_nodes(args, registry) -> int:
     if args.markdown:
         sys.stdout.write(reference.markdown(reg))
         return EXIT_OK
+    if args.json and not args.name:
+        print(json.dumps([reference.as_dict(s) for s in reg.specs()], indent=1))
+        return EXIT_OK
     if args.name:
         if args.name not in reg:
             hint = reg.suggest(args.name)
             raise UsageError(f"unknown node type {args.name!r}" + (f" (did you mean {hint!r}?)" if hint else ""))
-        sys.stdout.write(reference.text(reg.get(args.name), reg.source(args.name)))
+        if args.json:
+            print(json.dumps(reference.as_dict(reg.get(args.name)), indent=1))
+        else:
+            sys.stdout.write(reference.text(reg.get(args.name), reg.source(args.name)))
         return EXIT_OK
     width = max((len(s.type_id) for s in reg.specs()), default=0)
     for spec in reg.specs():
@@ -354,11 +382,11 @@ def _cmd_schema(args, registry) -> int:
 
 
 def _cmd_devices(args, registry) -> int:
-    from .device import DeviceError, build_problem, choose, list_devices
+    from .device import DeviceError, build_problem, choose, list_devices, no_device_hint
 
     devices = list_devices()
     if not devices:
-        print("no OpenCL device found", file=sys.stderr)
+        print(f"no OpenCL device found: {no_device_hint()}", file=sys.stderr)
         return EXIT_INTERNAL
     try:
         default = choose().spec
@@ -394,5 +422,48 @@ def _cmd_cache(args, registry) -> int:
     return EXIT_OK
 
 
-_COMMANDS = {"run": _cmd_run, "validate": _cmd_validate, "explain": _cmd_explain, "nodes": _cmd_nodes,
-             "schema": _cmd_schema, "devices": _cmd_devices, "cache": _cmd_cache}
+def _cmd_batch(args, registry) -> int:
+    from .batch import cli_batch
+
+    return cli_batch(args, _session(args, registry), parse_sets(args.set), UsageError)
+
+
+def _cmd_serve(args, registry) -> int:
+    import dataclasses
+
+    from .serve.app import serve
+    from .serve.state import Limits, ServeError, ServeState
+
+    limits = Limits()
+    if args.max_pixels is not None:
+        limits = dataclasses.replace(limits, max_pixels=args.max_pixels)
+    if args.max_body is not None:
+        limits = dataclasses.replace(limits, max_body_bytes=args.max_body)
+    for d in args.allow_path:
+        if not os.path.isdir(d):
+            raise UsageError(f"--allow-path {d}: no such folder")
+    if args.device:
+        from .device import DeviceError, choose
+
+        try:
+            choose(args.device)
+        except DeviceError as e:
+            raise UsageError(str(e)) from None
+    try:
+        state = ServeState(args.graph, allow=args.allow_path, limits=limits, device=args.device, registry=registry)
+    except ServeError as e:
+        raise UsageError(e.message) from None
+
+    def ready(url):
+        print(f"pixgraph: serving {args.graph} at {url}", flush=True)
+
+    try:
+        serve(state, args.host, args.port, on_ready=ready)
+    except OSError as e:
+        raise UsageError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
+    return EXIT_OK
+
+
+_COMMANDS = {"run": _cmd_run, "batch": _cmd_batch, "serve": _cmd_serve, "validate": _cmd_validate,
+             "explain": _cmd_explain, "nodes": _cmd_nodes, "schema": _cmd_schema, "devices": _cmd_devices,
+             "cache": _cmd_cache}

@@ -14,6 +14,7 @@ always run when requested and are never cached.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 import time
 from typing import Any, Callable, Mapping
@@ -32,6 +33,7 @@ from .types import SIZED, Shape, nbytes
 
 
 DEFAULT_MAX_FILE_BYTES = 4 << 30
+_log = logging.getLogger("pixgraph.engine")
 
 
 def _env_int(name: str, default: int) -> int:
@@ -136,6 +138,8 @@ class RunResult:
     ran: tuple[str, ...]
     cached: tuple[str, ...]
     plan: Plan
+    #: messages each node that ran logged (``ctx.log``), by node id
+    logs: dict[str, list[str]] = dataclasses.field(default_factory=dict)
 
 
 class Engine:
@@ -161,6 +165,8 @@ class Engine:
         self._last_parts: dict[str | None, dict[str, KeyParts]] = {}
         #: node types whose outputs had no disk form last time they ran
         self.memory_only: dict[str, str] = {}
+        #: cache key -> what the node logged when it computed that key (this process)
+        self._logs_by_key: dict[str, list[str]] = {}
 
     # -- plan -------------------------------------------------------------------
 
@@ -197,7 +203,7 @@ class Engine:
             parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
             keys[nid] = parts[nid].key()
         self._check_overwrites(graph, params, order, bind)
-        steps = self._steps(graph, requested, order, keys, parts, bind)
+        steps = self._steps(graph, requested, order, keys, parts, bind, params)
         return Plan(graph, requested, steps, keys, parts, params, bind, bound)
 
     # -- check before running -----------------------------------------------------
@@ -214,14 +220,15 @@ class Engine:
         """
         requested = self._requested(graph, outputs)
         order = self._ancestors(graph, [r.node for r in requested.values()], {})
+        policy = self.policy_for(graph)
         infos: dict[str, dict[str, Any]] = {}
         for nid in order:
             inst = graph.nodes[nid]
             spec = self.registry.get(inst.type)
             params = spec.coerce_params(inst.params)
             for p in spec.params:
-                if p.kind == "path" and params[p.name] is not None:
-                    params[p.name] = graph.resolve_path(params[p.name])
+                if p.kind == "path" and params[p.name] is not None:  # the policy before any header is read
+                    params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
             ins = {p.name: None for p in spec.inputs}
             for port, ref in inst.inputs.items():
                 ins[port] = infos[ref.node].get(ref.output)
@@ -385,7 +392,7 @@ class Engine:
                 relevant[p.name] = list(v) if isinstance(v, tuple) else v
         return params, relevant
 
-    def _steps(self, graph, requested, order, keys, parts, bind) -> tuple[Step, ...]:
+    def _steps(self, graph, requested, order, keys, parts, bind, params) -> tuple[Step, ...]:
         last = self._last_run_parts(graph.file)
         needed, status = set(), {}
         stack = [r.node for r in requested.values()]
@@ -427,6 +434,13 @@ class Engine:
             elif status[nid] in ("memory", "disk"):
                 # changed since the last run, but an earlier run left this key cached
                 why.append(f"an earlier result is in the {status[nid]} cache")
+            # a node may say what it will do with these params (``describe(params)``),
+            # and what it logged when it made the result now in the cache
+            describe = getattr(self.registry.get(type_id).cls, "describe", None)
+            if callable(describe) and nid not in bind:
+                why.append(str(describe(params[nid])))
+            if status[nid] != "run" and keys[nid] in self._logs_by_key:
+                why.append("its run logged: " + " | ".join(self._logs_by_key[keys[nid]]))
             steps.append(Step(nid, type_id, keys[nid], status[nid], "; ".join(why)))
         return tuple(steps)
 
@@ -434,7 +448,13 @@ class Engine:
 
     def run(self, plan: Plan, cancel: E.CancelToken | None = None,
             on_event: Callable[[Any], None] | None = None) -> RunResult:
-        emit = on_event or _ignore
+        forward = on_event or _ignore
+        logs: dict[str, list[str]] = {}
+
+        def emit(ev):
+            if isinstance(ev, E.NodeLog):
+                logs.setdefault(ev.node_id, []).append(ev.message)
+            forward(ev)
         graph = plan.graph
         results: dict[str, dict[str, Any]] = {}
         timings: dict[str, float] = {}
@@ -494,6 +514,7 @@ class Engine:
                 stored = ("not cached: " + (f"file changed during the run ({', '.join(changed)})" if changed
                                             else "an input was computed from a file that changed during the run"))
                 emit(E.NodeLog(nid, stored))
+                _log.warning("node %r: %s", nid, stored)
             else:
                 stored = self._store(spec, key, value)
             emit(E.NodeFinished(nid, timings[nid], stored))
@@ -503,8 +524,15 @@ class Engine:
         if self.disk is not None and graph.file is not None:
             self.disk.save_record(_record_name(graph.file), {n: p.to_dict() for n, p in last.items()})
         values = {name: results[ref.node][ref.output] for name, ref in plan.outputs.items()}
+        for nid in ran:
+            if nid in logs:
+                self._logs_by_key[plan.keys[nid]] = logs[nid]
+                if len(self._logs_by_key) > 4096:      # bounded: drop the oldest
+                    self._logs_by_key.pop(next(iter(self._logs_by_key)))
+            else:
+                self._logs_by_key.pop(plan.keys[nid], None)
         emit(E.RunFinished(time.perf_counter() - t_run, len(ran), len(cached)))
-        return RunResult(values, timings, tuple(ran), tuple(cached), plan)
+        return RunResult(values, timings, tuple(ran), tuple(cached), plan, logs)
 
     def _last_run_parts(self, file: str | None) -> dict[str, KeyParts]:
         """Last-run key parts by node id for a graph file; read from the disk
@@ -565,9 +593,13 @@ class Engine:
         except InputError as exc:
             files = _files_upstream(plan, nid)
             where = f" (inputs from {files})" if files else ""
-            raise NodeInputError(nid, spec.type_id, str(exc).splitlines()[0] + where) from exc
+            raise NodeInputError(nid, spec.type_id,
+                                 (str(exc).splitlines() or [type(exc).__name__])[0] + where) from exc
+        except MemoryError as exc:  # sizes from the user's graph, too large for this machine
+            raise NodeInputError(nid, spec.type_id, "ran out of memory: its inputs or params ask for more "
+                                 "than this machine has") from exc
         except Exception as exc:
-            raise NodeError(nid, spec.type_id, f"failed: {type(exc).__name__}: {exc}".splitlines()[0]) from exc
+            raise NodeError(nid, spec.type_id, (f"failed: {type(exc).__name__}: {exc}".splitlines() or [""])[0]) from exc
         if not isinstance(out, dict):
             raise NodeError(nid, spec.type_id, f"compute returned {type(out).__name__}, expected a dict of outputs")
         names = [p.name for p in spec.outputs]

@@ -13,6 +13,11 @@ What a user brings, made with our own tools (make_assets.py's renderers):
 
 Deterministic. ``JUNCTION`` is where the wall meets the floor in the photo: the
 graph's ``bg_h.junction_points`` are the user's reading of it.
+
+    python graphs/assets/make_own_photo.py --doc-image
+
+also runs graphs/own_photo.yaml (as is, and placed further right, smaller and
+mirrored) and writes docs/img/own_photo.jpg, the picture of docs/own-photo.md.
 """
 from __future__ import annotations
 
@@ -48,5 +53,20 @@ def main() -> None:
         print(f"{name}: {p.stat().st_size / 1024:.0f} KB")
 
 
+def doc_image() -> None:
+    from pixgraph.session import Session
+
+    graph = HERE.parent / "own_photo.yaml"
+    s = Session(disk_cache=None)
+    a = s.run(graph)["final"]
+    b = s.run(graph, params={"place.foot": [420, 330], "place.scale": 0.6, "place.flip": True})["final"]
+    gap = np.ones((a.shape[0], 8, 3), np.float32)
+    out = HERE.parents[1] / "docs" / "img" / "own_photo.jpg"
+    write_image(out, np.ascontiguousarray(np.concatenate([a, gap, b], axis=1)[::2, ::2]))
+    print(f"{out.name}: {out.stat().st_size / 1024:.0f} KB")
+
+
 if __name__ == "__main__":
     main()
+    if "--doc-image" in sys.argv[1:]:
+        doc_image()

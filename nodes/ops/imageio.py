@@ -30,8 +30,9 @@ DEFAULT_MAX_PIXELS = 64 * 1024 * 1024
 
 
 class ImageFileError(InputError, OSError):
-    """An image file that cannot be read or is larger than allowed: bad input (exit 2),
-    and an ``OSError`` for callers that catch those."""
+    """An image file that cannot be read, is larger than allowed, or cannot be
+    written as asked (extension, bit depth, shape): bad input (exit 2). Also an
+    ``OSError`` and a ``ValueError`` for callers that catch those."""
 
 
 def max_pixels() -> int:
@@ -229,7 +230,7 @@ def _as_hwc(array: np.ndarray) -> np.ndarray:
     if array.ndim == 2:
         array = array[:, :, None]
     if array.ndim != 3 or not 1 <= array.shape[2] <= 4:
-        raise ValueError(f"expected an (H, W) or (H, W, C<=4) image, got shape {array.shape}")
+        raise ImageFileError(f"expected an (H, W) or (H, W, C<=4) image, got shape {array.shape}")
     return array
 
 
@@ -266,7 +267,7 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
     if ext == ".exr":
         bit_depth = 32 if bit_depth is None else bit_depth
         if bit_depth not in (16, 32):
-            raise ValueError(f"EXR bit_depth must be 16 or 32, got {bit_depth}")
+            raise ImageFileError(f"EXR bit_depth must be 16 or 32, got {bit_depth}")
         fmt = oiio.HALF if bit_depth == 16 else oiio.FLOAT
         spec = oiio.ImageSpec(w, h, c, fmt)
         spec.channelnames = tuple(names)
@@ -277,7 +278,7 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
         jpeg = ext in (".jpg", ".jpeg")
         bit_depth = 8 if bit_depth is None else bit_depth
         if bit_depth not in (8, 16) or (jpeg and bit_depth != 8):
-            raise ValueError(f"{ext} bit_depth must be 8{'' if jpeg else ' or 16'}, got {bit_depth}")
+            raise ImageFileError(f"{ext} bit_depth must be 8{'' if jpeg else ' or 16'}, got {bit_depth}")
         if jpeg and ai is not None:
             img = np.delete(img, ai, axis=2)
             c, ai = img.shape[2], None
@@ -297,7 +298,7 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
             spec.attribute("oiio:UnassociatedAlpha", 1)
         spec.attribute("oiio:ColorSpace", "sRGB")
     else:
-        raise ValueError(f"unsupported image extension {ext!r} for {path} (png, tif, jpg, exr)")
+        raise ImageFileError(f"unsupported image extension {ext!r} for {path} (png, tif, jpg, exr)")
     _write_atomic(oiio, path, spec, np.ascontiguousarray(pixels, dtype=np.float32))
     return path
 
@@ -406,7 +407,7 @@ def write_exr_channels(path: str | os.PathLike, channels: dict[str, np.ndarray],
         if arr.ndim != 2 or arr.shape != shape:
             raise ValueError(f"channel {name!r} has shape {arr.shape}, expected {shape} (H, W)")
     if bit_depth not in (16, 32):
-        raise ValueError(f"EXR bit_depth must be 16 or 32, got {bit_depth}")
+        raise ImageFileError(f"EXR bit_depth must be 16 or 32, got {bit_depth}")
     spec = oiio.ImageSpec(shape[1], shape[0], len(arrays), oiio.HALF if bit_depth == 16 else oiio.FLOAT)
     spec.channelnames = tuple(channels)
     _write_atomic(oiio, str(path), spec, np.ascontiguousarray(np.stack(arrays, axis=2)))

@@ -61,11 +61,16 @@ def _resample(planes: np.ndarray, wy: np.ndarray, wx: np.ndarray) -> np.ndarray:
 def _jumps(h: np.ndarray, inside: np.ndarray, jump: float) -> np.ndarray:
     """(h, w) float 1 where a pixel's 3x3 neighbourhood inside the object spans more
     than ``jump`` pixels of height (a depth discontinuity), else 0."""
-    from scipy.ndimage import maximum_filter, minimum_filter
-
-    hi = maximum_filter(np.where(inside, h, -np.inf), size=3)
-    lo = minimum_filter(np.where(inside, h, np.inf), size=3)
+    hi = _filter3(np.where(inside, h, -np.inf), np.max, -np.inf)
+    lo = _filter3(np.where(inside, h, np.inf), np.min, np.inf)
     return (inside & (hi - lo > jump)).astype(np.float32)
+
+
+def _filter3(a: np.ndarray, reduce, pad: float) -> np.ndarray:
+    """``reduce`` (np.max / np.min) over each pixel's 3x3 neighbourhood."""
+    p = np.pad(a, 1, constant_values=pad)
+    H, W = a.shape
+    return reduce(np.stack([p[dy:dy + H, dx:dx + W] for dy in range(3) for dx in range(3)]), axis=0)
 
 
 def resize_map(height: np.ndarray, shape: tuple[int, int], rel_tol: float = 0.02) -> np.ndarray:

@@ -174,14 +174,15 @@ def count_flops(model: SSN, size: int = RESOLUTION) -> int:
     return flops
 
 
-def stack_channels(buffers: dict[str, np.ndarray], channels: tuple[str, ...]) -> np.ndarray:
+def stack_channels(buffers: dict[str, np.ndarray], channels: tuple[str, ...],
+                   norm: float | None = None) -> np.ndarray:
     """Buffer channels (each float (H, W), pixel units) -> network input float32 (C, H, W).
 
-    Pixel-height-like channels are divided by the image height so that a
-    resized scene gives the same input; shadows are already in [0, 1]; the
-    background gradient is dimensionless and clipped to +-2.
+    Pixel-height-like channels are divided by ``norm`` pixels (default the
+    image height) so that a resized scene gives the same input; shadows are
+    already in [0, 1]; the background gradient is dimensionless and clipped to +-2.
     """
-    H = next(iter(buffers.values())).shape[0]
+    H = float(norm) if norm else next(iter(buffers.values())).shape[0]
     out = []
     for name in channels:
         x = np.nan_to_num(np.asarray(buffers[name], dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
@@ -280,22 +281,22 @@ def predict(model: SSN, buffers: dict[str, np.ndarray], softness: float,
         return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
 
 
-def softness_of(light, camera, mask: np.ndarray, fg_height: np.ndarray) -> float:
-    """The light's softness as the training data defines it: disk radius over the
-    distance from the light's centre to the object's centre (dimensionless).
+def run_network(model: SSN, buffers: dict[str, np.ndarray], softness: float,
+                norm: float | None = None, threads: int | None = None) -> np.ndarray:
+    """Darkness (H, W) float32 in [0, 1] with the network run at the buffers' own
+    size (no resizing: H and W must be multiples of ``2**levels``); pixel-unit
+    channels are divided by ``norm`` px (see ``stack_channels``). ``ssn_crop``
+    runs it on a window at the trained scale, where ``norm = RESOLUTION``.
+    threads: torch intra-op threads (default :func:`inference_threads`)."""
+    x = torch.from_numpy(stack_channels(buffers, model.config.channels, norm))[None]
+    m = 2 ** model.config.levels
+    if x.shape[-2] % m or x.shape[-1] % m:
+        raise ValueError(f"run_network needs sides divisible by {m}, got {tuple(x.shape[-2:])}")
+    with torch_threads(threads or inference_threads()), torch.inference_mode():
+        y = model(x.contiguous(memory_format=torch.channels_last), torch.tensor([float(softness)]))
+        return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
 
-    The object's centre is the mean of the cutout's reconstructed 3D points
-    (``camera.back_project``); a directional light's softness is the tangent of
-    its angular radius. Point lights have softness 0.
-    """
-    if light.kind == "directional":
-        return float(np.tan(light.angular_radius))
-    if light.radius <= 0.0:
-        return 0.0
-    inside = np.asarray(mask) > 0.5
-    u, v = camera.pixel_grid()
-    P, valid = camera.back_project(u[inside], v[inside], np.asarray(fg_height, np.float64)[inside])
-    if not valid.any():
-        raise ValueError("the cutout has no pixel below the horizon: cannot place it in 3D")
-    centre = P[valid].mean(axis=0)
-    return float(light.radius / max(np.linalg.norm(np.asarray(light.position) - centre), 1e-9))
+
+# the definition lives in a torch-free module (pixgraph.Shadow's method choice needs
+# it without SSN++); re-exported here, where the training code and the node read it
+from .softness import softness_of  # noqa: E402,F401

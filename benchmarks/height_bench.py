@@ -1,0 +1,80 @@
+"""Learned cutout pixel-height inference time at 256^2 on this machine (goal: <= 60 ms).
+
+    python benchmarks/height_bench.py [--weights nodes/weights/cutout_height.pt] [--threads N] [--runs 31]
+
+Times, median (and min) over ``--runs`` after warm-up, on a 256 x 256 RGBA
+cutout (a shaded upright figure-like shape drawn procedurally, filling about
+half the image): the whole ``LearnedHeightPredictor.predict`` (crop, resize,
+the contact-line channel, the network, paste back) and the network alone; and
+the contact-line heuristic for comparison. Nothing here is asserted by the tests.
+"""
+from __future__ import annotations
+
+import argparse
+import pathlib
+import statistics
+import sys
+import time
+
+import numpy as np
+
+from _machine import cpu_model
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def test_cutout(size: int = 256) -> np.ndarray:
+    """A premultiplied RGBA (size, size, 4): an ellipse body on two legs, shaded."""
+    v, u = np.mgrid[0:size, 0:size] + 0.5
+    s = size / 256
+    body = ((u - 128 * s) / (40 * s)) ** 2 + ((v - 100 * s) / (60 * s)) ** 2 < 1
+    legs = ((np.abs(u - 112 * s) < 8 * s) | (np.abs(u - 144 * s) < 8 * s)) & (v > 140 * s) & (v < 220 * s)
+    a = (body | legs).astype(np.float32)
+    shade = 0.3 + 0.6 * np.clip((u - 80 * s) / (100 * s), 0, 1)
+    rgb = np.stack([0.8 * shade, 0.4 * shade, 0.3 * shade], -1) * a[..., None]
+    return np.concatenate([rgb, a[..., None]], -1).astype(np.float32)
+
+
+def timed(fn, runs: int) -> tuple[float, float]:
+    fn(); fn()
+    ts = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        fn()
+        ts.append(1e3 * (time.perf_counter() - t0))
+    return statistics.median(ts), min(ts)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--weights", default=str(ROOT / "nodes" / "weights" / "cutout_height.pt"))
+    ap.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
+    ap.add_argument("--runs", type=int, default=31)
+    ap.add_argument("--size", type=int, default=256)
+    a = ap.parse_args(argv)
+    import torch
+    if a.threads:
+        torch.set_num_threads(a.threads)
+    sys.path.insert(0, str(ROOT))
+    from pixgraph_nodes.ops.heightmaps import contact_line_height
+    from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, prepare, straight_srgb
+    pred = LearnedHeightPredictor(a.weights)
+    rgba = test_cutout(a.size)
+    colour, alpha = straight_srgb(rgba)
+    x, _, _ = prepare(colour, alpha, pred.size)
+    n_params = sum(p.numel() for p in pred.model.parameters())
+    whole = timed(lambda: pred.predict(rgba), a.runs)
+    net = timed(lambda: pred.predict_normalised(x[None]), a.runs)
+    heur = timed(lambda: contact_line_height(rgba[..., 3]), a.runs)
+    print(f"machine: {cpu_model()}, torch {torch.__version__}, {torch.get_num_threads()} threads")
+    print(f"model: {a.weights} ({n_params} parameters, runs at {pred.size}^2)")
+    print(f"input {a.size}x{a.size}, median (min) of {a.runs} runs:")
+    print(f"  learned predict, whole   {whole[0]:7.1f} ms ({whole[1]:.1f})")
+    print(f"  network alone            {net[0]:7.1f} ms ({net[1]:.1f})")
+    print(f"  contact-line heuristic   {heur[0]:7.1f} ms ({heur[1]:.1f})")
+    print(f"goal <= 60 ms: {'met' if whole[0] <= 60 else 'missed'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,1 @@
+"""Learned cutout pixel-height predictor: data generator, training and evaluation."""

@@ -1,0 +1,223 @@
+"""A learned cutout pixel-height predictor: cutout colour + alpha -> pixel height.
+
+The network (a small U-Net, ``build_model``) never sees the image at its own
+size. ``prepare`` crops a square around the cutout's bounding box (side
+``(1 + 2 MARGIN)`` x the box's longer side, zero outside the image), resizes it
+to ``size`` x ``size`` (bilinear, antialiased) and makes six channels:
+
+* colour: sRGB-encoded straight colour x alpha (3; the cutout on black),
+* alpha (1),
+* the contact-line heuristic's height (``heightmaps.contact_line_height``,
+  computed at the input's size) divided by the box height ``bh`` [px] (1),
+* the row coordinate ``(v_bottom - v) / bh`` with ``v_bottom`` the box's bottom
+  edge (1: "how far above the lowest pixel").
+
+The target and the output are the pixel height divided by ``bh``. Dividing by
+``bh`` makes the target independent of image size and object size: the same
+object photographed at twice the resolution has twice the pixel height and
+twice the box height. ``predict`` multiplies back by ``bh`` and pastes the map
+into the input's frame (normalised convolution with the cutout's mask so the
+zeros outside the object never bleed into edge pixels).
+
+torch is imported only inside the functions that need it, so importing this
+module (and the node that uses it) works without torch.
+"""
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+
+import numpy as np
+
+from .heightmaps import contact_line_height
+
+MARGIN = 0.1          # crop margin on each side, fraction of the box's longer side
+IN_CHANNELS = 6
+WEIGHTS = pathlib.Path(__file__).resolve().parent.parent / "weights" / "cutout_height.pt"
+
+
+def srgb_encode(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def straight_srgb(rgba: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(straight sRGB colour in [0, 1], alpha) of a linear premultiplied RGBA (H, W, 4)."""
+    rgba = np.asarray(rgba, np.float32)
+    a = np.clip(rgba[..., 3], 0.0, 1.0)
+    rgb = rgba[..., :3] / np.maximum(a, 1e-6)[..., None]
+    return srgb_encode(np.where(a[..., None] > 0, rgb, 0.0)).astype(np.float32), a
+
+
+def crop_box(mask: np.ndarray):
+    """Bounding box of ``mask`` and the square crop around it.
+
+    Returns ``(r0, r1, c0, c1, top, left, side)`` in pixels (rows r0..r1-1 and
+    columns c0..c1-1 hold the mask; the crop is rows top..top+side-1) or None
+    for an empty mask."""
+    rows, cols = np.nonzero(mask)
+    if len(rows) == 0:
+        return None
+    r0, r1, c0, c1 = int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1
+    side = int(math.ceil(max(r1 - r0, c1 - c0) * (1 + 2 * MARGIN))) + 2
+    top = int(round((r0 + r1) / 2 - side / 2))
+    left = int(round((c0 + c1) / 2 - side / 2))
+    return r0, r1, c0, c1, top, left, side
+
+
+def _crop(a: np.ndarray, top: int, left: int, side: int) -> np.ndarray:
+    """a[top:top+side, left:left+side] with zeros outside a."""
+    H, W = a.shape[:2]
+    out = np.zeros((side, side) + a.shape[2:], a.dtype)
+    y0, x0 = max(top, 0), max(left, 0)
+    y1, x1 = min(top + side, H), min(left + side, W)
+    if y1 > y0 and x1 > x0:
+        out[y0 - top:y1 - top, x0 - left:x1 - left] = a[y0:y1, x0:x1]
+    return out
+
+
+def _resize(a: np.ndarray, size: int) -> np.ndarray:
+    """(C, h, w) float32 -> (C, size, size), bilinear, antialiased when shrinking."""
+    import torch
+    import torch.nn.functional as F
+    t = torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]
+    return F.interpolate(t, size=(size, size), mode="bilinear", align_corners=False,
+                         antialias=True)[0].numpy()
+
+
+def prepare(colour: np.ndarray, alpha: np.ndarray, size: int, threshold: float = 0.5,
+            height: np.ndarray | None = None):
+    """Network input (6, size, size) float32 and the crop (see module doc).
+
+    colour: (H, W, 3) straight sRGB in [0, 1]; alpha: (H, W) coverage;
+    height: optional true pixel height (H, W) [px], for training: then also
+    returns the target ``height / bh`` and its weight (the resized mask), each
+    (size, size). Returns ``(x, box, bh)`` or ``(x, box, bh, target, weight)``;
+    ``box`` is None (and x zeros) for an empty mask.
+    """
+    alpha = np.clip(np.asarray(alpha, np.float32), 0, 1)
+    mask = alpha > threshold
+    box = crop_box(mask)
+    if box is None:
+        x = np.zeros((IN_CHANNELS, size, size), np.float32)
+        z = np.zeros((size, size), np.float32)
+        return (x, None, 0.0) if height is None else (x, None, 0.0, z, z)
+    r0, r1, c0, c1, top, left, side = box
+    bh = float(r1 - r0)
+    heur = contact_line_height(mask) / bh
+    v = (np.arange(alpha.shape[0], dtype=np.float32) + 0.5)[:, None]
+    row = np.broadcast_to((r1 - v) / bh, alpha.shape)
+    col = np.asarray(colour, np.float32) * alpha[..., None]
+    stack = [col[..., 0], col[..., 1], col[..., 2], alpha, heur, row]
+    if height is not None:
+        m = mask.astype(np.float32)
+        stack += [np.asarray(height, np.float32) * m / bh, m]
+    full = np.stack([_crop(np.asarray(s, np.float32), top, left, side) for s in stack])
+    # outside the image the row channel keeps its ramp (not zero)
+    vv = (np.arange(top, top + side, dtype=np.float32) + 0.5)[:, None]
+    full[5] = np.broadcast_to((r1 - vv) / bh, (side, side))
+    small = _resize(full, size)
+    x = small[:IN_CHANNELS]
+    if height is None:
+        return x, box, bh
+    w = small[IN_CHANNELS + 1]
+    target = small[IN_CHANNELS] / np.maximum(w, 1e-6)
+    return x, box, bh, np.where(w > 1e-3, target, 0.0).astype(np.float32), w
+
+
+def paste(pred: np.ndarray, box, bh: float, mask: np.ndarray) -> np.ndarray:
+    """Map the network's output (size, size) (height / bh) back to the input frame:
+    (H, W) pixel height [px], 0 outside ``mask``. Normalised convolution: the
+    output and the crop's mask are resized separately and divided."""
+    H, W = mask.shape
+    out = np.zeros((H, W), np.float32)
+    if box is None:
+        return out
+    r0, r1, c0, c1, top, left, side = box
+    import torch
+    import torch.nn.functional as F
+    m_small = _resize(_crop(mask.astype(np.float32), top, left, side)[None], pred.shape[0])[0]
+    t = torch.from_numpy(np.stack([pred * m_small, m_small]).astype(np.float32))[None]
+    big = F.interpolate(t, size=(side, side), mode="bilinear", align_corners=False)[0].numpy()
+    val = big[0] / np.maximum(big[1], 1e-6)
+    val = np.where(big[1] > 1e-6, val, 0.0)
+    y0, x0 = max(top, 0), max(left, 0)
+    y1, x1 = min(top + side, H), min(left + side, W)
+    out[y0:y1, x0:x1] = val[y0 - top:y1 - top, x0 - left:x1 - left]
+    return np.where(mask, np.maximum(out, 0.0) * bh, 0.0).astype(np.float32)
+
+
+def build_model(base: int = 8, levels: int = 4):
+    """The U-Net: per level two conv3x3-BatchNorm-ReLU, max-pool down, bilinear up
+    + skip concat; 6 input channels, 1 output (height / bh), added to the
+    heuristic's channel (the network learns the correction)."""
+    import torch
+    from torch import nn
+    import torch.nn.functional as F
+
+    def block(cin, cout):
+        return nn.Sequential(nn.Conv2d(cin, cout, 3, padding=1, bias=False), nn.BatchNorm2d(cout),
+                             nn.ReLU(inplace=True),
+                             nn.Conv2d(cout, cout, 3, padding=1, bias=False), nn.BatchNorm2d(cout),
+                             nn.ReLU(inplace=True))
+
+    class UNet(nn.Module):
+        def __init__(self):
+            super().__init__()
+            ch = [base * 2 ** k for k in range(levels + 1)]
+            self.down = nn.ModuleList([block(IN_CHANNELS, ch[0])] +
+                                      [block(ch[k - 1], ch[k]) for k in range(1, levels + 1)])
+            self.up = nn.ModuleList([block(ch[k + 1] + ch[k], ch[k]) for k in range(levels)])
+            self.head = nn.Conv2d(ch[0], 1, 1)
+
+        def forward(self, x):
+            heur = x[:, 4]
+            skips = []
+            for k, d in enumerate(self.down):
+                x = d(x if k == 0 else F.max_pool2d(x, 2))
+                skips.append(x)
+            x = skips.pop()
+            for k in reversed(range(levels)):
+                x = F.interpolate(x, scale_factor=2, mode="bilinear", align_corners=False)
+                x = self.up[k](torch.cat([x, skips.pop()], 1))
+            # a residual over the heuristic channel: right from the start for upright objects
+            return self.head(x)[:, 0] + heur
+
+    return UNet()
+
+
+class LearnedHeightPredictor:
+    """``HeightPredictor`` from a trained checkpoint (``predict(rgba)`` -> (H, W) px).
+
+    rgba: float32 (H, W, 4) linear premultiplied colour + alpha, any size.
+    """
+
+    def __init__(self, path: str | pathlib.Path = WEIGHTS, threads: int | None = None):
+        import torch
+        ck = torch.load(path, map_location="cpu", weights_only=True)
+        cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else ck["config"]
+        self.size = int(cfg["size"])
+        self.model = build_model(int(cfg["base"]), int(cfg["levels"]))
+        self.model.load_state_dict({k: v.float() for k, v in ck["model"].items()})
+        self.model.eval()
+        self.device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        self.model.to(self.device)
+        self.config = cfg
+        if threads:
+            torch.set_num_threads(threads)
+
+    def predict_normalised(self, x: np.ndarray) -> np.ndarray:
+        """(N, 6, S, S) inputs -> (N, S, S) height / bh."""
+        import torch
+        with torch.inference_mode():
+            return self.model(torch.from_numpy(x).to(self.device)).float().cpu().numpy()
+
+    def predict(self, rgba: np.ndarray, threshold: float = 0.5) -> np.ndarray:
+        rgba = np.asarray(rgba, np.float32)
+        colour, alpha = straight_srgb(rgba)
+        x, box, bh = prepare(colour, alpha, self.size, threshold)
+        if box is None:
+            return np.zeros(alpha.shape, np.float32)
+        pred = self.predict_normalised(x[None])[0]
+        return paste(pred, box, bh, alpha > threshold)

@@ -1,0 +1,153 @@
+"""The learned cutout pixel-height predictor (method 'learned' of pixgraph.CutoutHeight):
+shipped weights on held-out cutouts, size invariance, the no-torch fallback."""
+import json
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from pixgraph.node import InputError, Namespace
+from pixgraph_nodes import cutout_height as ch
+from pixgraph_nodes.cutout_height import CutoutHeight
+from pixgraph_nodes.ops.heightmaps import contact_line_height
+
+torch = pytest.importorskip("torch")
+from pixgraph_nodes.ops import learned_height as lh  # noqa: E402
+
+DATA = pathlib.Path(__file__).parent / "fixtures" / "height_heldout.npz"
+
+
+class Ctx:
+    device = None
+    graph_dir = None
+
+    def __init__(self):
+        self.logs = []
+
+    def log(self, message):
+        self.logs.append(message)
+
+    def progress(self, *a):
+        pass
+
+    def check_cancelled(self):
+        pass
+
+
+def params(**over):
+    return Namespace(CutoutHeight.spec.coerce_params(over))
+
+
+def srgb_decode(x):
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+
+
+def heldout():
+    """The committed held-out cutouts (lab/height/fixture.py: test-split objects,
+    first two of each pose, cropped and halved)."""
+    z = np.load(DATA)
+    out = []
+    for k in sorted(f for f in z.files if f.endswith("_meta")):
+        s = k[:-5]
+        a = z[s + "_alpha"].astype(np.float32) / 255
+        rgb = srgb_decode(z[s + "_rgb"].astype(np.float32) / 255)
+        out.append({"image": (rgb * a[..., None]).astype(np.float32), "alpha": a.astype(np.float32),
+                    "mask": z[s + "_mask"], "height": z[s + "_height"].astype(np.float32),
+                    "meta": json.loads(str(z[k]))})
+    return out
+
+
+def run_node(image, alpha, method="learned", ctx=None):
+    ctx = ctx or Ctx()
+    return CutoutHeight().compute(ctx, Namespace({"mask": alpha, "image": image}), params(method=method))["height"]
+
+
+def test_shipped_weights_beat_the_contact_line_on_heldout_cutouts():
+    samples = heldout()
+    assert len(samples) == 8
+    learned, heur = [], []
+    for s in samples:
+        m = s["mask"]
+        h_l = run_node(s["image"], s["alpha"])
+        h_h = contact_line_height(s["alpha"])
+        assert h_l.shape == s["alpha"].shape and h_l.dtype == np.float32
+        assert np.all(h_l[s["alpha"] <= 0.5] == 0)
+        learned.append(np.abs(h_l[m] - s["height"][m]).mean())
+        heur.append(np.abs(h_h[m] - s["height"][m]).mean())
+    learned, heur = np.array(learned), np.array(heur)
+    # on these objects (never seen in training) the network must be clearly better
+    # than the heuristic on average, and a sane fraction of their heights
+    assert learned.mean() < 0.75 * heur.mean(), (learned, heur)
+    tall = np.array([s["height"][s["mask"]].max() for s in samples])
+    assert np.mean(learned / tall) < 0.2, learned / tall
+
+
+def test_heights_scale_with_the_input_size():
+    s = heldout()[0]
+    h1 = run_node(s["image"], s["alpha"])
+    # the same cutout at twice the size (each pixel repeated 2x2): heights double
+    big = lambda a: np.repeat(np.repeat(a, 2, axis=0), 2, axis=1)  # noqa: E731
+    h2 = run_node(big(s["image"]), big(s["alpha"]))
+    assert h2.shape == (2 * h1.shape[0], 2 * h1.shape[1])
+    m = s["mask"]
+    assert h2[big(m)].sum() / big(h1)[big(m)].sum() == pytest.approx(2.0, rel=0.05)
+    # and a 3x larger canvas with the cutout somewhere in it: same heights (position-free)
+    H, W = s["alpha"].shape
+    canvas_a = np.zeros((3 * H, 3 * W), np.float32)
+    canvas_i = np.zeros((3 * H, 3 * W, 3), np.float32)
+    canvas_a[H:2 * H, 2 * W:3 * W] = s["alpha"]
+    canvas_i[H:2 * H, 2 * W:3 * W] = s["image"]
+    h3 = run_node(canvas_i, canvas_a)
+    np.testing.assert_allclose(h3[H:2 * H, 2 * W:3 * W], h1, atol=0.02 * h1.max())
+    assert np.all(h3[:H] == 0)
+
+
+def test_upright_box_is_close_to_its_contact_line():
+    # an upright box seen face-on: every pixel's height is its distance to the bottom
+    # edge (analytic); the learned model must agree within a few percent of its height
+    a = np.zeros((200, 160), np.float32)
+    a[40:170, 50:110] = 1.0
+    v = np.arange(200, dtype=np.float32)[:, None] + 0.5
+    true = np.where(a > 0, 170 - v, 0)
+    u = np.arange(160)[None, :] / 160.0
+    img = np.stack([0.6 * a * (0.5 + 0.5 * u), 0.3 * a, 0.2 * a], -1).astype(np.float32)
+    h = run_node(img, a)
+    err = np.abs(h - true)[a > 0].mean()
+    assert err < 0.06 * 130, err
+
+
+def test_learned_needs_the_image_and_matching_sizes():
+    a = np.zeros((40, 30), np.float32)
+    a[10:30, 10:20] = 1
+    with pytest.raises(InputError, match="image"):
+        CutoutHeight().compute(Ctx(), Namespace({"mask": a, "image": None}), params(method="learned"))
+    with pytest.raises(InputError, match="same size"):
+        run_node(np.zeros((41, 30, 3), np.float32), a)
+    assert np.all(run_node(np.zeros((40, 30, 3), np.float32), np.zeros((40, 30), np.float32)) == 0)
+
+
+def test_without_torch_learned_falls_back_to_the_contact_line(monkeypatch):
+    a = np.zeros((60, 40), np.float32)
+    a[10:50, 5:30] = 1
+    monkeypatch.setitem(sys.modules, "torch", None)          # `import torch` raises ImportError
+    ctx = Ctx()
+    h = run_node(np.ones((60, 40, 3), np.float32), a, ctx=ctx)
+    np.testing.assert_array_equal(h, contact_line_height(a))
+    assert ctx.logs == [ch.NO_TORCH] and "torch" in ctx.logs[0] and "contact-line" in ctx.logs[0]
+
+
+def test_importing_the_node_does_not_import_torch():
+    code = ("import sys; import pixgraph_nodes.cutout_height, pixgraph_nodes.ops.learned_height; "
+            "print('torch' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_shipped_weights_are_small_and_documented():
+    w = pathlib.Path(lh.WEIGHTS)
+    assert w.stat().st_size < 5e6
+    prov = json.loads(w.with_suffix(".json").read_text())
+    for k in ("command", "seed", "data", "steps", "seconds", "best_val_mae_px"):
+        assert k in prov, k
