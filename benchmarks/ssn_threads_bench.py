@@ -5,9 +5,9 @@
 Torch and PoCL share the cores with each other and with whatever else runs
 (the host application, other workers). This measures the SoftShadowSSN node's
 work on the ssn_wall_corner.yaml example scene (512x512): ``network``, the
-SSN++ inference alone (``ssn.predict``, resize to 256^2 and back included), and
-``node``, the buffer channels on the OpenCL device followed by the inference,
-as the node runs them.
+SSN++ inference alone on the whole image (``ssn.predict``, resize to 256^2 and
+back included), and ``node``, what the node runs (``ssn_crop.render``: the
+buffer channels of the object's window on the OpenCL device, then the network).
 
 Thread settings compared, side by side in the same rounds:
   torch default  torch's own intra-op thread count (one per core): what
@@ -93,7 +93,7 @@ def main(argv=None) -> int:
     import torch
 
     from pixgraph.device import Device
-    from pixgraph_nodes.ops import ssn
+    from pixgraph_nodes.ops import ssn, ssn_crop
     from pixgraph_nodes.ops.buffers import buffer_channels
     from pixgraph_nodes.ops.lights import disk_extremes, light_point
     from pixgraph_nodes.ssn_soft_shadow import load_shipped
@@ -116,8 +116,8 @@ def main(argv=None) -> int:
     cases = {}
     for label, n in settings.items():
         cases[f"network, {label}"] = lambda n=n: ssn.predict(model, buffers, softness, n)
-        cases[f"node, {label}"] = lambda n=n: ssn.predict(model, buffer_channels(dev, mask, fg, bg, lp, le),
-                                                          softness, n)
+        cases[f"node, {label}"] = lambda n=n: ssn_crop.render(dev, model, mask, fg, bg, lp, le, softness,
+                                                              threads=n)
 
     print(f"\n{a.busy} busy processes in the loaded rounds; load average before {os.getloadavg()}")
     procs = busy(a.busy)
