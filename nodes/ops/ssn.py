@@ -222,8 +222,8 @@ def inference_threads() -> int:
     PoCL's workers and any busy neighbour for the cores: its threads meet at a
     barrier after every layer, so one preempted thread stalls them all.
     Measured on a shared 2-core machine (benchmarks/ssn_threads_bench.py, 512^2
-    scene, medians): inference with 1 thread 139 ms, 223 ms next to a busy
-    process (1.6x); with torch's default 2 threads 779 ms and 2071 ms
+    scene, medians): inference with 1 thread 158 ms, 269 ms next to a busy
+    process (1.7x); with torch's default 2 threads 1869 ms and 1996 ms
     (docs/ssn.md has the table).
     """
     raw = os.environ.get(THREADS_ENV, "").strip()
