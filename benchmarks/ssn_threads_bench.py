@@ -5,9 +5,9 @@
 Torch and PoCL share the cores with each other and with whatever else runs
 (the host application, other workers). This measures the SoftShadowSSN node's
 work on the ssn_wall_corner.yaml example scene (512x512): ``network``, the
-SSN++ inference alone (``ssn.predict``, resize to 256^2 and back included), and
-``node``, the buffer channels on the OpenCL device followed by the inference,
-as the node runs them.
+SSN++ inference alone on the whole image (``ssn.predict``, resize to 256^2 and
+back included), and ``node``, what the node runs (``ssn_crop.render``: the
+buffer channels of the object's window on the OpenCL device, then the network).
 
 Thread settings compared, side by side in the same rounds:
   torch default  torch's own intra-op thread count (one per core): what
@@ -16,12 +16,14 @@ Thread settings compared, side by side in the same rounds:
                  its default (the "after");
   N threads      each ``--threads N``.
 
-Two phases: ``idle`` (nothing of ours running besides this process), then
-``loaded`` with ``--busy`` processes spinning a pure-Python loop each (a busy
-neighbour). In each phase the settings take turns round by round, so a slow
-spell of the machine hits all of them. Reports the median ms of ``--runs``
-rounds after a warm-up, and loaded/idle. The machine is printed; on a shared
-machine "idle" carries the other users' load (the load average is printed).
+Two conditions: ``idle`` (nothing of ours running besides this process) and
+``loaded``: ``--busy`` processes spinning a pure-Python loop each (a busy
+neighbour). The busy processes are started once and paused (SIGSTOP) or resumed
+(SIGCONT), so idle and loaded rounds alternate and a change in the machine's
+other load hits both alike; within a round the settings take turns. Reports
+the median ms of ``--runs`` rounds of each condition after a warm-up, and
+loaded/idle. The machine is printed; on a shared machine "idle" carries the
+other users' load (the load average is printed).
 
 Nothing here is asserted by the tests.
 """
@@ -30,6 +32,7 @@ from __future__ import annotations
 import argparse
 import os
 import pathlib
+import signal
 import statistics
 import subprocess
 import sys
@@ -53,21 +56,30 @@ def scene():
 
 
 def busy(n: int) -> list[subprocess.Popen]:
-    """``n`` processes spinning on a core each, until killed."""
+    """``n`` processes spinning on a core each, until killed (started paused)."""
     procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
-    time.sleep(1.0)   # let them reach the scheduler's steady state
+    set_busy(procs, False)
     return procs
 
 
-def measure(cases: dict, runs: int) -> dict[str, list[float]]:
+def set_busy(procs, on: bool) -> None:
+    for p in procs:
+        p.send_signal(signal.SIGCONT if on else signal.SIGSTOP)
+    time.sleep(0.3)   # let the scheduler settle
+
+
+def measure(cases: dict, runs: int, procs) -> dict[str, dict[str, list[float]]]:
     for fn in cases.values():      # warm-up: thread pools started, caches filled
         fn()
-    times = {name: [] for name in cases}
+    times = {cond: {name: [] for name in cases} for cond in ("idle", "loaded")}
     for _ in range(runs):
-        for name, fn in cases.items():
-            t = time.perf_counter()
-            fn()
-            times[name].append((time.perf_counter() - t) * 1e3)
+        for cond in ("idle", "loaded"):
+            set_busy(procs, cond == "loaded")
+            for name, fn in cases.items():
+                t = time.perf_counter()
+                fn()
+                times[cond][name].append((time.perf_counter() - t) * 1e3)
+    set_busy(procs, False)
     return times
 
 
@@ -81,7 +93,7 @@ def main(argv=None) -> int:
     import torch
 
     from pixgraph.device import Device
-    from pixgraph_nodes.ops import ssn
+    from pixgraph_nodes.ops import ssn, ssn_crop
     from pixgraph_nodes.ops.buffers import buffer_channels
     from pixgraph_nodes.ops.lights import disk_extremes, light_point
     from pixgraph_nodes.ssn_soft_shadow import load_shipped
@@ -104,19 +116,19 @@ def main(argv=None) -> int:
     cases = {}
     for label, n in settings.items():
         cases[f"network, {label}"] = lambda n=n: ssn.predict(model, buffers, softness, n)
-        cases[f"node, {label}"] = lambda n=n: ssn.predict(model, buffer_channels(dev, mask, fg, bg, lp, le),
-                                                          softness, n)
+        cases[f"node, {label}"] = lambda n=n: ssn_crop.render(dev, model, mask, fg, bg, lp, le, softness,
+                                                              threads=n)
 
-    print(f"\nidle phase (load average {os.getloadavg()[0]:.2f})")
-    idle = measure(cases, a.runs)
+    print(f"\n{a.busy} busy processes in the loaded rounds; load average before {os.getloadavg()}")
     procs = busy(a.busy)
     try:
-        print(f"loaded phase: {a.busy} busy processes (load average {os.getloadavg()[0]:.2f})")
-        loaded = measure(cases, a.runs)
+        times = measure(cases, a.runs, procs)
     finally:
         for p in procs:
             p.kill()
             p.wait()
+    idle, loaded = times["idle"], times["loaded"]
+    print(f"load average after {os.getloadavg()}")
     print(f"\n{'512x512, median of ' + str(a.runs):42s} {'idle ms':>9s} {'loaded ms':>10s} {'loaded/idle':>12s}")
     for name in cases:
         i, lo = statistics.median(idle[name]), statistics.median(loaded[name])

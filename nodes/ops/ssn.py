@@ -222,8 +222,9 @@ def inference_threads() -> int:
     PoCL's workers and any busy neighbour for the cores: its threads meet at a
     barrier after every layer, so one preempted thread stalls them all.
     Measured on a shared 2-core machine (benchmarks/ssn_threads_bench.py, 512^2
-    scene, medians): inference with 1 thread 93 ms, 155 ms next to 2 busy
-    processes (1.7x); with torch's default 2 threads 686 ms and 858 ms.
+    scene, medians): inference with 1 thread 158 ms, 269 ms next to a busy
+    process (1.7x); with torch's default 2 threads 1869 ms and 1996 ms
+    (docs/ssn.md has the table).
     """
     raw = os.environ.get(THREADS_ENV, "").strip()
     if raw:
