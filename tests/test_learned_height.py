@@ -151,3 +151,14 @@ def test_shipped_weights_are_small_and_documented():
     prov = json.loads(w.with_suffix(".json").read_text())
     for k in ("command", "seed", "data", "steps", "seconds", "best_val_mae_px"):
         assert k in prov, k
+
+
+def test_docs_height_python_example_runs(capsys):
+    import re
+    text = (pathlib.Path(__file__).parents[1] / "docs" / "height.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    assert len(blocks) == 1
+    exec(compile(blocks[0], "height.md block 0", "exec"), {})
+    out = capsys.readouterr().out
+    top = float(re.search(r"top row: ([0-9.]+) px", out).group(1))
+    assert abs(top - 79.5) < 8, out            # an upright box: the contact line is exact
