@@ -1,7 +1,18 @@
-"""Input checks shared by the built-in nodes (not a node module: its name starts with _)."""
+"""Input checks shared by the built-in nodes (not a node module: its name starts with _).
+
+Every OpenCL node calls these before it launches anything: its kernels index
+every buffer with one width and height, so sizes that do not fit would be read
+outside a buffer, and impossible values would come back as NaN. Both are the
+user's data, so both are ``InputError`` (exit 2) naming the input.
+"""
 from __future__ import annotations
 
+import os
+
+import numpy as np
+
 from pixgraph.node import InputError
+from pixgraph.types import Shape
 
 
 def same_size(camera=None, **arrays) -> tuple[int, int]:
@@ -18,3 +29,83 @@ def same_size(camera=None, **arrays) -> tuple[int, int]:
         listing = ", ".join(f"{n} {w}x{h}" for n, (h, w) in sizes.items())
         raise InputError(f"inputs must have the same size (width x height): {listing}")
     return next(iter(distinct)) if distinct else (0, 0)
+
+
+def source(path: str, node_id: str) -> str:
+    """``"'cutout.png' (node 'cutout')"``: a file as errors name it (relative to the
+    current folder when inside it)."""
+    rel = os.path.relpath(path)
+    return f"{path if rel.startswith('..') else rel!r} (node {node_id!r})"
+
+
+def file_shape(path: str, node_id: str) -> Shape:
+    """The ``Shape`` of an image or ``.npy`` file from its header; an unreadable file
+    is an ``InputError`` naming it."""
+    from .ops.imageio import read_header
+
+    try:
+        h, w, c = read_header(path)
+    except (OSError, ValueError) as e:
+        raise InputError(f"cannot read {source(path, node_id)}: {str(e).splitlines()[0]}") from None
+    return Shape(h, w, c, source(path, node_id))
+
+
+def rgba(**images) -> None:
+    """Raise ``InputError`` unless each named image has 4 channels (colour + alpha)."""
+    for name, a in images.items():
+        if a is not None and (a.ndim != 3 or a.shape[2] != 4):
+            got = "1 channel" if a.ndim == 2 else f"{a.shape[2]} channels"
+            raise InputError(f"input {name!r} must be RGBA (4 channels, its alpha is the coverage), got {got}")
+
+
+def finite(**arrays) -> None:
+    """Raise ``InputError`` naming the first array that holds NaN or inf (colours,
+    masks, layers: a NaN pixel would spread through every effect to the output)."""
+    for name, a in arrays.items():
+        if a is None:
+            continue
+        bad = ~np.isfinite(np.asarray(a))
+        n = int(np.count_nonzero(bad))
+        if n:
+            i, j = np.unravel_index(int(np.argmax(bad.reshape(bad.shape[0], bad.shape[1], -1).any(-1))),
+                                    bad.shape[:2])
+            raise InputError(f"input {name!r}: {n} value(s) NaN or infinite (first at pixel u={j}, v={i})")
+
+
+def pixel_heights(where=None, **maps) -> None:
+    """Raise ``InputError`` unless every named pixel-height map is finite and >= 0.
+
+    A pixel height is a distance in pixels from a point to its foot on the
+    ground: NaN, infinite or negative values (a point below the ground) are
+    impossible and would make the tracers' results meaningless. ``where``: a
+    boolean (H, W) of the pixels that matter (e.g. the cutout's mask: its height
+    map is unused outside it); default all.
+    """
+    for name, h in maps.items():
+        if h is None:
+            continue
+        h = np.asarray(h)
+        finite = np.isfinite(h)
+        bad = ~finite | (np.where(finite, h, 0.0) < 0.0)
+        if where is not None:
+            bad &= where
+        n = int(np.count_nonzero(bad))
+        if n:
+            i, j = np.unravel_index(int(np.argmax(bad)), bad.shape)
+            kind = "NaN" if np.isnan(h[i, j]) else ("infinite" if not np.isfinite(h[i, j]) else "negative")
+            raise InputError(f"input {name!r}: {n} pixel height(s) not finite or negative (first: {kind} "
+                             f"at pixel u={j}, v={i}); pixel heights must be finite and >= 0 pixels")
+
+
+def inside(mask) -> np.ndarray:
+    """The pixels a mask covers (> 0.5), as the tracers decide."""
+    return np.asarray(mask) > 0.5
+
+
+def finite_outputs(**arrays) -> None:
+    """Raise ``RuntimeError`` (a bug in the node, exit 1) when an output the node
+    declares finite holds NaN or inf: never hand one on silently."""
+    for name, a in arrays.items():
+        if not np.all(np.isfinite(a)):
+            raise RuntimeError(f"output {name!r} holds {int(np.count_nonzero(~np.isfinite(a)))} "
+                               "non-finite value(s) (a bug: please report it with the graph)")

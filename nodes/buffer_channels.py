@@ -4,7 +4,7 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from ._checks import same_size
+from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops.buffers import buffer_channels
 from .ops.lights import disk_extremes, light_point
 
@@ -14,7 +14,11 @@ class BufferChannels:
     """Cutout pixel height, background pixel-height gradient, the hard shadow from the
     light's centre, the sparse hard shadows from the disk's 4 extreme points and the
     relative occluder distance, as named float32 channels. Export them as one
-    multichannel EXR with pixgraph.SaveBuffers."""
+    multichannel EXR with pixgraph.SaveBuffers.
+
+    All inputs share the camera's size; pixel heights must be finite and >= 0
+    (the cutout's inside its mask), else the node stops with an input error. An
+    empty mask gives no shadow channels (all zero)."""
 
     class Inputs:
         mask: T.Mask = port(doc="cutout coverage")
@@ -34,7 +38,12 @@ class BufferChannels:
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+        finite(mask=inputs.mask)
+        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
+        pixel_heights(bg_height=inputs.bg_height)
         cam, light = inputs.camera, inputs.light
-        return {"buffers": buffer_channels(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height,
-                                           light_point(light, cam), disk_extremes(light, cam),
-                                           params.thickness)}
+        buffers = buffer_channels(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height,
+                                  light_point(light, cam), disk_extremes(light, cam), params.thickness,
+                                  progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        finite_outputs(**buffers)
+        return {"buffers": buffers}

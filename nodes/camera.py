@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import InputError, node, param, port
+from pixgraph.types import Shape
 
 from .ops.camera import Camera as CameraValue
 
@@ -11,13 +12,20 @@ from .ops.camera import Camera as CameraValue
 class Camera:
     """Pixel-height camera: image size, horizontal field of view, horizon row and height.
 
+    The size comes from the ``image`` input (the background photo) when ``width`` and
+    ``height`` are 0, the default, so a user never types it; given both ways, they
+    must agree.
+
     The horizon is the artist's main perspective control (PixHt-Lab's tilt-shift
     camera): moving it changes how shadows stretch without tilting the geometry.
     """
 
+    class Inputs:
+        image: T.Image = port(optional=True, doc="the background: the camera takes its size")
+
     class Params:
-        width: int = param(512, min=1, max=65536, unit="px", doc="image width")
-        height: int = param(512, min=1, max=65536, unit="px", doc="image height")
+        width: int = param(0, min=0, max=65536, unit="px", doc="image width; 0: the image input's")
+        height: int = param(0, min=0, max=65536, unit="px", doc="image height; 0: the image input's")
         hfov: float = param(50.0, min=1.0, max=170.0, unit="deg", doc="horizontal field of view")
         horizon: float = param(120.0, min=-100000.0, max=100000.0, unit="px",
                                doc="image row of the horizon (may lie outside the image)")
@@ -29,6 +37,25 @@ class Camera:
 
     impl_version = "1"
 
+    def infer(self, ctx, inputs, params):
+        img = inputs.image
+        if img is not None:
+            if (params.width or img.width, params.height or img.height) != (img.width, img.height):
+                raise InputError(f"camera size {params.width}x{params.height} differs from its image "
+                                 f"{img.described()}: leave width and height at 0 to take the image's size")
+            return {"camera": Shape(img.height, img.width, None, img.source)}
+        if params.width and params.height:
+            return {"camera": Shape(params.height, params.width, None, f"node {ctx.node_id!r} (width, height)")}
+        return {}  # size from an image of unknown size (a host input): checked when it runs
+
     def compute(self, ctx, inputs, params):
-        return {"camera": CameraValue(params.width, params.height, params.hfov, params.horizon,
-                                      params.cam_height)}
+        width, height = params.width, params.height
+        if inputs.image is not None:
+            ih, iw = inputs.image.shape[:2]
+            if (width or iw, height or ih) != (iw, ih):
+                raise InputError(f"camera size {width}x{height} differs from its image {iw}x{ih}: "
+                                 "leave width and height at 0 to take the image's size")
+            width, height = iw, ih
+        elif not (width and height):
+            raise InputError("the camera needs width and height, or an image input to take them from")
+        return {"camera": CameraValue(width, height, params.hfov, params.horizon, params.cam_height)}

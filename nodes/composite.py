@@ -4,7 +4,7 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from ._checks import same_size
+from ._checks import finite, same_size
 from .ops.composite import composite
 
 
@@ -35,5 +35,6 @@ class Composite:
 
     def compute(self, ctx, inputs, params):
         same_size(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha, shadow=inputs.shadow)
+        finite(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha, shadow=inputs.shadow)
         return {"image": composite(inputs.background, inputs.cutout, inputs.alpha, inputs.shadow,
                                    params.opacity, params.tint)}

@@ -4,7 +4,7 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from ._checks import same_size
+from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops.lights import light_point
 from .ops.shadow import hard_shadow
 
@@ -12,7 +12,11 @@ from .ops.shadow import hard_shadow
 @node("pixgraph.HardShadow", version=1)
 class HardShadow:
     """Hard shadow cast by the cutout on the background and on itself, traced in
-    pixel-height space toward the light's centre (an area light acts as a point here)."""
+    pixel-height space toward the light's centre (an area light acts as a point here).
+
+    All inputs share the camera's size; pixel heights must be finite and >= 0
+    (the cutout's inside its mask), else the node stops with an input error. An
+    empty mask casts no shadow (all lit)."""
 
     class Inputs:
         mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
@@ -33,6 +37,11 @@ class HardShadow:
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+        finite(mask=inputs.mask)
+        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
+        pixel_heights(bg_height=inputs.bg_height)
         lp = light_point(inputs.light, inputs.camera)
-        lit = hard_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, lp, params.thickness)
+        lit = hard_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, lp, params.thickness,
+                          progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        finite_outputs(lit=lit)
         return {"lit": lit, "darkness": (1.0 - lit).astype(lit.dtype)}

@@ -33,9 +33,10 @@ class Light:
         azimuth: float = param(20.0, min=-360.0, max=360.0, unit="deg",
                                doc="around the vertical; 0 = camera side, 90 = right")
         elevation: float = param(45.0, min=-90.0, max=90.0, unit="deg", doc="above the horizontal")
-        distance: float = param(4.0, min=1e-6, unit="world units",
-                                doc="from the target (point/disk lights; directional lights are at infinity)")
-        radius: float = param(0.3, min=0.0, unit="world units", doc="disk light radius (softness)")
+        distance: float = param(4.0, min=1e-6, max=1e9, unit="world units",
+                                doc="from the target (point/disk lights; directional lights are at infinity: "
+                                    "use kind directional for a farther light)")
+        radius: float = param(0.3, min=0.0, max=1e9, unit="world units", doc="disk light radius (softness)")
         angular_radius: float = param(0.0, min=0.0, max=60.0, unit="deg",
                                       doc="directional light's angular radius (softness)")
         facing: str = param("target", choices=lights.FACINGS, doc="disk faces the target, or faces down")
@@ -57,9 +58,12 @@ class Light:
         cam = inputs.camera
         dist = math.inf if params.kind == "directional" else params.distance
         if params.placement == "shadow_tip":
-            light = lights.from_shadow_tip(cam, params.tip_uv, params.top_uvh, dist, params.kind,
-                                           params.radius, params.angular_radius, params.facing)
-            return {"light": light}
+            try:
+                light = lights.from_shadow_tip(cam, params.tip_uv, params.top_uvh, dist, params.kind,
+                                               params.radius, params.angular_radius, params.facing)
+            except ValueError as e:  # a tip above the horizon, a top without height, tip under top
+                raise InputError(f"params 'tip_uv', 'top_uvh': {e}") from None
+            return {"light": _checked(light, cam)}
         if params.target_mode == "mask_foot":
             if inputs.mask is None:
                 raise InputError("target_mode mask_foot needs the mask input (or use target_mode pixel)")
@@ -72,6 +76,16 @@ class Light:
         if not ok:
             raise InputError(f"light target {uv} is at or above the horizon ({cam.horizon}): "
                              "it has no point on the ground")
-        light = lights.from_controls(np.asarray(P), params.azimuth, params.elevation, dist, params.kind,
-                                     params.radius, params.angular_radius, params.facing)
-        return {"light": light}
+        try:
+            light = lights.from_controls(np.asarray(P), params.azimuth, params.elevation, dist, params.kind,
+                                         params.radius, params.angular_radius, params.facing)
+        except ValueError as e:
+            raise InputError(f"params 'distance', 'radius': {e}") from None
+        return {"light": _checked(light, cam)}
+
+
+def _checked(light, cam):
+    """The light, once its image in pixel-height space is known to be finite."""
+    if not np.all(np.isfinite(lights.light_point(light, cam))):
+        raise InputError("params 'distance', 'radius': the light's image in pixel-height space is not finite")
+    return light

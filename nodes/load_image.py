@@ -4,14 +4,21 @@ from __future__ import annotations
 from pathlib import Path
 
 from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import InputError, node, param, port
+from pixgraph.types import Shape
 
-from .ops.imageio import read_image
+from ._checks import file_shape
+
+from .ops.imageio import host_pixels, read_image, to_internal
 
 
 @node("pixgraph.LoadImage", version=1)
 class LoadImage:
-    """Read PNG, JPEG, TIFF or EXR; decode to linear light and premultiply alpha."""
+    """Read PNG, JPEG, TIFF or EXR; decode to linear light and premultiply alpha.
+
+    A host may bind a numpy array instead of the file (as for pixgraph.InputImage;
+    ``auto`` then means linear, premultiplied).
+    """
 
     class Params:
         path: Path = param(None, doc="image file, relative to the graph file's folder")
@@ -26,6 +33,19 @@ class LoadImage:
 
     impl_version = "1"
 
+    def bind(self, value, params):
+        colorspace = "linear" if params.colorspace == "auto" else params.colorspace
+        alpha = "premultiplied" if params.alpha == "auto" else params.alpha
+        image, a = to_internal(host_pixels(value, (1, 2, 3, 4), "an image"), colorspace, alpha)
+        return {"image": image, "alpha": a}
+
+    def infer(self, ctx, inputs, params):
+        shape = file_shape(params.path, ctx.node_id)
+        return {"image": shape, "alpha": Shape(shape.height, shape.width, 1, shape.source)}
+
     def compute(self, ctx, inputs, params):
-        image, alpha = read_image(params.path, params.colorspace, params.alpha)
+        try:
+            image, alpha = read_image(params.path, params.colorspace, params.alpha)
+        except OSError as e:
+            raise InputError(str(e).splitlines()[0]) from None
         return {"image": image, "alpha": alpha}

@@ -4,9 +4,13 @@ from __future__ import annotations
 import pathlib
 from pathlib import Path
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+import numpy as np
 
+from pixgraph import types as T
+from pixgraph.node import InputError, node, param, port
+from pixgraph.types import Shape
+
+from ._checks import file_shape, source
 from .ops.heightmaps import load_pixel_height
 
 
@@ -27,8 +31,30 @@ class LoadPixelHeight:
 
     impl_version = "1"
 
+    def bind(self, value, params):
+        """A host's (H, W) float array in pixels instead of the file (times ``scale``)."""
+        from .input_pixel_height import InputPixelHeight
+
+        h = InputPixelHeight().bind(value, params)["height"]
+        return {"height": h * params.scale if params.scale != 1.0 else h}
+
+    def infer(self, ctx, inputs, params):
+        shape = file_shape(params.path, ctx.node_id)
+        if str(params.path).lower().endswith(".npy"):
+            # an .npy map is read as it is mapped (no decoding): NaN is found before running
+            a = np.load(params.path, mmap_mode="r", allow_pickle=False)
+            if a.dtype.kind == "f" and not np.isfinite(a).all():
+                raise InputError(f"param 'path': {shape.source}: pixel height has non-finite values")
+        return {"height": Shape(shape.height, shape.width, 1, shape.source)}
+
     def compute(self, ctx, inputs, params):
         p = pathlib.Path(params.path)
         if not p.is_absolute() and getattr(ctx, "graph_dir", None):
             p = pathlib.Path(ctx.graph_dir) / p
-        return {"height": load_pixel_height(p, params.scale)}
+        try:
+            height = load_pixel_height(p, params.scale)
+        except (OSError, ValueError) as e:  # the file's content is the user's data
+            raise InputError(f"param 'path': {str(e).splitlines()[0]}") from None
+        if not np.all(np.isfinite(height)):
+            raise InputError(f"param 'scale': {params.scale} times the file's heights overflows float32")
+        return {"height": height}

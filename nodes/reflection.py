@@ -6,6 +6,7 @@ import numpy as np
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
+from ._checks import finite, finite_outputs, inside, pixel_heights, rgba, same_size
 from .ops.reflection import reflection_cl
 
 
@@ -23,7 +24,15 @@ class Reflection:
     no hit within 4 pixels stay empty; roughness 0 is a mirror traced with one
     sample, and on flat ground it uses the exact planar closed form (the cutout
     flipped about its foot line). Output: a premultiplied linear RGBA layer to put
-    over the background.
+    over the background. A photo has more than one surface: ``receivers: ground``
+    and/or a ``receiver`` mask keep the reflection on the floor (a wall template
+    would otherwise mirror the cutout too).
+
+    All inputs share the camera's size and the cutout is RGBA; pixel heights must
+    be finite and >= 0 (the cutout's inside its mask), else the node stops with
+    an input error. An empty cutout reflects nothing (a transparent layer). Long
+    runs work in bands of image rows: they report progress and stop at the next
+    band when the run is cancelled.
     """
 
     class Inputs:
@@ -32,6 +41,8 @@ class Reflection:
         fg_height: T.PixelHeight = port(doc="cutout pixel height [px]")
         bg_height: T.PixelHeight = port(doc="background pixel height [px] (the receiver)")
         mask: T.Mask = port(optional=True, doc="cutout mask (default: the cutout's alpha)")
+        receiver: T.Mask = port(optional=True,
+                                doc="where the background reflects (e.g. the floor only); default everywhere")
 
     class Params:
         roughness: float = param(0.0, min=0.0, max=1.0, doc="GGX roughness (alpha = roughness^2); 0 = mirror")
@@ -48,6 +59,9 @@ class Reflection:
                              doc="samples before the noise test (min_spp = max_spp: fixed count)")
         max_spp: int = param(128, min=1, max=65536, doc="sample cap per pixel")
         seed: int = param(0, min=0, max=2**31 - 1, doc="random seed")
+        receivers: str = param("all", choices=("all", "ground"),
+                               doc="ground: only background pixels on the ground (pixel height 0) reflect, "
+                                   "so a wall does not mirror the cutout; combined with the receiver input")
         accelerate: bool = param(True, cache=False,
                                  doc="max-height pyramid skipping (same result, fewer steps)")
 
@@ -58,6 +72,14 @@ class Reflection:
     impl_version = "2"   # 2: low-discrepancy (R2) samples
 
     def compute(self, ctx, inputs, params):
+        same_size(inputs.camera, cutout=inputs.cutout, fg_height=inputs.fg_height, bg_height=inputs.bg_height,
+                  mask=inputs.mask, receiver=inputs.receiver)
+        rgba(cutout=inputs.cutout)
+        finite(cutout=inputs.cutout, mask=inputs.mask)
+        covered = inside(inputs.cutout[..., 3] if inputs.mask is None else inputs.mask)
+        pixel_heights(covered, fg_height=inputs.fg_height)
+        pixel_heights(bg_height=inputs.bg_height)
+        finite(receiver=inputs.receiver)
         r = reflection_cl(ctx.device, inputs.camera, inputs.cutout, inputs.fg_height, inputs.bg_height,
                           roughness=params.roughness, eta=params.eta,
                           conductor=params.material == "conductor", f0=params.f0,
@@ -65,5 +87,19 @@ class Reflection:
                           min_spp=params.min_spp, max_spp=params.max_spp, target_se=params.noise,
                           seed=params.seed, mask=inputs.mask, hiz=params.accelerate,
                           progress=ctx.progress, check_cancelled=ctx.check_cancelled)
-        return {"layer": r["layer"],
+        finite_outputs(layer=r["layer"])
+        layer = r["layer"]
+        receiver = _receiver_mask(inputs.receiver, inputs.bg_height, params.receivers)
+        if receiver is not None:
+            layer = (layer * receiver[:, :, None]).astype(np.float32)
+        return {"layer": layer,
                 "stats": {"spp": r["spp"].astype(np.float32), "steps": r["steps"].astype(np.float32)}}
+
+
+def _receiver_mask(receiver, bg_height, receivers: str):
+    """Coverage of the surfaces that reflect, float32 (H, W), or None for all of them."""
+    out = None if receiver is None else np.clip(np.asarray(receiver, dtype=np.float32), 0.0, 1.0)
+    if receivers == "ground":
+        ground = (np.asarray(bg_height) <= 0.5).astype(np.float32)   # the floor: no height above it
+        out = ground if out is None else out * ground
+    return out

@@ -6,7 +6,7 @@ import numpy as np
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from ._checks import same_size
+from ._checks import finite, same_size
 from .ops.composite import apply_shadow, over
 
 
@@ -42,6 +42,8 @@ class ReflectionComposite:
     def compute(self, ctx, inputs, params):
         same_size(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha,
                   reflection=inputs.reflection, shadow=inputs.shadow, refraction=inputs.refraction)
+        finite(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha,
+               reflection=inputs.reflection, shadow=inputs.shadow, refraction=inputs.refraction)
         bg = np.asarray(inputs.background, np.float32)
         if bg.ndim == 2:
             bg = bg[..., None]

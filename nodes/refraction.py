@@ -4,6 +4,7 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
+from ._checks import finite, finite_outputs, pixel_heights, rgba, same_size
 from .ops.reflection import refraction_cl
 
 
@@ -20,6 +21,12 @@ class Refraction:
     local curvature (exact for a ball, an approximation for other solids), ``none``
     keeps one interface. Output: a premultiplied layer covering the object, to put
     over the background.
+
+    All inputs share the camera's size and the glass is RGBA; pixel heights must
+    be finite and >= 0 (the glass's where its alpha > 0), else the node stops
+    with an input error. Glass with no coverage gives a transparent layer. Large
+    images work in bands of rows: they report progress and stop at the next band
+    when the run is cancelled.
     """
 
     class Inputs:
@@ -47,7 +54,15 @@ class Refraction:
     impl_version = "1"
 
     def compute(self, ctx, inputs, params):
+        same_size(inputs.camera, glass=inputs.glass, glass_height=inputs.glass_height,
+                  background=inputs.background, bg_height=inputs.bg_height)
+        rgba(glass=inputs.glass)
+        finite(glass=inputs.glass, background=inputs.background)
+        pixel_heights(inputs.glass[..., 3] > 0, glass_height=inputs.glass_height)
+        pixel_heights(bg_height=inputs.bg_height)
         r = refraction_cl(ctx.device, inputs.camera, inputs.glass, inputs.glass_height, inputs.background,
                           inputs.bg_height, eta=params.eta, tint=params.tint, fresnel=params.fresnel,
-                          hiz=params.accelerate, back_surface=params.back_surface)
+                          hiz=params.accelerate, back_surface=params.back_surface,
+                          progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        finite_outputs(layer=r["layer"])
         return {"layer": r["layer"], "tir": r["tir"].astype("float32")}

@@ -5,7 +5,7 @@ from pathlib import Path
 import pathlib
 
 from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import InputError, node, param, port
 
 from .ops.imageio import write_exr_channels
 
@@ -33,6 +33,6 @@ class SaveBuffers:
         if not p.is_absolute() and getattr(ctx, "graph_dir", None):
             p = pathlib.Path(ctx.graph_dir) / p
         if p.suffix.lower() != ".exr":
-            raise ValueError(f"SaveBuffers writes OpenEXR; {p} does not end in .exr")
+            raise InputError(f"SaveBuffers writes OpenEXR; {p} does not end in .exr")
         p.parent.mkdir(parents=True, exist_ok=True)
         return {"path": write_exr_channels(p, dict(inputs.buffers), 16 if params.half else 32)}

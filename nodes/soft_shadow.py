@@ -4,16 +4,22 @@ from __future__ import annotations
 from pixgraph import types as T
 from pixgraph.node import node, param, port
 
-from ._checks import same_size
+from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops.lights import disk_samples, light_point
-from .ops.shadow import soft_shadow
+from .ops.upsample import AUTO_MAX_SIDE, proxy_soft_shadow
 
 
 @node("pixgraph.SoftShadow", version=1)
 class SoftShadow:
     """Soft shadow in pixel-height space: the fraction of ``samples`` stratified points of
     the disk light (sunflower pattern) that each pixel sees. The pixel-height-space
-    reference; its cost grows linearly with ``samples``. A point light needs one."""
+    reference; its cost grows linearly with ``samples``. A point light needs one.
+
+    All inputs share the camera's size; pixel heights must be finite and >= 0
+    (the cutout's inside its mask), else the node stops with an input error. An
+    empty mask casts no shadow (all lit). Long runs work in bands of image rows:
+    they report progress and stop at the next band when the run is cancelled.
+    Images larger than ``proxy`` are traced at a proxy resolution (docs/auto.md)."""
 
     class Inputs:
         mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
@@ -27,6 +33,9 @@ class SoftShadow:
         seed: int = param(0, min=0, max=2**31 - 1, doc="rotation of the sample pattern")
         thickness: float = param(1.0, min=0.0, max=1000.0, unit="px",
                                  doc="how far a ray may pass behind the cutout surface and still be blocked")
+        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px",
+                           doc="images whose longer side exceeds this are traced on a copy of this longer side "
+                               "and enlarged edge-aware against the full-resolution mask (0: never)")
 
     class Outputs:
         lit: T.Mask = port(doc="fraction of the light seen, 1 = fully lit")
@@ -36,11 +45,16 @@ class SoftShadow:
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+        finite(mask=inputs.mask)
+        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
+        pixel_heights(bg_height=inputs.bg_height)
         light, cam = inputs.light, inputs.camera
         if light.is_area:
             samples = disk_samples(light, cam, params.samples, params.seed)
         else:  # every sample would be the same point: one hard shadow is the exact answer
             samples = light_point(light, cam)[None]
-        lit = soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, samples,
-                          params.thickness)
+        side = max(inputs.mask.shape) if params.proxy == 0 else params.proxy
+        lit = proxy_soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, samples,
+                                params.thickness, side, progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        finite_outputs(lit=lit)
         return {"lit": lit, "darkness": (1.0 - lit).astype(lit.dtype)}

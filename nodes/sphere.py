@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import InputError, node, param, port
 
 from .ops.sphere import sphere_cutout
 
@@ -34,5 +34,8 @@ class Sphere:
     impl_version = "1"
 
     def compute(self, ctx, inputs, params):
-        rgba, h = sphere_cutout(inputs.camera, params.center_u, params.contact_v, params.radius, params.color)
+        try:
+            rgba, h = sphere_cutout(inputs.camera, params.center_u, params.contact_v, params.radius, params.color)
+        except ValueError as e:  # a contact point at or above the horizon: the params, not the node
+            raise InputError(f"params 'contact_v', 'radius': {e}") from None
         return {"image": rgba, "alpha": rgba[..., 3].copy(), "height": h}

@@ -4,21 +4,34 @@ from __future__ import annotations
 import functools
 import pathlib
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+import numpy as np
 
-from ._checks import same_size
-from .ops import ssn
-from .ops.buffers import buffer_channels
+from pixgraph import types as T
+from pixgraph.node import InputError, node, param, port
+
+from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops.lights import disk_extremes, light_point
 
 WEIGHTS = pathlib.Path(__file__).parent / "weights"
 
 
+def _ssn():
+    """``ops.ssn``, imported when SSN++ first runs: it needs torch (the ``ssn`` extra),
+    which a graph without this node never loads."""
+    try:
+        from .ops import ssn
+    except ModuleNotFoundError as e:
+        if e.name != "torch":
+            raise
+        raise ModuleNotFoundError("pixgraph.SoftShadowSSN needs torch: pip install 'pixgraph[ssn]'",
+                                  name="torch") from None
+    return ssn
+
+
 @functools.lru_cache(maxsize=4)
 def _load(path: str, mtime_ns: int):
     # keyed on mtime too, so retrained weights are picked up without a restart
-    return ssn.load_model(path)
+    return _ssn().load_model(path)
 
 
 def load_shipped(name: str):
@@ -34,7 +47,20 @@ class SoftShadowSSN:
     """Soft shadow from SSN++: the 3D-aware buffer channels (cutout pixel height,
     background gradient, hard and sparse hard shadows, relative distance) and the
     light's softness run through a small trained U-Net on the CPU. Same ports as
-    pixgraph.SoftShadow; its cost does not grow with the light's size."""
+    pixgraph.SoftShadow; its cost does not grow with the light's size.
+
+    All inputs share the camera's size; pixel heights must be finite and >= 0
+    (the cutout's inside its mask), else the node stops with an input error. An
+    empty mask casts no shadow (darkness 0). Torch runs with
+    ``PIXGRAPH_TORCH_THREADS`` intra-op threads (default: 1 per 4 CPUs, 1 to
+    4), restored afterwards. Progress is reported after the buffer channels
+    (banded, cancellable) and after the network.
+
+    Any image size: the network runs on a window around the cutout and its shadow,
+    at the scale it was trained for, and the result is pasted back edge-aware
+    (darkness 0 outside the window). A light softer or harder than the training
+    data's (radius / distance outside 0.015-0.45) is clamped, with a warning in
+    the run's log (docs/ssn.md)."""
 
     class Inputs:
         mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
@@ -46,20 +72,47 @@ class SoftShadowSSN:
     class Params:
         model: str = param("ssnpp", choices=("ssnpp",), doc="shipped weights to use")
         thickness: float = param(1.0, min=0.0, max=1000.0, unit="px",
-                                 doc="occluder thickness of the buffer channels' hard shadows")
+                                 doc="occluder thickness of the buffer channels' hard shadows, "
+                                     "in pixels of the network's window (the trained scale)")
 
     class Outputs:
         lit: T.Mask = port(doc="1 - darkness")
         darkness: T.Mask = port(doc="soft shadow, 1 = full shadow (what Composite takes)")
 
-    impl_version = "2"  # bump when the shipped weights or the inference change (2: NHWC layout)
+    # bump when the shipped weights or the inference change (2: NHWC layout; 3: softness clamped to 1;
+    # 4: window at the trained scale, softness clamped to the trained range)
+    impl_version = "4"
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+        finite(mask=inputs.mask)
+        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
+        pixel_heights(bg_height=inputs.bg_height)
         cam, light = inputs.camera, inputs.light
+        if not inside(inputs.mask).any():  # nothing casts a shadow
+            darkness = np.zeros(inputs.mask.shape, np.float32)
+            return {"lit": 1.0 - darkness, "darkness": darkness}
+        ssn = _ssn()
+        try:
+            softness = ssn.softness_of(light, cam, inputs.mask, inputs.fg_height)
+        except ValueError as e:
+            raise InputError(f"input 'fg_height': {e}") from None
+        try:
+            threads = ssn.inference_threads()
+        except ValueError as e:  # the host's setting, not the node's fault
+            raise InputError(str(e)) from None
         model = load_shipped(params.model)
-        buffers = buffer_channels(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height,
-                                  light_point(light, cam), disk_extremes(light, cam), params.thickness)
-        softness = ssn.softness_of(light, cam, inputs.mask, inputs.fg_height)
-        darkness = ssn.predict(model, buffers, softness)
+        from .ops import ssn_crop
+        darkness, info = ssn_crop.render(ctx.device, model, inputs.mask, inputs.fg_height, inputs.bg_height,
+                                         light_point(light, cam), disk_extremes(light, cam), softness,
+                                         params.thickness, threads=threads,
+                                         progress=lambda f, m="": ctx.progress(0.5 * f, m),
+                                         check_cancelled=ctx.check_cancelled)
+        if info.clamped:
+            lo, hi = ssn_crop.SOFTNESS_RANGE
+            ctx.log(f"warning: light softness (radius / distance) {softness:.3g} is outside the trained "
+                    f"range {lo:g}-{hi:g}: the network was run at {info.softness:g}")
+        ctx.log(info.describe())
+        finite_outputs(darkness=darkness)
+        ctx.progress(1.0, "SSN++")
         return {"lit": 1.0 - darkness, "darkness": darkness}

@@ -16,7 +16,7 @@ from typing import Any
 import yaml
 
 from .engine import NodeInputError
-from .graph import GraphError
+from .graph import GraphError, one_line
 from .registry import Registry
 
 EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_CANCELLED = 0, 1, 2, 130
@@ -45,6 +45,10 @@ def _parser() -> argparse.ArgumentParser:
     graph_opts.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
                             help="override a param; VALUE is a YAML scalar or list")
 
+    graph_opts.add_argument("--allow-path", action="append", default=[], metavar="DIR",
+                            help="let the graph read and write files under DIR too (repeatable; "
+                                 "also PIXGRAPH_ALLOW_PATHS, separated by os.pathsep)")
+
     cache_opts = argparse.ArgumentParser(add_help=False)
     cache_opts.add_argument("--disk-cache", metavar="DIR", default=None,
                             help="disk cache folder (default PIXGRAPH_DISK_CACHE or ~/.cache/pixgraph)")
@@ -56,12 +60,14 @@ def _parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", parents=[common, graph_opts, cache_opts], help="run a graph")
     r.add_argument("-o", "--output", action="append", default=[], metavar="NAME=PATH",
-                   help="write graph output NAME (or any node output, NODE.OUTPUT) to an image file "
-                        "PATH (png, tif, jpg, exr)")
+                   help="write graph output NAME (or any node output, NODE.OUTPUT) to a file PATH "
+                        "(png, tif, jpg, exr, npy); masks and pixel heights are written as data "
+                        "(no gamma, never clipped: 16-bit PNG for 0..1, else npy/exr/tif)")
     r.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
     r.add_argument("--cache-bytes", type=int, default=None, help="memory cache limit in bytes")
 
-    sub.add_parser("validate", parents=[common, graph_opts], help="check a graph file without running it")
+    sub.add_parser("validate", parents=[common, graph_opts],
+                   help="check a graph file and its input files' headers without running it")
     sub.add_parser("explain", parents=[common, graph_opts, cache_opts],
                    help="show what a run would compute or take from cache, and why")
 
@@ -69,9 +75,28 @@ def _parser() -> argparse.ArgumentParser:
     n.add_argument("name", nargs="?", help="node type id")
     n.add_argument("--errors", action="store_true", help="show plugins that failed to load")
     n.add_argument("--markdown", action="store_true", help="print the node reference as Markdown")
+    n.add_argument("--json", action="store_true", help="print the node declarations as JSON")
 
     sub.add_parser("schema", parents=[common], help="print the JSON Schema of graph files")
     sub.add_parser("devices", parents=[common], help="list OpenCL platforms and devices")
+
+    sv = sub.add_parser("serve", parents=[common],
+                        help="serve a graph: browser UI (drag the light) and a local HTTP API")
+    sv.add_argument("graph", help="graph file (YAML); it may read and write only in its folder and --allow folders")
+    sv.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
+    sv.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")
+    sv.add_argument("--allow-path", action="append", default=[], metavar="DIR",
+                    help="another folder the graph may read and write (repeatable)")
+    sv.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
+    sv.add_argument("--max-pixels", type=int, default=None, help="largest image, width x height (default 4096^2)")
+    sv.add_argument("--max-body", type=int, default=None, metavar="BYTES",
+                    help="largest request body (default 32 MiB)")
+
+    b = sub.add_parser("batch", parents=[common, graph_opts, cache_opts],
+                       help="run a graph over a manifest's rows or a sweep (see docs/batch.md)")
+    from .batch import add_arguments as _batch_arguments
+
+    _batch_arguments(b)
 
     c = sub.add_parser("cache", parents=[common, cache_opts], help="disk cache statistics or clearing")
     c.add_argument("action", choices=["stats", "clear"])
@@ -109,6 +134,8 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("pixgraph: cancelled", file=sys.stderr)
+        if argv is None:
+            _exit_now(EXIT_CANCELLED)
         return EXIT_CANCELLED
     except Exception as e:
         from .device import DeviceError
@@ -121,9 +148,23 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         return EXIT_BAD_INPUT if isinstance(e, DeviceError) and "matches" in str(e) else EXIT_INTERNAL
 
 
+def _exit_now(code: int) -> None:
+    """End the process at once after Ctrl-C on the command line. Nothing is left to
+    save: the interrupted node stored nothing, and every finished node's cache
+    entry was written atomically when it finished. Python's normal teardown would
+    first finalise torch, PoCL and every module (torch alone: 1.7 s on a loaded
+    2-core machine), delaying the exit the user asked for (benchmarks/cancel_bench.py)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 def _fail(args, e: BaseException, prefix: str = "") -> None:
-    line = str(e).replace("\n", " ") if not isinstance(e, GraphError) else str(e)
-    print(f"{prefix}{line}" if prefix else line, file=sys.stderr)
+    try:
+        text = str(e)
+    except Exception:  # noqa: BLE001 - a message that cannot even be formatted
+        text = type(e).__name__
+    print(one_line(f"{prefix}{text}"), file=sys.stderr)
     if getattr(args, "debug", False):
         traceback.print_exception(e, file=sys.stderr)
 
@@ -150,7 +191,7 @@ def _session(args, registry, disk: bool = True):
         except DeviceError as e:
             raise UsageError(str(e)) from None
     return Session(device=getattr(args, "device", None), cache_bytes=getattr(args, "cache_bytes", None),
-                   disk_cache=disk_dir, registry=registry)
+                   disk_cache=disk_dir, registry=registry, allow_paths=getattr(args, "allow_path", []))
 
 
 def _cmd_run(args, registry) -> int:
@@ -163,7 +204,10 @@ def _cmd_run(args, registry) -> int:
             raise UsageError(f"-o {item}: expected NAME=PATH")
         targets[name] = path
     s = _session(args, registry)
-    graph = s.graph(args.graph, parse_sets(args.set))
+    sets = parse_sets(args.set)
+    graph = s.graph(args.graph, sets)
+    _allow_typed_paths(s, graph, sets)
+    _check_output_paths(targets, graph, s.registry)
     # unknown names or node outputs are reported by the engine's plan (exit 2)
     bar = None
     show_bar = not args.quiet and sys.stderr.isatty()
@@ -188,26 +232,76 @@ def _cmd_run(args, registry) -> int:
         if bar is not None:
             bar.close()
     for name, path in targets.items():
-        _write_output(name, values[name], path)
+        _write_output(name, values[name], path, _port_type(s, graph, name))
     if not args.quiet:
         res = s.last_run
         print(f"ran {len(res.ran)} node(s), {len(res.cached)} from cache, "
               f"{sum(res.timings.values()):.3f} s compute", file=sys.stderr)
+        for nid, messages in res.logs.items():
+            for m in messages:
+                print(f"{nid}: {m}", file=sys.stderr)
         for name, v in values.items():
             where = f" -> {targets[name]}" if name in targets else ""
             print(f"{name}: {_describe(v)}{where}")
     return EXIT_OK
 
 
-def _write_output(name: str, value, path: str) -> None:
+def _port_type(session, graph, name: str):
+    """The declared type of a graph output or ``node.output`` ref."""
+    from .graph import Ref
+
+    ref = graph.outputs.get(name) or Ref.parse(name)
+    return session.registry.get(graph.nodes[ref.node].type).output(ref.output).type
+
+
+def _allow_typed_paths(s, graph, sets: dict[str, Any]) -> None:
+    """A path given with ``--set`` is the user's own, like ``-o``: allow that one file."""
+    files = []
+    for name, value in sets.items():
+        nid, _, pname = name.partition(".")
+        inst = graph.nodes.get(nid)
+        p = s.registry.get(inst.type).param(pname) if inst is not None else None
+        if p is not None and p.kind == "path" and isinstance(value, str) and value:
+            from .paths import bad_characters
+
+            if not bad_characters(value):
+                files.append(graph.resolve_path(value))
+    if files:
+        s.allow_files(files)
+
+
+def _check_output_paths(targets: dict[str, str], graph, registry) -> None:
+    """``-o`` paths are the user's own (any folder), but never hold control
+    characters and never overwrite a file this graph reads."""
+    from .paths import bad_characters, quote
+
+    reads = {os.path.realpath(graph.file)} if graph.file else set()
+    for nid, inst in graph.nodes.items():
+        spec = registry.get(inst.type)
+        for p in spec.params:
+            if p.kind == "path" and not p.writes and inst.params.get(p.name) is not None:
+                reads.add(os.path.realpath(graph.resolve_path(os.fspath(inst.params[p.name]))))
+    for name, path in targets.items():
+        why = bad_characters(path)
+        if why:
+            raise UsageError(f"-o {name}=...: path {quote(path)} {why}")
+        if os.path.realpath(path) in reads:
+            raise UsageError(f"-o {name}={quote(path)}: would write over a file this graph reads")
+
+
+def _write_output(name: str, value, path: str, port_type=None) -> None:
     import numpy as np
 
-    from pixgraph_nodes.ops.imageio import write_image
+    from pixgraph_nodes.ops.imageio import write_data, write_image
+
+    from . import types as T
 
     if not isinstance(value, np.ndarray):
         raise UsageError(f"-o {name}={path}: output {name!r} is a {type(value).__name__}, not an image")
+    # a matte, a darkness or a pixel height is data: written as numbers, never as colour
+    data = port_type is not None and issubclass(port_type, (T.Mask, T.PixelHeight))
     try:
-        write_image(path, value)
+        write_data(path, value) if data else write_image(path, value)
     except (ValueError, OSError) as e:
         raise UsageError(f"-o {name}={path}: {e}") from None
 
@@ -224,8 +318,13 @@ def _cmd_validate(args, registry) -> int:
     reg = registry if registry is not None else Registry.discover()
     from .session import Session
 
-    s = Session(registry=reg)
-    g = s.graph(args.graph, parse_sets(args.set))
+    s = Session(registry=reg, allow_paths=args.allow_path)
+    sets = parse_sets(args.set)
+    g = s.graph(args.graph, sets)
+    _allow_typed_paths(s, g, sets)
+    s.check_paths(g)
+    if g.outputs:
+        s.check(g)  # file headers: sizes, alpha, placements (reads no pixels)
     if not args.quiet:
         print(f"{args.graph}: ok ({len(g.nodes)} nodes, outputs: {', '.join(g.outputs) or 'none'})")
     return EXIT_OK
@@ -233,7 +332,10 @@ def _cmd_validate(args, registry) -> int:
 
 def _cmd_explain(args, registry) -> int:
     s = _session(args, registry)
-    print(s.explain(args.graph, params=parse_sets(args.set)))
+    sets = parse_sets(args.set)
+    graph = s.graph(args.graph, sets)
+    _allow_typed_paths(s, graph, sets)
+    print(s.explain(graph))
     return EXIT_OK
 
 
@@ -252,11 +354,17 @@ def _cmd_nodes(args, registry) -> int:
     if args.markdown:
         sys.stdout.write(reference.markdown(reg))
         return EXIT_OK
+    if args.json and not args.name:
+        print(json.dumps([reference.as_dict(s) for s in reg.specs()], indent=1))
+        return EXIT_OK
     if args.name:
         if args.name not in reg:
             hint = reg.suggest(args.name)
             raise UsageError(f"unknown node type {args.name!r}" + (f" (did you mean {hint!r}?)" if hint else ""))
-        sys.stdout.write(reference.text(reg.get(args.name), reg.source(args.name)))
+        if args.json:
+            print(json.dumps(reference.as_dict(reg.get(args.name)), indent=1))
+        else:
+            sys.stdout.write(reference.text(reg.get(args.name), reg.source(args.name)))
         return EXIT_OK
     width = max((len(s.type_id) for s in reg.specs()), default=0)
     for spec in reg.specs():
@@ -274,11 +382,11 @@ def _cmd_schema(args, registry) -> int:
 
 
 def _cmd_devices(args, registry) -> int:
-    from .device import DeviceError, build_problem, choose, list_devices
+    from .device import DeviceError, build_problem, choose, list_devices, no_device_hint
 
     devices = list_devices()
     if not devices:
-        print("no OpenCL device found", file=sys.stderr)
+        print(f"no OpenCL device found: {no_device_hint()}", file=sys.stderr)
         return EXIT_INTERNAL
     try:
         default = choose().spec
@@ -314,5 +422,48 @@ def _cmd_cache(args, registry) -> int:
     return EXIT_OK
 
 
-_COMMANDS = {"run": _cmd_run, "validate": _cmd_validate, "explain": _cmd_explain, "nodes": _cmd_nodes,
-             "schema": _cmd_schema, "devices": _cmd_devices, "cache": _cmd_cache}
+def _cmd_batch(args, registry) -> int:
+    from .batch import cli_batch
+
+    return cli_batch(args, _session(args, registry), parse_sets(args.set), UsageError)
+
+
+def _cmd_serve(args, registry) -> int:
+    import dataclasses
+
+    from .serve.app import serve
+    from .serve.state import Limits, ServeError, ServeState
+
+    limits = Limits()
+    if args.max_pixels is not None:
+        limits = dataclasses.replace(limits, max_pixels=args.max_pixels)
+    if args.max_body is not None:
+        limits = dataclasses.replace(limits, max_body_bytes=args.max_body)
+    for d in args.allow_path:
+        if not os.path.isdir(d):
+            raise UsageError(f"--allow-path {d}: no such folder")
+    if args.device:
+        from .device import DeviceError, choose
+
+        try:
+            choose(args.device)
+        except DeviceError as e:
+            raise UsageError(str(e)) from None
+    try:
+        state = ServeState(args.graph, allow=args.allow_path, limits=limits, device=args.device, registry=registry)
+    except ServeError as e:
+        raise UsageError(e.message) from None
+
+    def ready(url):
+        print(f"pixgraph: serving {args.graph} at {url}", flush=True)
+
+    try:
+        serve(state, args.host, args.port, on_ready=ready)
+    except OSError as e:
+        raise UsageError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
+    return EXIT_OK
+
+
+_COMMANDS = {"run": _cmd_run, "batch": _cmd_batch, "serve": _cmd_serve, "validate": _cmd_validate,
+             "explain": _cmd_explain, "nodes": _cmd_nodes, "schema": _cmd_schema, "devices": _cmd_devices,
+             "cache": _cmd_cache}

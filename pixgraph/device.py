@@ -36,7 +36,8 @@ def ensure_cache_dir() -> None:
         probe = tempfile.NamedTemporaryFile(dir=xdg, delete=True)
         probe.close()
     except OSError:
-        fallback = os.path.join(tempfile.gettempdir(), f"pixgraph-cache-{os.getuid()}")
+        user = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")  # no getuid on Windows
+        fallback = os.path.join(tempfile.gettempdir(), f"pixgraph-cache-{user}")
         os.makedirs(fallback, exist_ok=True)
         os.environ["XDG_CACHE_HOME"] = fallback
 
@@ -85,6 +86,31 @@ def list_devices() -> list[DeviceInfo]:
     return out
 
 
+def no_device_hint(system: str | None = None, machine: str | None = None) -> str:
+    """What to install for OpenCL on this platform (``platform.system()``/``machine()``).
+
+    pip's ``pocl-binary-distribution`` wheel exists only for Linux x86-64 (pixgraph
+    depends on it there); everywhere else the system's OpenCL is used.
+    """
+    import platform
+
+    system = system or platform.system()
+    machine = (machine or platform.machine()).lower()
+    if system == "Darwin":
+        how = ("macOS ships OpenCL (Apple's, deprecated but present); if it lists no device, "
+               "install PoCL: brew install pocl")
+    elif system == "Windows":
+        how = ("install your GPU vendor's driver (NVIDIA, AMD and Intel drivers include OpenCL), "
+               "or Intel's CPU OpenCL runtime, or PoCL from conda-forge: conda install pocl")
+    elif system == "Linux" and machine in ("x86_64", "amd64"):
+        how = ("pip install pocl-binary-distribution (a pixgraph dependency here), or on "
+               "Debian/Ubuntu: apt-get install pocl-opencl-icd")
+    else:
+        how = (f"no PoCL wheel exists for {system} {machine}: install your system's OpenCL, e.g. "
+               "apt-get install pocl-opencl-icd (Debian/Ubuntu), or a GPU vendor's driver")
+    return how + "; and make sure XDG_CACHE_HOME is writable"
+
+
 def _rank(info: DeviceInfo) -> tuple:
     # GPU first; among CPU platforms prefer Debian's PoCL (its version string says
     # "debian") over the pip wheel; then more compute units.
@@ -120,8 +146,7 @@ def choose(spec: str | None = None) -> DeviceInfo:
     """
     devices = list_devices()
     if not devices:
-        raise DeviceError("no OpenCL device found (install pocl-binary-distribution or Debian's "
-                          "pocl-opencl-icd, and make sure XDG_CACHE_HOME is writable)")
+        raise DeviceError("no OpenCL device found: " + no_device_hint())
     spec = spec if spec is not None else os.environ.get("PIXGRAPH_DEVICE") or None
     if spec is None:
         problems = []

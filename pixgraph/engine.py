@@ -14,6 +14,7 @@ always run when requested and are never cached.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 import time
 from typing import Any, Callable, Mapping
@@ -26,8 +27,21 @@ from .cache import MISS, DiskCache, MemoryCache, Unstorable
 from .graph import Graph, GraphError, Ref
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import InputError, Namespace, NodeSpec
+from .paths import PathError, PathPolicy
 from .registry import Registry
-from .types import nbytes
+from .types import SIZED, Shape, nbytes
+
+
+DEFAULT_MAX_FILE_BYTES = 4 << 30
+_log = logging.getLogger("pixgraph.engine")
+
+
+def _env_int(name: str, default: int) -> int:
+    raw = os.environ.get(name, "")
+    try:
+        return int(float(raw)) if raw.strip() else default
+    except ValueError:
+        raise GraphError(f"{name} must be a number, got {raw[:40]!r}") from None
 
 
 class NodeError(RuntimeError):
@@ -101,6 +115,9 @@ class Plan:
     #: params as compute receives them: defaults filled in, paths absolute
     params: Mapping[str, Mapping[str, Any]]
     bind: Mapping[str, Any]
+    #: bound node id -> its outputs (a host input's ``bind`` hook applied; else the
+    #: array as the first output)
+    bound: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
 
     def step(self, node_id: str) -> Step:
         return next(s for s in self.steps if s.node_id == node_id)
@@ -121,6 +138,8 @@ class RunResult:
     ran: tuple[str, ...]
     cached: tuple[str, ...]
     plan: Plan
+    #: messages each node that ran logged (``ctx.log``), by node id
+    logs: dict[str, list[str]] = dataclasses.field(default_factory=dict)
 
 
 class Engine:
@@ -131,8 +150,13 @@ class Engine:
     """
 
     def __init__(self, registry: Registry, memory: MemoryCache, disk: DiskCache | None = None,
-                 device: Callable[[], Any] | None = None, hasher: FileHasher | None = None):
+                 device: Callable[[], Any] | None = None, hasher: FileHasher | None = None,
+                 paths: PathPolicy | None = None):
         self.registry = registry
+        #: where path params may point; the graph's own folder is added per graph
+        self.paths = paths if paths is not None else PathPolicy()
+        #: largest file a path param may read (hashing reads it all)
+        self.max_file_bytes = _env_int("PIXGRAPH_MAX_FILE_BYTES", DEFAULT_MAX_FILE_BYTES)
         self.memory = memory
         self.disk = disk
         self._device = device or _no_device
@@ -141,6 +165,8 @@ class Engine:
         self._last_parts: dict[str | None, dict[str, KeyParts]] = {}
         #: node types whose outputs had no disk form last time they ran
         self.memory_only: dict[str, str] = {}
+        #: cache key -> what the node logged when it computed that key (this process)
+        self._logs_by_key: dict[str, list[str]] = {}
 
     # -- plan -------------------------------------------------------------------
 
@@ -151,22 +177,71 @@ class Engine:
             if nid not in graph.nodes:
                 raise GraphError("cannot bind: no such node in the graph", node=nid)
         order = self._ancestors(graph, [r.node for r in requested.values()], bind)
-        keys, parts, params = {}, {}, {}
+        policy = self.policy_for(graph)
+        keys, parts, params, bound = {}, {}, {}, {}
         for nid in order:
             inst = graph.nodes[nid]
             spec = self.registry.get(inst.type)
             if nid in bind:
-                keys[nid] = array_key(bind[nid])
-                parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
                 params[nid] = {}
+                if hasattr(spec.cls, "bind"):
+                    # a host input: its params (colour space, alpha...) say how to read the array
+                    p, relevant = self._params(graph, nid, spec, inst.params, read_paths=False)
+                    params[nid] = p
+                    bound[nid] = self._bind(graph, nid, spec, bind[nid], p)
+                    parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant,
+                                          {"bind": array_key(bind[nid])})
+                    keys[nid] = parts[nid].key()
+                else:
+                    keys[nid] = array_key(bind[nid])
+                    parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
+                    bound[nid] = {spec.outputs[0].name: bind[nid]}
                 continue
-            p, relevant = self._params(graph, nid, spec, inst.params)
+            p, relevant = self._params(graph, nid, spec, inst.params, policy)
             params[nid] = p
             inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
             parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
             keys[nid] = parts[nid].key()
-        steps = self._steps(graph, requested, order, keys, parts, bind)
-        return Plan(graph, requested, steps, keys, parts, params, bind)
+        self._check_overwrites(graph, params, order, bind)
+        steps = self._steps(graph, requested, order, keys, parts, bind, params)
+        return Plan(graph, requested, steps, keys, parts, params, bind, bound)
+
+    # -- check before running -----------------------------------------------------
+
+    def check(self, graph: Graph, outputs=None) -> dict[str, dict[str, Any]]:
+        """Check what the needed nodes will get, from file headers only, before anything
+        runs: returns ``{node: {output: info}}`` (a ``types.Shape`` where known).
+
+        A node with an ``infer(self, ctx, inputs, params)`` hook turns its inputs'
+        infos into its outputs' (a loader reads its file's header; ``ctx.node_id``
+        names the node) and raises ``InputError`` for inputs that cannot work. Any
+        other node needs inputs of one size: its sized outputs get that size. The
+        first problem is a ``GraphError`` naming the node, its line, and the files.
+        """
+        requested = self._requested(graph, outputs)
+        order = self._ancestors(graph, [r.node for r in requested.values()], {})
+        policy = self.policy_for(graph)
+        infos: dict[str, dict[str, Any]] = {}
+        for nid in order:
+            inst = graph.nodes[nid]
+            spec = self.registry.get(inst.type)
+            params = spec.coerce_params(inst.params)
+            for p in spec.params:
+                if p.kind == "path" and params[p.name] is not None:  # the policy before any header is read
+                    params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
+            ins = {p.name: None for p in spec.inputs}
+            for port, ref in inst.inputs.items():
+                ins[port] = infos[ref.node].get(ref.output)
+            infer = getattr(spec.cls, "infer", None)
+            try:
+                if infer is not None:
+                    ctx = NodeContext(nid, graph.base_dir, _no_device, None, _ignore)
+                    infos[nid] = dict(spec.cls().infer(ctx, Namespace(ins), Namespace(params)) or {})
+                else:
+                    infos[nid] = _same_size(spec, ins)
+            except InputError as e:
+                raise graph.error(str(e).splitlines()[0], node=nid) from None
+        return infos
 
     def _requested(self, graph: Graph, outputs) -> dict[str, Ref]:
         if outputs is None:
@@ -216,16 +291,98 @@ class Engine:
                             stack.append((ref.node, False))
         return order
 
-    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values) -> tuple[dict, dict]:
+    @staticmethod
+    def _bind(graph: Graph, nid: str, spec: NodeSpec, value, params) -> dict[str, Any]:
+        """A host input's outputs from the array bound to it (its ``bind`` hook),
+        checked like computed outputs; a bad array is a ``GraphError`` naming the node."""
+        try:
+            out = spec.cls().bind(value, Namespace(params))
+        except (InputError, TypeError, ValueError) as e:
+            raise graph.error(f"bound value does not fit {spec.type_id}: {str(e).splitlines()[0]}",
+                              node=nid) from None
+        for p in spec.outputs:
+            try:
+                p.type.validate(out[p.name])
+            except (KeyError, TypeError) as e:
+                raise NodeError(nid, spec.type_id, f"bind gave no valid output {p.name!r}: {e}") from None
+            _freeze(out[p.name])
+        return out
+
+
+    # -- paths ------------------------------------------------------------------
+
+    def policy_for(self, graph: Graph) -> PathPolicy:
+        """The path policy for one graph: the engine's roots plus the graph's folder."""
+        return self.paths.with_roots([graph.base_dir])
+
+    def check_paths(self, graph: Graph) -> None:
+        """Check every path param of every node against the policy (``validate``)."""
+        policy = self.policy_for(graph)
+        params = {}
+        for nid, inst in graph.nodes.items():
+            spec = self.registry.get(inst.type)
+            values = spec.coerce_params(inst.params)
+            for p in spec.params:
+                if p.kind == "path" and values.get(p.name) is not None:
+                    values[p.name] = self._checked_path(graph, policy, nid, p, values[p.name])
+            params[nid] = values
+        self._check_overwrites(graph, params, list(graph.nodes), {})
+
+    @staticmethod
+    def _checked_path(graph: Graph, policy: PathPolicy, nid: str, p, raw) -> str:
+        field = f"params.{p.name}"
+        try:
+            resolved = graph.resolve_path(os.fspath(raw))
+            checked = (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
+        except PathError as e:
+            located = graph.error(e.message, node=nid, field=field)
+            raise PathError(e.message, file=located.file, line=located.line, node=nid, field=field) from None
+        except ValueError as e:  # e.g. embedded NUL in a home-folder lookup
+            located = graph.error(f"bad path: {e}"[:200], node=nid, field=field)
+            raise PathError(located.message, file=located.file, line=located.line, node=nid, field=field) from None
+        return os.fspath(checked)
+
+    def _check_overwrites(self, graph: Graph, params, order, bind) -> None:
+        """A node may not write over a file that this run reads (or the graph file)."""
+        reads = {os.path.realpath(graph.file): "the graph file"} if graph.file else {}
+        writes = []
+        for nid in order:
+            if nid in bind:
+                continue
+            spec = self.registry.get(graph.nodes[nid].type)
+            for p in spec.params:
+                if p.kind == "path" and params[nid].get(p.name) is not None:
+                    if p.writes:
+                        writes.append((nid, p.name, params[nid][p.name]))
+                    else:
+                        reads.setdefault(params[nid][p.name], f"node {nid!r} param {p.name!r}")
+        for nid, pname, path in writes:
+            if path in reads:
+                raise self._located(graph, f"would write over {reads[path]}, read by this run ({path})",
+                                    nid, f"params.{pname}")
+
+    @staticmethod
+    def _located(graph: Graph, message: str, nid: str, field: str) -> PathError:
+        e = graph.error(message, node=nid, field=field)
+        return PathError(e.message, file=e.file, line=e.line, node=nid, field=field)
+
+    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values, policy: PathPolicy | None = None,
+                read_paths: bool = True) -> tuple[dict, dict]:
         params = spec.coerce_params(values)
         relevant = {}
         for p in spec.params:
+            if p.kind == "path" and not read_paths:
+                continue  # a bound host input reads no file
             if p.kind == "path":
-                params[p.name] = graph.resolve_path(params[p.name])
+                params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
                 if p.writes:
                     relevant[p.name] = params[p.name]
                 else:
                     try:
+                        size = os.path.getsize(params[p.name])
+                        if size > self.max_file_bytes:
+                            raise graph.error(f"file is {size} bytes, more than the limit of {self.max_file_bytes} "
+                                              "(PIXGRAPH_MAX_FILE_BYTES)", node=nid, field=f"params.{p.name}")
                         relevant[p.name] = {"file_sha256": self._hash_file(params[p.name])}
                     except OSError as e:
                         raise graph.error(f"cannot read {params[p.name]}: {e.strerror}", node=nid,
@@ -235,7 +392,7 @@ class Engine:
                 relevant[p.name] = list(v) if isinstance(v, tuple) else v
         return params, relevant
 
-    def _steps(self, graph, requested, order, keys, parts, bind) -> tuple[Step, ...]:
+    def _steps(self, graph, requested, order, keys, parts, bind, params) -> tuple[Step, ...]:
         last = self._last_run_parts(graph.file)
         needed, status = set(), {}
         stack = [r.node for r in requested.values()]
@@ -270,11 +427,20 @@ class Engine:
                     why = ["not in cache"]
                 if type_id in self.memory_only:
                     why.append(f"memory only: {self.memory_only[type_id]}")
+                if self.disk is not None and keys[nid] in self.disk.discarded:
+                    why.append(f"disk entry discarded: {self.disk.discarded[keys[nid]]}")
             elif not why:
                 why = ["unchanged"]
             elif status[nid] in ("memory", "disk"):
                 # changed since the last run, but an earlier run left this key cached
                 why.append(f"an earlier result is in the {status[nid]} cache")
+            # a node may say what it will do with these params (``describe(params)``),
+            # and what it logged when it made the result now in the cache
+            describe = getattr(self.registry.get(type_id).cls, "describe", None)
+            if callable(describe) and nid not in bind:
+                why.append(str(describe(params[nid])))
+            if status[nid] != "run" and keys[nid] in self._logs_by_key:
+                why.append("its run logged: " + " | ".join(self._logs_by_key[keys[nid]]))
             steps.append(Step(nid, type_id, keys[nid], status[nid], "; ".join(why)))
         return tuple(steps)
 
@@ -282,7 +448,13 @@ class Engine:
 
     def run(self, plan: Plan, cancel: E.CancelToken | None = None,
             on_event: Callable[[Any], None] | None = None) -> RunResult:
-        emit = on_event or _ignore
+        forward = on_event or _ignore
+        logs: dict[str, list[str]] = {}
+
+        def emit(ev):
+            if isinstance(ev, E.NodeLog):
+                logs.setdefault(ev.node_id, []).append(ev.message)
+            forward(ev)
         graph = plan.graph
         results: dict[str, dict[str, Any]] = {}
         timings: dict[str, float] = {}
@@ -292,6 +464,7 @@ class Engine:
         emit(E.RunStarted(sum(s.status == "run" for s in plan.steps),
                           sum(s.status != "run" for s in plan.steps)))
         missed: set[str] = set()
+        tainted: set[str] = set()
         # a stack: reversed, so outputs (and inputs, below) are pulled in the order given
         stack = list(reversed(dict.fromkeys(r.node for r in plan.outputs.values())))
         while stack:
@@ -305,20 +478,24 @@ class Engine:
             spec = self.registry.get(inst.type)
             key = plan.keys[nid]
             if nid in plan.bind:
-                results[nid] = {spec.outputs[0].name: plan.bind[nid]}
+                results[nid] = dict(plan.bound[nid])
                 cached.append(nid)
                 emit(E.NodeCached(nid, "bound"))
                 stack.pop()
                 continue
             if not spec.side_effects and nid not in missed:
-                value, where = self._fetch(key)
+                value, where = self._fetch(key, spec)
                 if value is not MISS:
                     results[nid] = value
                     cached.append(nid)
                     emit(E.NodeCached(nid, where))
                     stack.pop()
                     continue
-                missed.add(nid)  # evicted since the plan: run it after its inputs
+                missed.add(nid)  # evicted (or discarded) since the plan: run it after its inputs
+                why = self.disk.discarded.get(key) if self.disk is not None else None
+                if why:
+                    reasons[nid] = f"disk cache entry discarded ({why}); recomputing"
+                    emit(E.NodeLog(nid, reasons[nid]))
             waiting = [ref.node for ref in inst.inputs.values() if ref.node not in results]
             if waiting:
                 stack.extend(reversed(waiting))
@@ -330,7 +507,16 @@ class Engine:
             timings[nid] = time.perf_counter() - t0
             results[nid] = value
             ran.append(nid)
-            stored = self._store(spec, key, value)
+            changed = self._sources_changed(nid, spec, plan)
+            if changed or any(ref.node in tainted for ref in inst.inputs.values()):
+                # computed on bytes the key does not describe: never cache it, nor what uses it
+                tainted.add(nid)
+                stored = ("not cached: " + (f"file changed during the run ({', '.join(changed)})" if changed
+                                            else "an input was computed from a file that changed during the run"))
+                emit(E.NodeLog(nid, stored))
+                _log.warning("node %r: %s", nid, stored)
+            else:
+                stored = self._store(spec, key, value)
             emit(E.NodeFinished(nid, timings[nid], stored))
         last = self._last_run_parts(graph.file)
         for nid in results:
@@ -338,8 +524,15 @@ class Engine:
         if self.disk is not None and graph.file is not None:
             self.disk.save_record(_record_name(graph.file), {n: p.to_dict() for n, p in last.items()})
         values = {name: results[ref.node][ref.output] for name, ref in plan.outputs.items()}
+        for nid in ran:
+            if nid in logs:
+                self._logs_by_key[plan.keys[nid]] = logs[nid]
+                if len(self._logs_by_key) > 4096:      # bounded: drop the oldest
+                    self._logs_by_key.pop(next(iter(self._logs_by_key)))
+            else:
+                self._logs_by_key.pop(plan.keys[nid], None)
         emit(E.RunFinished(time.perf_counter() - t_run, len(ran), len(cached)))
-        return RunResult(values, timings, tuple(ran), tuple(cached), plan)
+        return RunResult(values, timings, tuple(ran), tuple(cached), plan, logs)
 
     def _last_run_parts(self, file: str | None) -> dict[str, KeyParts]:
         """Last-run key parts by node id for a graph file; read from the disk
@@ -357,17 +550,36 @@ class Engine:
             self._last_parts[file] = last
         return last
 
-    def _fetch(self, key: str):
+    def _fetch(self, key: str, spec: NodeSpec):
         value = self.memory.get(key)
         if value is not MISS:
             return value, "memory"
         if self.disk is not None:
             value = self.disk.get(key)
             if value is not MISS:
+                why = _misfit(spec, value)
+                if why:  # a well-formed entry that is not this node's outputs
+                    self.disk._discard(key, self.disk.path(key), why)
+                    return MISS, ""
                 _freeze(value)
                 self.memory.put(key, value)
                 return value, "disk"
         return MISS, ""
+
+    def _sources_changed(self, nid: str, spec: NodeSpec, plan: Plan) -> list[str]:
+        """Read-path params whose file no longer has the content hashed into the
+        key (it changed between planning and the end of the compute)."""
+        changed = []
+        for p in spec.params:
+            if p.kind == "path" and not p.writes:
+                expect = plan.parts[nid].params.get(p.name)
+                try:
+                    now = {"file_sha256": self._hash_file.fresh(plan.params[nid][p.name])}
+                except OSError:
+                    now = None
+                if now != expect:
+                    changed.append(f"params.{p.name}")
+        return changed
 
     def _compute(self, nid, spec: NodeSpec, inst, plan: Plan, results, cancel, emit) -> dict[str, Any]:
         inputs = {p.name: None for p in spec.inputs}
@@ -379,9 +591,15 @@ class Engine:
         except (E.Cancelled, DeviceError):
             raise  # not the node's fault: no device could be opened
         except InputError as exc:
-            raise NodeInputError(nid, spec.type_id, str(exc).splitlines()[0]) from exc
+            files = _files_upstream(plan, nid)
+            where = f" (inputs from {files})" if files else ""
+            raise NodeInputError(nid, spec.type_id,
+                                 (str(exc).splitlines() or [type(exc).__name__])[0] + where) from exc
+        except MemoryError as exc:  # sizes from the user's graph, too large for this machine
+            raise NodeInputError(nid, spec.type_id, "ran out of memory: its inputs or params ask for more "
+                                 "than this machine has") from exc
         except Exception as exc:
-            raise NodeError(nid, spec.type_id, f"failed: {type(exc).__name__}: {exc}".splitlines()[0]) from exc
+            raise NodeError(nid, spec.type_id, (f"failed: {type(exc).__name__}: {exc}".splitlines() or [""])[0]) from exc
         if not isinstance(out, dict):
             raise NodeError(nid, spec.type_id, f"compute returned {type(out).__name__}, expected a dict of outputs")
         names = [p.name for p in spec.outputs]
@@ -411,6 +629,69 @@ class Engine:
                 self.memory_only[spec.type_id] = str(e)
                 where += f"; memory only: {e}"
         return where
+
+
+def _same_size(spec: NodeSpec, ins: Mapping[str, Any]) -> dict[str, Any]:
+    """The default check: every input of known size has the same size, and the node's
+    sized outputs get it."""
+    shapes = {port: v for port, v in ins.items() if isinstance(v, Shape)}
+    sizes = {(v.height, v.width) for v in shapes.values()}
+    if len(sizes) > 1:
+        listing = ", ".join(f"{port} {v.described()}" for port, v in shapes.items())
+        raise InputError(f"inputs differ in size: {listing}")
+    if not sizes:
+        return {}
+    (h, w), = sizes
+    source = next(iter(shapes.values())).source
+    return {p.name: Shape(h, w, None, source) for p in spec.outputs if issubclass(p.type, SIZED)}
+
+
+def _files_upstream(plan: Plan, nid: str) -> str:
+    """``"mask: 'small.png' (node 'cutout'), ..."``: for each input of a node, the files
+    read by its nearest ancestors that read files, so an error names the user's files."""
+    graph = plan.graph
+    out = []
+    for port, ref in graph.nodes[nid].inputs.items():
+        seen, stack, files = set(), [ref.node], []
+        while stack:
+            n = stack.pop()
+            if n in seen:
+                continue
+            seen.add(n)
+            paths = [v for k, v in plan.parts[n].params.items() if isinstance(v, dict) and "file_sha256" in v] \
+                if n in plan.parts else []
+            if paths:
+                for p in plan.params.get(n, {}).values():
+                    if isinstance(p, str) and os.path.isfile(p):
+                        files.append(f"{_short(p)!r} (node {n!r})")
+                continue
+            if n in plan.bind:
+                files.append(f"the array bound to {n!r}")
+                continue
+            stack.extend(r.node for r in graph.nodes[n].inputs.values())
+        if files:
+            out.append(f"{port}: {', '.join(dict.fromkeys(files))}")
+    return "; ".join(out)
+
+
+def _short(path: str) -> str:
+    """A path as short as it is clear: relative to the current folder when inside it."""
+    rel = os.path.relpath(path)
+    return path if rel.startswith("..") else rel
+
+
+def _misfit(spec: NodeSpec, value) -> str | None:
+    """Why a cached value is not a valid output dict of ``spec``, or None."""
+    names = [p.name for p in spec.outputs]
+    if not isinstance(value, dict) or sorted(value) != sorted(names):
+        return f"holds outputs {sorted(value)[:8] if isinstance(value, dict) else type(value).__name__}, " \
+               f"not {names}"
+    for p in spec.outputs:
+        try:
+            p.type.validate(value[p.name])
+        except TypeError as e:
+            return f"output {p.name!r} is not a valid {p.type.type_name()}: {e}"[:200]
+    return None
 
 
 def _freeze(value) -> None:

@@ -37,6 +37,16 @@ from .registry import Registry
 FORMAT_VERSION = 1
 NODE_KEYS = ("type", "params", "inputs")
 
+#: limits on a graph file, so that a small hostile file cannot take minutes or
+#: gigabytes (YAML aliases can expand a few hundred bytes into billions of nodes)
+MAX_FILE_BYTES = 4 << 20
+#: YAML nodes after alias expansion (every scalar, list and mapping counts one)
+MAX_YAML_NODES = 200_000
+#: nesting of lists and mappings, after alias expansion
+MAX_DEPTH = 32
+#: characters in one scalar (a path, a string param, a number's text)
+MAX_STRING = 10_000
+
 
 class _Located(dict):
     """A mapping from the file, with the 1-based line of itself and of each key."""
@@ -46,7 +56,26 @@ class _Located(dict):
 
 
 class LineLoader(yaml.SafeLoader):
-    """SafeLoader that keeps line numbers and refuses duplicate keys."""
+    """SafeLoader that keeps line numbers, refuses duplicate keys, and bounds the
+    document (``MAX_DEPTH``, ``MAX_YAML_NODES`` after alias expansion, ``MAX_STRING``)
+    before anything is constructed."""
+
+    _depth = 0
+
+    def compose_node(self, parent, index):
+        self._depth += 1
+        try:
+            if self._depth > MAX_DEPTH + 1:
+                raise yaml.composer.ComposerError(None, None, f"nested deeper than {MAX_DEPTH} levels",
+                                                  self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def compose_document(self):
+        node = super().compose_document()
+        _check_expanded(node, {}, 0)
+        return node
 
     def construct_mapping(self, node, deep=False):
         if not isinstance(node, yaml.MappingNode):
@@ -71,6 +100,39 @@ class LineLoader(yaml.SafeLoader):
 
 
 LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, LineLoader.construct_mapping)
+
+
+_IN_PROGRESS = (-1, -1)
+
+
+def _check_expanded(node, memo: dict, depth: int) -> tuple[int, int]:
+    """(nodes, height) of a composed YAML node with aliases expanded; raises
+    ``ComposerError`` past the limits or on a self-referencing alias."""
+    def fail(what):
+        raise yaml.composer.ComposerError(None, None, what, node.start_mark)
+
+    hit = memo.get(id(node))
+    if hit is _IN_PROGRESS:
+        fail("an alias refers to a node that contains it")
+    if hit is None:
+        memo[id(node)] = _IN_PROGRESS
+        if isinstance(node, yaml.ScalarNode):
+            if len(node.value) > MAX_STRING:
+                fail(f"a value of {len(node.value)} characters (the limit is {MAX_STRING})")
+            hit = (1, 0)
+        else:
+            children = node.value if isinstance(node, yaml.SequenceNode) else [x for kv in node.value for x in kv]
+            count, height = 1, 0
+            for child in children:
+                c, h = _check_expanded(child, memo, depth + 1)
+                count, height = count + c, max(height, h + 1)
+                if count > MAX_YAML_NODES:
+                    fail(f"more than {MAX_YAML_NODES} values once aliases are expanded")
+            hit = (count, height)
+        memo[id(node)] = hit
+    if depth + hit[1] > MAX_DEPTH:
+        fail(f"nested deeper than {MAX_DEPTH} levels once aliases are expanded")
+    return hit
 
 
 def _line(d: Any, key: Any = None) -> int | None:
@@ -126,6 +188,8 @@ def loads(text: str, registry: Registry, *, file: str | None = None, base_dir: s
     def fail(message, line=None, node=None, field=None):
         return GraphError(message, file=file, line=line, node=node, field=field)
 
+    if len(text) > MAX_FILE_BYTES:
+        raise fail(f"graph file is larger than {MAX_FILE_BYTES} bytes")
     try:
         doc = yaml.load(text, Loader=LineLoader)
     except yaml.MarkedYAMLError as e:
@@ -138,6 +202,8 @@ def loads(text: str, registry: Registry, *, file: str | None = None, base_dir: s
         raise fail(f"invalid YAML: {what}", mark.line + 1 if mark else None) from None
     except yaml.YAMLError as e:
         raise fail(f"invalid YAML: {e}") from None
+    except RecursionError:
+        raise fail(f"invalid YAML: nested too deeply (the limit is {MAX_DEPTH} levels)") from None
     if not isinstance(doc, dict):
         raise fail("a graph file is a mapping with keys pixgraph, nodes, outputs", 1)
     version = doc.get("pixgraph")
@@ -159,9 +225,14 @@ def loads(text: str, registry: Registry, *, file: str | None = None, base_dir: s
 def load(path: str | os.PathLike, registry: Registry) -> Graph:
     """Read and validate a graph file; path params are relative to its folder."""
     path = os.fspath(path)
+    if os.path.exists(path) and not os.path.isfile(path):  # a folder, a FIFO, a device
+        raise GraphError("cannot read graph file: not a regular file", file=path)
     try:
-        with open(path, encoding="utf-8") as f:
-            text = f.read()
+        with open(path, "rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)
+        if len(data) > MAX_FILE_BYTES:
+            raise GraphError(f"graph file is larger than {MAX_FILE_BYTES} bytes", file=path)
+        text = data.decode("utf-8")
     except (OSError, UnicodeDecodeError) as e:
         raise GraphError(f"cannot read graph file: {e.strerror if isinstance(e, OSError) else e}",
                          file=path) from None

@@ -30,6 +30,17 @@ from typing import Any, Mapping
 from .node import NodeSpec, ParamError
 from .registry import Registry, UnknownNodeType
 
+#: longest error line printed, in characters
+MAX_ERROR_LINE = 300
+
+
+def one_line(text: str, limit: int = MAX_ERROR_LINE) -> str:
+    """``text`` on one line, cut to ``limit`` characters (error messages quote user
+    values, which may be huge)."""
+    text = " ".join(str(text).split("\n"))
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 NODE_ID = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 
 
@@ -61,7 +72,7 @@ class GraphError(ValueError):
             label = {"params": "param", "inputs": "input", "outputs": "output"}.get(head)
             parts.append(f"{label} {rest!r}" if label and rest else self.field)
         parts.append(self.message)
-        return ": ".join(parts).replace("\n", " ")
+        return one_line(": ".join(parts))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -183,6 +194,13 @@ def _check_params(graph: Graph, nid: str, spec: NodeSpec, values: Mapping[str, A
             out[name] = p.coerce(value)
         except ParamError as e:
             raise graph.error(e.message, node=nid, field=f"params.{name}") from None
+        if p.kind == "path":
+            from .paths import PathError, bad_characters
+
+            why = bad_characters(os.fspath(out[name]))
+            if why:
+                e = graph.error(f"path {out[name]!r} {why}", node=nid, field=f"params.{name}")
+                raise PathError(e.message, file=e.file, line=e.line, node=nid, field=e.field)
         if p.kind == "path" and not p.writes and not os.path.isfile(graph.resolve_path(out[name])):
             raise graph.error(f"file not found: {graph.resolve_path(out[name])}", node=nid, field=f"params.{name}")
     for p in spec.params:

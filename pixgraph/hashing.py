@@ -51,12 +51,19 @@ class FileHasher:
         hit = self._seen.get(path)
         if hit is not None and hit[0] == sig:
             return hit[1]
-        h = hashlib.sha256()
+        return self.fresh(path)
+
+    def fresh(self, path: str) -> str:
+        """Hash the file now, streaming it in 1 MiB chunks (never the whole file in
+        memory); the engine calls this after a node read the file, so a file edited
+        during the run is caught even within one timestamp tick."""
         with open(path, "rb") as f:
+            st = os.fstat(f.fileno())
+            h = hashlib.sha256()
             for chunk in iter(lambda: f.read(1 << 20), b""):
                 h.update(chunk)
         digest = h.hexdigest()
-        self._seen[path] = (sig, digest)
+        self._seen[path] = ((st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino), digest)
         return digest
 
 

@@ -109,3 +109,21 @@ def markdown(registry: Registry) -> str:
     for spec in registry.specs():
         text += "\n" + markdown_section(spec)
     return text
+
+
+def as_dict(spec: NodeSpec) -> dict:
+    """One node type's declaration as plain JSON data (``pixgraph nodes --json``, the server's UI)."""
+    def port(p):
+        return {"name": p.name, "type": p.type.type_name(), "optional": p.optional, "doc": p.doc}
+
+    def prm(p: ParamSpec):
+        d = p.default
+        return {"name": p.name, "kind": p.kind, "default": list(d) if isinstance(d, tuple) else d,
+                "required": p.required, "min": p.min, "max": p.max,
+                "choices": list(p.choices) if p.choices is not None else None, "length": p.length,
+                "unit": p.unit, "doc": p.doc, "cache": p.cache, "writes": p.writes}
+
+    return {"type": spec.type_id, "version": spec.version, "impl_version": spec.impl_version,
+            "summary": spec.summary, "doc": inspect.cleandoc(spec.doc) if spec.doc else "",
+            "side_effects": spec.side_effects, "inputs": [port(p) for p in spec.inputs],
+            "outputs": [port(p) for p in spec.outputs], "params": [prm(p) for p in spec.params]}

@@ -20,6 +20,7 @@ from .cache import DiskCache, MemoryCache
 from .engine import Engine, Plan, RunResult
 from .events import CancelToken
 from .graph import Graph, GraphBuilder, GraphError
+from .paths import PathPolicy
 from .registry import Registry
 
 #: defaults, each overridable by a Session argument or an environment variable
@@ -51,10 +52,16 @@ class Session:
         passes ``--disk-cache``, ``PIXGRAPH_DISK_CACHE`` or ``~/.cache/pixgraph``).
     disk_cache_bytes: disk cache limit (default ``PIXGRAPH_DISK_CACHE_BYTES`` or 20 GiB).
     registry: node types; default ``Registry.discover()``.
+    allow_paths: folders that path params may read and write besides the graph
+        file's folder (a built graph's ``base_dir``, by default the current
+        directory); ``PIXGRAPH_ALLOW_PATHS`` adds more unless ``strict_paths``.
+    strict_paths: only the graph's folder and ``allow_paths`` (the HTTP server).
+        See ``pixgraph.paths`` and docs/security.md.
     """
 
     def __init__(self, device=None, cache_bytes: int | None = None, disk_cache: str | os.PathLike | None = None,
-                 registry: Registry | None = None, disk_cache_bytes: int | None = None):
+                 registry: Registry | None = None, disk_cache_bytes: int | None = None,
+                 allow_paths=(), strict_paths: bool = False):
         self.registry = registry if registry is not None else Registry.discover()
         if cache_bytes is None:
             cache_bytes = _env_bytes("PIXGRAPH_CACHE_BYTES", DEFAULT_CACHE_BYTES)
@@ -64,7 +71,8 @@ class Session:
         self.disk = DiskCache(disk_cache, disk_cache_bytes) if disk_cache is not None else None
         self._device_arg = device
         self._device = None
-        self.engine = Engine(self.registry, self.memory, self.disk, self._get_device)
+        self.paths = PathPolicy(allow_paths, strict=strict_paths)
+        self.engine = Engine(self.registry, self.memory, self.disk, self._get_device, paths=self.paths)
         self.last_run: RunResult | None = None
 
     @property
@@ -123,10 +131,28 @@ class Session:
                                  node=e.node, field=e.field) from None
             raise
 
+    def allow_files(self, files) -> None:
+        """Allow these exact files too (paths a person typed, not ones from a graph file)."""
+        self.paths = self.paths.with_files(files)
+        self.engine.paths = self.paths
+
+    def check_paths(self, graph_or_path, params=None) -> Graph:
+        """The graph, after checking every path param against the path policy
+        (raises ``paths.PathError``); ``plan`` and ``run`` check the nodes they need."""
+        graph = self.graph(graph_or_path, params)
+        self.engine.check_paths(graph)
+        return graph
+
     # -- plan and run -----------------------------------------------------------
 
     def plan(self, graph_or_path, outputs=None, params=None, bind=None) -> Plan:
         return self.engine.plan(self.graph(graph_or_path, params), outputs, bind)
+
+    def check(self, graph_or_path, outputs=None, params=None) -> dict:
+        """Check before running, from file headers only (``Engine.check``): sizes that
+        do not fit, cutouts without alpha, placements off the canvas... Raises the
+        first problem as a ``GraphError`` naming the node and the files."""
+        return self.engine.check(self.graph(graph_or_path, params), outputs)
 
     def explain(self, graph_or_path, outputs=None, params=None, bind=None) -> str:
         return self.plan(graph_or_path, outputs, params, bind).table()
@@ -137,8 +163,11 @@ class Session:
 
         outputs: names from the graph's ``outputs`` or ``"node.output"`` refs;
             default all of the graph's outputs.
-        bind: ``{node_id: array}`` replaces that node's first output with a host
-            array (keyed by its bytes, shape and dtype); its inputs are not run.
+        bind: ``{node_id: array}``: a host array for that node (keyed by its bytes,
+            shape and dtype); its inputs are not run. A host input node (one with a
+            ``bind`` method: ``pixgraph.InputImage``, ``InputMask``,
+            ``InputPixelHeight``, ``LoadImage``...) turns the array into all its
+            outputs; any other node's first output is replaced by the array.
         cancel: a ``CancelToken``; cancelling raises ``events.Cancelled``.
         on_event: called with each ``pixgraph.events`` event.
         """
@@ -146,7 +175,10 @@ class Session:
         for nid, value in (bind or {}).items():
             if nid not in graph.nodes:
                 raise GraphError("cannot bind: no such node in the graph", file=graph.file, node=nid)
-            port = self.registry.get(graph.nodes[nid].type).outputs[0]
+            spec = self.registry.get(graph.nodes[nid].type)
+            if hasattr(spec.cls, "bind"):
+                continue  # a host input checks the array itself, in the plan
+            port = spec.outputs[0]
             try:
                 port.type.validate(value)
             except TypeError as e:
@@ -154,6 +186,27 @@ class Session:
         plan = self.engine.plan(graph, outputs, bind)
         self.last_run = self.engine.run(plan, cancel, on_event)
         return self.last_run.values
+
+    def batch(self, graph_or_path, rows=None, outputs=None, template: str = "out/{row}_{name}.png",
+              sweeps=(), params=None, executor: str = "inprocess", workers: int = 2,
+              scheduler: str | None = None, force: bool = False, progress: bool = False, **kw):
+        """Run the graph once per row and write each row's outputs; returns a
+        ``batch.BatchResult`` (a failed row is reported there, not raised).
+
+        rows: a manifest path (CSV/YAML), or ``{"node.param": value, "id": ...}``
+            mappings; crossed with ``sweeps`` (``"light.azimuth=0:360:15"``).
+        outputs: ``{name: template}`` or names (each written to ``template``);
+            default every image output of the graph.
+        executor: ``"inprocess"`` (this session), ``"processes"`` (``workers``
+            spawned processes) or ``"dask"`` (``scheduler``: an address, a
+            ``distributed.Client`` or a cluster object; none: a ``LocalCluster``
+            of ``workers`` processes). See ``pixgraph.batch`` and docs/batch.md.
+        force: re-render rows whose outputs are already done.
+        """
+        from . import batch
+
+        return batch.batch(self, graph_or_path, rows, outputs, template, sweeps, params, executor=executor,
+                           workers=workers, scheduler=scheduler, force=force, progress=progress, **kw)
 
     def cache_stats(self) -> dict:
         return {"memory": self.memory.stats(), "disk": self.disk.stats() if self.disk else None}

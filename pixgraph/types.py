@@ -9,6 +9,7 @@ them (``validate``) and give a byte size for the memory cache.
 """
 from __future__ import annotations
 
+import dataclasses
 import sys
 from typing import Any as _Any
 
@@ -115,6 +116,31 @@ class Buffers(PortType):
             raise TypeError(f"Buffers must be a dict of arrays, got {type(value).__name__}")
         for k, v in value.items():
             _check_array(v, (2,), f"Buffers channel {k!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Shape:
+    """What a check before running knows of an array value: its size, its channels
+    when known, and where it comes from (``"'cutout.png' (node 'cutout')"``), so a
+    mismatch can name the user's files. Nodes' ``infer`` hooks make these from file
+    headers; the engine's ``check`` passes them along the graph."""
+
+    height: int
+    width: int
+    channels: int | None = None
+    source: str = ""
+
+    @property
+    def size(self) -> str:
+        """``"WxH"``, as image sizes are written."""
+        return f"{self.width}x{self.height}"
+
+    def described(self) -> str:
+        return f"{self.size} from {self.source}" if self.source else self.size
+
+
+#: port types whose values are (H, W[, C]) arrays or carry one image size
+SIZED = (Image, Mask, PixelHeight, Buffers, Geometry)
 
 
 def nbytes(value: _Any) -> int:

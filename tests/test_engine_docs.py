@@ -16,15 +16,30 @@ def _python_blocks(path):
     return re.findall(r"```python\n(.*?)```", open(path).read(), re.S)
 
 
-@pytest.mark.parametrize("index", [0, 1])
-def test_embedding_examples_run(index, tmp_path, monkeypatch, capsys):
-    monkeypatch.chdir(tmp_path)
-    blocks = _python_blocks(os.path.join(DOCS, "embedding.md"))
-    assert len(blocks) == 2
-    exec(compile(blocks[index], f"embedding.md block {index}", "exec"), {})
+REPO = os.path.dirname(DOCS)
+EMBEDDING_BLOCKS = _python_blocks(os.path.join(DOCS, "embedding.md"))
+
+
+def test_embedding_has_the_documented_blocks():
+    assert len(EMBEDDING_BLOCKS) == 4
+
+
+@pytest.mark.parametrize("index", range(len(EMBEDDING_BLOCKS)))
+def test_embedding_examples_run(index, monkeypatch, capsys):
+    monkeypatch.chdir(REPO)  # blocks name graphs/... relative to the repository root
+    exec(compile(EMBEDDING_BLOCKS[index], f"embedding.md block {index}", "exec"), {})
     if index == 0:
         out = capsys.readouterr().out
         assert "soften" in out and "params.sigma changed" in out
+
+
+def test_tutorial_bind_example_runs_and_prints_what_it_says(monkeypatch, capsys):
+    text = open(os.path.join(DOCS, "tutorial.md")).read()
+    blocks = re.findall(r"```python\n(.*?)```\n\n```\n(.*?)```", text, re.S)
+    code, printed = next((c, p) for c, p in blocks if "bind=" in c)
+    monkeypatch.chdir(REPO)
+    exec(compile(code, "tutorial.md bind example", "exec"), {})
+    assert capsys.readouterr().out == printed
 
 
 @pytest.mark.parametrize("type_id", ENGINE_NODES)

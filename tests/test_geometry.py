@@ -234,7 +234,7 @@ def test_camera_node_value_and_load_pixel_height_node(tmp_path):
     from pixgraph_nodes.camera import Camera as CameraNode
     from pixgraph_nodes.load_pixel_height import LoadPixelHeight
 
-    cam = CameraNode().compute(Ctx(), Namespace({}), params_of(CameraNode, width=300, height=200, hfov=60.0,
+    cam = CameraNode().compute(Ctx(), Namespace({"image": None}), params_of(CameraNode, width=300, height=200, hfov=60.0,
                                                                horizon=-10.0, cam_height=1.7))["camera"]
     assert cam == Camera(300, 200, 60.0, -10.0, 1.7)
     assert cam.focal == pytest.approx(150.0 / math.tan(math.radians(30.0)))

@@ -22,6 +22,12 @@ class Ctx:
         self.device = device
         self.graph_dir = None
 
+    def progress(self, fraction, message=""):
+        pass
+
+    def check_cancelled(self):
+        pass
+
 
 def pole():
     """Mask and pixel height of a thin upright pole (a billboard facing the camera)."""

@@ -154,6 +154,8 @@ def _noise(shape, seed, scale):
 
 def background_height(cam: Camera, scene: dict) -> np.ndarray:
     k = scene["kind"]
+    if k == "back_wall":
+        return hm.wall_from_junction(cam.width, cam.height, scene["junction_points"])
     if k == "ground":
         return hm.ground(cam.width, cam.height)
     if k == "wall_corner":
@@ -163,10 +165,11 @@ def background_height(cam: Camera, scene: dict) -> np.ndarray:
     raise ValueError(k)
 
 
-def render_background(name: str) -> np.ndarray:
-    """Linear RGB float32 (512, 512, 3) of one scene."""
-    scene = SCENES[name]
-    cam = Camera(**CAMERA)
+def render_background(name: str, scene: dict | None = None, camera: dict | None = None) -> np.ndarray:
+    """Linear RGB float32 (H, W, 3) of one scene (``SCENES[name]`` and the 512x512
+    ``CAMERA`` unless given)."""
+    scene = SCENES[name] if scene is None else scene
+    cam = Camera(**(CAMERA if camera is None else camera))
     h = background_height(cam, scene)
     g = reconstruct_geometry(cam, h)
     P, N, valid = g.position.astype(np.float64), g.normal.astype(np.float64), g.valid > 0

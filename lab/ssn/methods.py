@@ -53,3 +53,27 @@ def __getattr__(name: str):
         run.__name__ = name
         return run
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _node(sample, gate=True):
+    from pixgraph_nodes.ops import ssn_crop
+    from pixgraph_nodes.ops.lights import disk_extremes, light_point
+    from pixgraph_nodes.ssn_soft_shadow import load_shipped
+    light, cam = sample["light"], sample["camera"]
+    mask = sample["mask"].astype("float32")
+    softness = ssn.softness_of(light, cam, mask, sample["fg_height"])
+    d, _ = ssn_crop.render(sample["device"], load_shipped("ssnpp"), mask, sample["fg_height"],
+                           sample["bg_height"], light_point(light, cam), disk_extremes(light, cam),
+                           softness, 1.0, gate=gate)
+    return d
+
+
+def node(sample):
+    """What the SoftShadowSSN node computes: SSN++ on a window at the trained scale
+    (``ops.ssn_crop.render``), shipped weights, the node's softness."""
+    return _node(sample)
+
+
+def node_ungated(sample):
+    """``node`` without the shadow-reach gate (for the ablation in docs/ssn.md)."""
+    return _node(sample, gate=False)

@@ -102,31 +102,35 @@ def buffer_channels_ref(mask, fg_height, bg_height, light_center, light_extremes
 
 
 def buffer_channels(device, mask, fg_height, bg_height, light_center, light_extremes,
-                    thickness=1.0) -> dict[str, np.ndarray]:
+                    thickness=1.0, *, progress=None, check_cancelled=None) -> dict[str, np.ndarray]:
     """The SSN++ buffer channels (see the module docstring), in one kernel launch.
 
     mask (H, W) cutout where > 0.5; fg_height, bg_height (H, W) pixel heights
     (pixels); light_center (4,) the disk light's centre (u, v, h, s);
     light_extremes (4, 4) its four extreme points; thickness (pixels).
-    Returns a dict of float32 (H, W) arrays keyed by CHANNELS.
+    Returns a dict of float32 (H, W) arrays keyed by CHANNELS. progress,
+    check_cancelled: called between bands of rows (``shadow.soft_shadow``).
     """
     scene = S.ShadowScene(device, mask, fg_height, bg_height, thickness)
-    return channels_on(scene, light_center, light_extremes)
+    return channels_on(scene, light_center, light_extremes, progress, check_cancelled)
 
 
-def launch_channels(scene: "S.ShadowScene", lights_buf):
+def launch_channels(scene: "S.ShadowScene", lights_buf, progress=None, check_cancelled=None):
     """Enqueue the buffer-channels kernel on a prepared scene; returns (event, buffer)
-    with the (C, H, W) planes in CHANNELS order."""
+    with the (C, H, W) planes in CHANNELS order (banded with callbacks)."""
     p = scene.prep
     out = scene.out_buffer("channels", len(CHANNELS) * p.H * p.W * 4)
-    ev = scene.launch("buffer_channels", scene.recv, scene.bg_buffer(), lights_buf, out)
+    # five hard shadows per pixel (the centre and the four extremes)
+    ev = scene.launch_banded("buffer_channels", scene.recv, scene.bg_buffer(), lights_buf, out, cost=5,
+                             progress=progress, check_cancelled=check_cancelled)
     return ev, out
 
 
-def channels_on(scene: "S.ShadowScene", light_center, light_extremes) -> dict[str, np.ndarray]:
+def channels_on(scene: "S.ShadowScene", light_center, light_extremes, progress=None,
+                check_cancelled=None) -> dict[str, np.ndarray]:
     """:func:`buffer_channels` on an already uploaded :class:`shadow.ShadowScene`."""
     lights = _lights(light_center, light_extremes)
-    ev, out = launch_channels(scene, scene.samples_buffer(lights))
+    ev, out = launch_channels(scene, scene.samples_buffer(lights), progress, check_cancelled)
     scene.last_event = ev
     host = scene._read(out, (len(CHANNELS), scene.prep.H, scene.prep.W), ev)
     return {name: host[c] for c, name in enumerate(CHANNELS)}

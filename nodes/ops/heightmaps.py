@@ -291,7 +291,16 @@ def load_pixel_height(path: str | os.PathLike, scale: float = 1.0) -> np.ndarray
     """
     p = pathlib.Path(path)
     if p.suffix.lower() == ".npy":
-        a = np.load(p, allow_pickle=False)
+        from .imageio import ImageFileError, max_pixels
+
+        try:  # the header alone first: refuse an oversized array before reading it
+            a = np.load(p, allow_pickle=False, mmap_mode="r")
+        except (ValueError, OSError, EOFError) as e:
+            raise ImageFileError(f"cannot read {p}: {e}"[:300]) from None
+        if a.size > max_pixels() or a.dtype.kind not in "biuf":
+            raise ImageFileError(f"{p}: array {a.dtype} {a.shape} is not numeric or exceeds the limit of "
+                                 f"{max_pixels()} values (PIXGRAPH_MAX_PIXELS)"[:300])
+        a = np.array(a)
     else:
         from .imageio import read_image
         a, _ = read_image(p, colorspace="linear", alpha="premultiplied")

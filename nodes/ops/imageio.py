@@ -20,8 +20,28 @@ import pathlib
 
 import numpy as np
 
+from pixgraph.node import InputError
+
 #: file extensions whose colour is linear float (everything else is sRGB-encoded)
 LINEAR_EXTENSIONS = (".exr", ".hdr")
+#: largest image read, in pixels (width x height x depth), checked from the file's
+#: header before any pixel is decoded; ``PIXGRAPH_MAX_PIXELS`` overrides it
+DEFAULT_MAX_PIXELS = 64 * 1024 * 1024
+
+
+class ImageFileError(InputError, OSError):
+    """An image file that cannot be read, is larger than allowed, or cannot be
+    written as asked (extension, bit depth, shape): bad input (exit 2). Also an
+    ``OSError`` and a ``ValueError`` for callers that catch those."""
+
+
+def max_pixels() -> int:
+    """The pixel limit for image reads (``PIXGRAPH_MAX_PIXELS``, default 64 Mpx)."""
+    raw = os.environ.get("PIXGRAPH_MAX_PIXELS", "")
+    try:
+        return int(float(raw)) if raw.strip() else DEFAULT_MAX_PIXELS
+    except ValueError:
+        raise ImageFileError(f"PIXGRAPH_MAX_PIXELS must be a number, got {raw[:40]!r}") from None
 
 
 def srgb_to_linear(x: np.ndarray) -> np.ndarray:
@@ -77,6 +97,17 @@ def read_image(path: str | os.PathLike, colorspace: str = "auto",
         colorspace = "linear" if _is_linear_file(path) else "srgb"
     if alpha == "auto":
         alpha = "premultiplied" if _is_linear_file(path) else "straight"
+    return to_internal(data, colorspace, alpha)
+
+
+def to_internal(data: np.ndarray, colorspace: str, alpha: str) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels as a file or host holds them -> pixgraph's ``(image, alpha)``.
+
+    data: float (H, W, C), C in 1..4 (alpha last when C is 2 or 4), values as stored;
+    colorspace ``"srgb"`` or ``"linear"``; alpha ``"straight"`` or ``"premultiplied"``.
+    Returns ``image`` float32 (H, W, C) linear premultiplied and ``alpha`` float32
+    (H, W) in [0, 1] (ones when there is no alpha channel).
+    """
     ai = _alpha_channel(data.shape[2])
     if ai is None:
         a = np.ones(data.shape[:2], np.float32)
@@ -100,6 +131,95 @@ def read_image(path: str | os.PathLike, colorspace: str = "auto",
     return np.ascontiguousarray(image, dtype=np.float32), a.astype(np.float32)
 
 
+def host_pixels(array, channels: tuple[int, ...], what: str) -> np.ndarray:
+    """A host's numpy array as float32 values: float dtypes as they are, unsigned
+    integers normalised (``v / 255``, ``v / 65535``); (H, W) becomes (H, W, 1).
+
+    Raises ``ValueError`` (one line) for another type, shape or channel count.
+    NaN / infinite values are passed on: the nodes that use them refuse them where
+    they matter (inside the cutout), naming the input and the pixel.
+    """
+    if not isinstance(array, np.ndarray):
+        raise ValueError(f"{what} must be a numpy array, got {type(array).__name__}")
+    a = array
+    if a.dtype.kind == "u":
+        a = a.astype(np.float32) / np.float32(np.iinfo(a.dtype).max)
+    elif a.dtype.kind != "f":
+        raise ValueError(f"{what} must be float or unsigned integer, got dtype {a.dtype}")
+    a = np.asarray(a, dtype=np.float32)
+    if a.ndim == 2:
+        a = a[:, :, None]
+    if a.ndim != 3 or a.shape[2] not in channels or a.shape[0] < 1 or a.shape[1] < 1:
+        want = " or ".join(f"(H, W, {c})" for c in channels)
+        raise ValueError(f"{what} must have shape {want}, got {array.shape}")
+    return np.ascontiguousarray(a)
+
+
+def read_header(path: str | os.PathLike) -> tuple[int, int, int]:
+    """``(height, width, channels)`` of an image file from its header (no pixels
+    read), or of a ``.npy`` array (its header; 2-D arrays have 1 channel).
+    Raises ``OSError`` when the file cannot be opened as an image."""
+    p = pathlib.Path(path)
+    if p.suffix.lower() == ".npy":
+        a = np.load(p, mmap_mode="r", allow_pickle=False)
+        if a.ndim not in (2, 3):
+            raise OSError(f"{p}: expected a 2-D or 3-D array, got shape {a.shape}")
+        return int(a.shape[0]), int(a.shape[1]), int(a.shape[2]) if a.ndim == 3 else 1
+    inp = _oiio().ImageInput.open(str(p))
+    if inp is None:
+        raise OSError(f"cannot read image {p}: {_oiio().geterror()}".splitlines()[0])
+    try:
+        spec = inp.spec()
+        return int(spec.height), int(spec.width), int(spec.nchannels)
+    finally:
+        inp.close()
+
+
+def read_raw(path: str | os.PathLike) -> tuple[np.ndarray, list[str]]:
+    """A file's stored values as float32 (H, W, C) and its channel names: integers
+    normalised to [0, 1], never colour-decoded or premultiplied (for data: masks,
+    pixel heights, darkness)."""
+    oiio = _oiio()
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    return _read_float(oiio, path, config)
+
+
+def read_mask(path: str | os.PathLike) -> np.ndarray:
+    """A mask (matte) file as float32 (H, W) in [0, 1].
+
+    ``.npy`` (the PixHt-Lab authors' format): (H, W) or (H, W, C) (first channel);
+    bool, unsigned integers (divided by their maximum), or floats (divided by 255
+    when the largest value is over 1: a 0..255 matte). Images: the alpha channel
+    when there is one, else the first channel, as stored (a matte is data: never
+    sRGB-decoded). Raises ``ValueError`` for NaN values or another shape.
+    """
+    p = pathlib.Path(path)
+    if p.suffix.lower() == ".npy":
+        a = np.load(p, allow_pickle=False)
+        if a.dtype == bool:
+            a = a.astype(np.float32)
+        elif a.dtype.kind == "u":
+            a = a.astype(np.float32) / np.float32(np.iinfo(a.dtype).max)
+        elif a.dtype.kind == "f":
+            a = a.astype(np.float32)
+            if np.isfinite(a).all() and a.size and a.max() > 1.0:
+                a = a / np.float32(255.0)
+        else:
+            raise ValueError(f"{p}: a mask must be bool, unsigned or float, got dtype {a.dtype}")
+        if a.ndim == 3:
+            a = a[:, :, 0]
+    else:
+        data, names = read_raw(p)
+        ai = _alpha_channel(data.shape[2])
+        a = data[:, :, ai if ai is not None else 0]
+    if a.ndim != 2:
+        raise ValueError(f"{p}: expected a 2-D mask, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{p}: mask has NaN or infinite values")
+    return np.ascontiguousarray(np.clip(a, 0.0, 1.0), dtype=np.float32)
+
+
 def _unpremultiply(colour: np.ndarray, a: np.ndarray) -> np.ndarray:
     safe = np.where(a > 0.0, a, 1.0)[:, :, None]
     return np.where(a[:, :, None] > 0.0, colour / safe, 0.0).astype(np.float32)
@@ -110,7 +230,7 @@ def _as_hwc(array: np.ndarray) -> np.ndarray:
     if array.ndim == 2:
         array = array[:, :, None]
     if array.ndim != 3 or not 1 <= array.shape[2] <= 4:
-        raise ValueError(f"expected an (H, W) or (H, W, C<=4) image, got shape {array.shape}")
+        raise ImageFileError(f"expected an (H, W) or (H, W, C<=4) image, got shape {array.shape}")
     return array
 
 
@@ -123,13 +243,23 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
       written over black (the premultiplied colour) and alpha is dropped.
     - ``.exr``: linear, premultiplied, ``bit_depth`` 16 (half) or 32 (float,
       default), channels ``R,G,B[,A]`` (``Y`` / ``Y,A`` for grey).
+    - ``.npy``: the float32 array as it is (linear, premultiplied).
+
+    Data maps (mattes, darkness, pixel heights) go through ``write_data`` instead.
 
     The file is written to a temporary name next to it and renamed, so a reader
     never sees a half-written image. Returns the path written, as a string.
     """
-    oiio = _oiio()
     path = str(path)
     ext = pathlib.Path(path).suffix.lower()
+    if ext == ".npy":  # the array itself: float32 linear premultiplied, exact
+        folder, name = os.path.split(os.path.abspath(path))
+        os.makedirs(folder, exist_ok=True)
+        tmp = os.path.join(folder, f".{name}.tmp-{os.getpid()}.npy")
+        np.save(tmp, np.ascontiguousarray(array, dtype=np.float32))
+        os.replace(tmp, path)
+        return path
+    oiio = _oiio()
     img = _as_hwc(array)
     h, w, c = img.shape
     ai = _alpha_channel(c)
@@ -137,7 +267,7 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
     if ext == ".exr":
         bit_depth = 32 if bit_depth is None else bit_depth
         if bit_depth not in (16, 32):
-            raise ValueError(f"EXR bit_depth must be 16 or 32, got {bit_depth}")
+            raise ImageFileError(f"EXR bit_depth must be 16 or 32, got {bit_depth}")
         fmt = oiio.HALF if bit_depth == 16 else oiio.FLOAT
         spec = oiio.ImageSpec(w, h, c, fmt)
         spec.channelnames = tuple(names)
@@ -148,7 +278,7 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
         jpeg = ext in (".jpg", ".jpeg")
         bit_depth = 8 if bit_depth is None else bit_depth
         if bit_depth not in (8, 16) or (jpeg and bit_depth != 8):
-            raise ValueError(f"{ext} bit_depth must be 8{'' if jpeg else ' or 16'}, got {bit_depth}")
+            raise ImageFileError(f"{ext} bit_depth must be 8{'' if jpeg else ' or 16'}, got {bit_depth}")
         if jpeg and ai is not None:
             img = np.delete(img, ai, axis=2)
             c, ai = img.shape[2], None
@@ -168,9 +298,84 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
             spec.attribute("oiio:UnassociatedAlpha", 1)
         spec.attribute("oiio:ColorSpace", "sRGB")
     else:
-        raise ValueError(f"unsupported image extension {ext!r} for {path} (png, tif, jpg, exr)")
+        raise ImageFileError(f"unsupported image extension {ext!r} for {path} (png, tif, jpg, exr)")
     _write_atomic(oiio, path, spec, np.ascontiguousarray(pixels, dtype=np.float32))
     return path
+
+
+#: extensions ``write_data`` can write
+DATA_EXTENSIONS = (".npy", ".exr", ".tif", ".tiff", ".png")
+
+
+def write_data(path: str | os.PathLike, array: np.ndarray, bit_depth: int | None = None,
+               white: float = 1.0) -> str:
+    """Write a data map (a matte, a shadow darkness, a pixel height: float (H, W)) so
+    that reading it back gives the same numbers: never sRGB-encoded, never clipped.
+
+    - ``.npy``: float32, exact (read back with ``np.load``, LoadMask, LoadPixelHeight).
+    - ``.exr``: one float channel ``Y``, exact (``bit_depth`` 16: half floats).
+    - ``.tif``/``.tiff``: float32 (default, exact), or ``bit_depth`` 8/16 as below.
+    - ``.png``: 16-bit (default) or 8-bit integers holding ``value / white``, linear
+      (no gamma): exact to 1 / 65535 (1 / 255) of ``white``. Values outside
+      ``[0, white]`` are a ``ValueError`` naming the range (use .npy or .exr), since
+      an integer file cannot hold them.
+    NaN or infinite values are a ``ValueError``. Written atomically (temp + rename).
+    """
+    path = str(path)
+    ext = pathlib.Path(path).suffix.lower()
+    a = np.asarray(array, dtype=np.float32)
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[:, :, 0]
+    if a.ndim != 2:
+        raise ValueError(f"a data map is (H, W), got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{path}: the map has NaN or infinite values")
+    if ext == ".npy":
+        folder, name = os.path.split(os.path.abspath(path))
+        os.makedirs(folder, exist_ok=True)
+        tmp = os.path.join(folder, f".{name}.tmp-{os.getpid()}.npy")
+        np.save(tmp, np.ascontiguousarray(a))
+        os.replace(tmp, path)
+        return path
+    oiio = _oiio()
+    integer = ext == ".png" or (ext in (".tif", ".tiff") and bit_depth in (8, 16))
+    if integer:
+        bit_depth = 16 if bit_depth is None else bit_depth
+        if bit_depth not in (8, 16):
+            raise ValueError(f"{ext} data bit_depth must be 8 or 16, got {bit_depth}")
+        if not white > 0:
+            raise ValueError(f"white must be positive, got {white}")
+        lo, hi = float(a.min()), float(a.max())
+        if lo < 0.0 or hi > white * (1 + 1e-6):
+            raise ValueError(f"values {lo:g}..{hi:g} do not fit a {bit_depth}-bit {ext} holding 0..{white:g} "
+                             f"(write .npy or .exr, or set white)")
+        spec = oiio.ImageSpec(a.shape[1], a.shape[0], 1, oiio.UINT8 if bit_depth == 8 else oiio.UINT16)
+        pixels = np.clip(a / np.float32(white), 0.0, 1.0)
+    elif ext in (".exr", ".tif", ".tiff"):
+        bit_depth = 32 if bit_depth is None else bit_depth
+        if bit_depth not in (16, 32) or (bit_depth == 16 and ext != ".exr"):
+            raise ValueError(f"{ext} float bit_depth must be 32{' or 16' if ext == '.exr' else ''}, got {bit_depth}")
+        spec = oiio.ImageSpec(a.shape[1], a.shape[0], 1, oiio.HALF if bit_depth == 16 else oiio.FLOAT)
+        pixels = a
+    else:
+        raise ValueError(f"cannot write a data map to {ext!r} ({path}): use .npy, .exr, .tif or .png")
+    spec.channelnames = ("Y",)
+    _write_atomic(oiio, path, spec, np.ascontiguousarray(pixels[:, :, None], dtype=np.float32))
+    return path
+
+
+def read_data(path: str | os.PathLike, white: float = 1.0) -> np.ndarray:
+    """A data map written by ``write_data`` (or any single-channel file) as float32
+    (H, W): ``.npy`` as stored, float files as stored, integer files ``v / max * white``."""
+    p = pathlib.Path(path)
+    if p.suffix.lower() == ".npy":
+        return np.asarray(np.load(p, allow_pickle=False), dtype=np.float32)
+    data, _ = read_raw(p)
+    inp = _oiio().ImageInput.open(str(p))
+    fmt = str(inp.spec().format)
+    inp.close()
+    scale = white if fmt.startswith("uint") else 1.0
+    return (data[:, :, 0] * np.float32(scale)).astype(np.float32)
 
 
 def _write_atomic(oiio, path: str, spec, pixels: np.ndarray) -> None:
@@ -202,7 +407,7 @@ def write_exr_channels(path: str | os.PathLike, channels: dict[str, np.ndarray],
         if arr.ndim != 2 or arr.shape != shape:
             raise ValueError(f"channel {name!r} has shape {arr.shape}, expected {shape} (H, W)")
     if bit_depth not in (16, 32):
-        raise ValueError(f"EXR bit_depth must be 16 or 32, got {bit_depth}")
+        raise ImageFileError(f"EXR bit_depth must be 16 or 32, got {bit_depth}")
     spec = oiio.ImageSpec(shape[1], shape[0], len(arrays), oiio.HALF if bit_depth == 16 else oiio.FLOAT)
     spec.channelnames = tuple(channels)
     _write_atomic(oiio, str(path), spec, np.ascontiguousarray(np.stack(arrays, axis=2)))
@@ -219,12 +424,20 @@ def _read_float(oiio, path, config=None) -> tuple[np.ndarray, list[str]]:
     """All pixels of an image file as float32 (H, W, C), and its channel names."""
     inp = oiio.ImageInput.open(str(path), config) if config is not None else oiio.ImageInput.open(str(path))
     if inp is None:
-        raise OSError(f"cannot read image {path}: {oiio.geterror()}")
+        raise ImageFileError(f"cannot read image {path}: {oiio.geterror()}"[:300])
     try:
-        names = list(inp.spec().channelnames)
+        spec = inp.spec()
+        pixels = max(spec.width, 0) * max(spec.height, 0) * max(spec.depth, 1)
+        limit = max_pixels()
+        if pixels > limit or spec.nchannels > 64:
+            raise ImageFileError(f"image {path} is {spec.width}x{spec.height}x{spec.depth} with {spec.nchannels} "
+                                 f"channels: more than the limit of {limit} pixels (PIXGRAPH_MAX_PIXELS)")
+        if pixels == 0 or spec.nchannels < 1:
+            raise ImageFileError(f"image {path} has no pixels ({spec.width}x{spec.height}, {spec.nchannels} channels)")
+        names = list(spec.channelnames)
         data = inp.read_image("float")
         if data is None:
-            raise OSError(f"cannot read image {path}: {inp.geterror()}")
+            raise ImageFileError(f"cannot read image {path}: {inp.geterror()}"[:300])
     finally:
         inp.close()
     data = np.asarray(data, dtype=np.float32)

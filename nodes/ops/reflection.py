@@ -737,10 +737,12 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
     that progress and cancellation are checked between bands."""
     import pyopencl as cl
     ctx, queue = device.context, device.queue
-    H, W = bg_height.shape
     cutout = np.asarray(cutout, np.float32)
-    if cutout.shape != (H, W, 4):
-        raise ValueError(f"cutout must be (H, W, 4) RGBA matching the background, got {cutout.shape}")
+    fg_height = np.asarray(fg_height, np.float32)
+    bg_height = np.asarray(bg_height, np.float32)
+    check_shapes(camera, cutout=cutout, fg_height=fg_height, bg_height=bg_height,
+                 mask=None if mask is None else np.asarray(mask))
+    H, W = bg_height.shape
     surf = march.surface_buffer(cutout[..., 3] if mask is None else mask, fg_height)
     layer = np.zeros((H, W, 4), np.float32)
     spp = np.zeros((H, W), np.int32)
@@ -831,20 +833,48 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
     return {"layer": layer, "spp": spp, "steps": steps, "planar": done}
 
 
+def check_shapes(camera: Camera, **arrays) -> None:
+    """Raise ValueError unless every array (its first two axes) and the camera have
+    one (H, W) size, and arrays named in ``RGBA_INPUTS`` have 4 channels: the
+    kernels index every buffer with the camera's W and H, so a smaller buffer
+    would be read outside its memory."""
+    want = (camera.height, camera.width)
+    bad = [f"{k} {a.shape[1]}x{a.shape[0]}" for k, a in arrays.items()
+           if a is not None and tuple(a.shape[:2]) != want]
+    if bad:
+        raise ValueError(f"sizes differ from the camera's {want[1]}x{want[0]} (width x height): {', '.join(bad)}")
+    for k in RGBA_INPUTS:
+        a = arrays.get(k)
+        if a is not None and (a.ndim != 3 or a.shape[2] != 4):
+            raise ValueError(f"{k} must be RGBA (H, W, 4), got shape {a.shape}")
+
+
+#: inputs whose alpha (channel 3) the wrappers read
+RGBA_INPUTS = ("cutout", "glass")
+
+
 def refraction_cl(device, camera: Camera, glass, glass_height, background, bg_height, *, eta=1.5,
-                  tint=(1.0, 1.0, 1.0), fresnel=True, hiz=True, back_surface="none"):
+                  tint=(1.0, 1.0, 1.0), fresnel=True, hiz=True, back_surface="none", band_rows=None,
+                  progress=None, check_cancelled=None):
     """Refraction layer of a transparent cutout on the device. ``back_surface``:
     ``"none"`` (front interface only) or ``"local_sphere"`` (refract out again at the
     back of the local sphere: a solid ball or bottle).
+
+    All images share the camera's size (ValueError otherwise). With ``progress``
+    or ``check_cancelled`` the kernel runs in bands of ``band_rows`` rows (default:
+    about 2^18 pixels a band), calling them between bands; the result is the same.
 
     Returns a dict: ``layer`` float32 (H, W, 4) premultiplied, ``tir`` bool (H, W)
     (total internal reflection at the front surface), ``hit`` bool (H, W) (the
     transmitted or TIR ray found the background inside the image), ``steps``."""
     import pyopencl as cl
     ctx, queue = device.context, device.queue
-    H, W = bg_height.shape
     glass = np.asarray(glass, np.float32)
     bg = np.asarray(background, np.float32)
+    glass_height = np.asarray(glass_height, np.float32)
+    bg_height = np.asarray(bg_height, np.float32)
+    check_shapes(camera, glass=glass, glass_height=glass_height, background=bg, bg_height=bg_height)
+    H, W = bg_height.shape
     if bg.ndim == 2:
         bg = bg[..., None]
     rgb = np.zeros((H, W, 4), np.float32)
@@ -861,13 +891,27 @@ def refraction_cl(device, camera: Camera, glass, glass_height, background, bg_he
         raise ValueError(f"back_surface must be 'none' or 'local_sphere', got {back_surface!r}")
     radius = (local_radius(geo, glass[..., 3]) if back_surface == "local_sphere"
               else np.zeros((H, W), np.float32))
-    prg.rt_refract(queue, (W, H), None, np.int32(W), np.int32(H), np.float32(camera.focal),
-                   np.float32(camera.horizon), np.float32(camera.cam_height), _buf(cl, ctx, glass[..., 3]),
-                   _buf(cl, ctx, np.asarray(glass_height, np.float32)), _buf(cl, ctx, geo["normal"]),
-                   _buf(cl, ctx, geo["valid"]), _buf(cl, ctx, geo["position"]), _buf(cl, ctx, radius),
-                   S.d_surf, S.d_pyr, S.d_lvl, np.int32(S.nlev),
-                   _buf(cl, ctx, rgb), np.float32(eta), np.asarray(tuple(tint) + (0.0,), np.float32),
-                   np.int32(bool(fresnel)), d_out, d_flags, d_steps)
+    kern = prg.rt_refract
+    # held until the last launch: a kernel's arguments do not keep buffers alive
+    args = [np.int32(W), np.int32(H), np.float32(camera.focal),
+            np.float32(camera.horizon), np.float32(camera.cam_height), _buf(cl, ctx, glass[..., 3]),
+            _buf(cl, ctx, glass_height), _buf(cl, ctx, geo["normal"]),
+            _buf(cl, ctx, geo["valid"]), _buf(cl, ctx, geo["position"]), _buf(cl, ctx, radius),
+            S.d_surf, S.d_pyr, S.d_lvl, np.int32(S.nlev),
+            _buf(cl, ctx, rgb), np.float32(eta), np.asarray(tuple(tint) + (0.0,), np.float32),
+            np.int32(bool(fresnel)), d_out, d_flags, d_steps]
+    kern.set_args(*args)
+    banded = progress is not None or check_cancelled is not None
+    rows = H if not banded else max(1, min(H, int(band_rows or (1 << 18) // W)))
+    for y0 in range(0, H, rows):
+        n = min(rows, H - y0)
+        if check_cancelled is not None:
+            check_cancelled()
+        ev = cl.enqueue_nd_range_kernel(queue, kern, (W, n), None, global_work_offset=(0, y0) if y0 else None)
+        if banded:
+            ev.wait()
+            if progress is not None:
+                progress((y0 + n) / H, "refraction")
     out, flags, steps = _read(cl, queue, (d_out, (H, W, 4), np.float32), (d_flags, (H, W), np.int32),
                               (d_steps, (H, W), np.int32))
     return {"layer": out, "tir": (flags & 4) != 0, "hit": (flags & 1) != 0, "steps": steps}

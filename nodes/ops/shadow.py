@@ -75,6 +75,14 @@ F32 = np.float32
 FLIP_JUMP = 1.0
 #: Stand-in for "no far end" of a march (s = -1 or 0), in units of t.
 _T_FAR = F32(1.0e30)
+#: Pixel-light-sample pairs per band of a banded launch (ShadowScene.bands):
+#: 10-20 ns each where the marches walk the cutout on a shared 2-core PoCL
+#: CPU, so a band takes well under 0.1 s and a cancelled run stops within one;
+#: each band adds one launch and one wait (benchmarks/shadow_bench.py, banded).
+BAND_WORK = 1 << 22
+#: Narrowest piece of a row a banded launch makes (pixels): narrower launches
+#: leave cores idle.
+BAND_MIN_WIDTH = 128
 
 
 def _cl():
@@ -361,18 +369,60 @@ class ShadowScene:
                 np.int32(self.TH), np.int32(M.TILE), _f4(p.rect), np.float32(p.h_lo),
                 np.float32(p.h_hi), np.float32(p.f_lo), np.float32(p.f_hi), np.float32(p.thickness))
 
-    def launch(self, name, *args):
-        """Enqueue kernel `name` over (W, H) with the occluder args then `args`."""
+    def launch(self, name, *args, region=None):
+        """Enqueue kernel `name` over (W, H) with the occluder args then `args`;
+        ``region=(x0, y0, nx, ny)`` covers only that rectangle of pixels (a global
+        offset: each pixel is computed exactly as in a whole-image launch)."""
         kern = _kernel(self.prg, name)
         kern.set_args(*self.occluder_args(), *args)
         p = self.prep
-        return _cl().enqueue_nd_range_kernel(self.device.queue, kern, (p.W, p.H), None)
+        x0, y0, nx, ny = region if region is not None else (0, 0, p.W, p.H)
+        return _cl().enqueue_nd_range_kernel(self.device.queue, kern, (nx, ny), None,
+                                             global_work_offset=(x0, y0) if (x0 or y0) else None)
 
-    def launch_hard(self, light):
-        """Enqueue the hard-shadow kernel; returns (event, output buffer)."""
+    def bands(self, cost=1.0):
+        """The pieces of a banded launch, ``(x0, y0, nx, ny)`` in order: bands of
+        whole rows holding about ``BAND_WORK / cost`` pixels, or, when one row
+        is more work than that, pieces of single rows (at least BAND_MIN_WIDTH
+        pixels wide, so that every core still gets work)."""
+        p = self.prep
+        per_band = BAND_WORK / max(float(cost), 1.0)
+        rows = int(min(p.H, per_band / p.W))
+        if rows >= 1:
+            return [(0, y0, p.W, min(rows, p.H - y0)) for y0 in range(0, p.H, rows)]
+        cols = int(min(p.W, max(BAND_MIN_WIDTH, per_band)))
+        return [(x0, y0, min(cols, p.W - x0), 1) for y0 in range(p.H) for x0 in range(0, p.W, cols)]
+
+    def launch_banded(self, name, *args, cost=1.0, progress=None, check_cancelled=None):
+        """Enqueue kernel `name` in bands (:meth:`bands`) and wait for each, so that
+        a long launch reports ``progress(fraction, message)`` and honours
+        ``check_cancelled()`` between bands; returns the last band's event.
+
+        cost: work per pixel relative to one hard shadow (e.g. the light sample
+        count). The bands change nothing in the result (see :meth:`launch`).
+        Without either callback the image is one launch, as before.
+        """
+        p = self.prep
+        if progress is None and check_cancelled is None:
+            return self.launch(name, *args)
+        ev, done, total = None, 0, p.W * p.H
+        for region in self.bands(cost):
+            if check_cancelled is not None:
+                check_cancelled()
+            ev = self.launch(name, *args, region=region)
+            ev.wait()
+            done += region[2] * region[3]
+            if progress is not None:
+                progress(done / total, name.replace("_", " "))
+        return ev
+
+    def launch_hard(self, light, progress=None, check_cancelled=None):
+        """Enqueue the hard-shadow kernel; returns (event, output buffer) (banded
+        with callbacks, as :meth:`launch_soft`)."""
         p = self.prep
         out = self.out_buffer("hard", p.H * p.W * 4)
-        return self.launch("hard_shadow", self.recv, _f4(light_array(light)), out), out
+        return self.launch_banded("hard_shadow", self.recv, _f4(light_array(light)), out,
+                                  progress=progress, check_cancelled=check_cancelled), out
 
     def soft_inputs(self, light_samples):
         """Upload light samples (N, 4) for the soft-shadow kernel: structure of
@@ -394,12 +444,14 @@ class ShadowScene:
             bounds = cltypes.make_float8(0, 0, 0, 0, 0, 0, 0, 0)
         return (self.samples_buffer(soa), np.int32(n), np.int32(n8), np.int32(all_front), bounds)
 
-    def launch_soft(self, inputs):
+    def launch_soft(self, inputs, progress=None, check_cancelled=None):
         """Enqueue the soft-shadow kernel on inputs from :meth:`soft_inputs`;
-        returns (event, output buffer)."""
+        returns (event, output buffer). With ``progress`` or ``check_cancelled``
+        it runs in bands of rows (:meth:`launch_banded`) and returns when done."""
         p = self.prep
         out = self.out_buffer("soft", p.H * p.W * 4)
-        return self.launch("soft_shadow", self.recv, *inputs, out), out
+        return self.launch_banded("soft_shadow", self.recv, *inputs, out, cost=int(inputs[1]),
+                                  progress=progress, check_cancelled=check_cancelled), out
 
     def _read(self, buf, shape, after=None):
         """Blocking read of a device buffer, after event `after` (so an
@@ -414,25 +466,26 @@ class ShadowScene:
         return cl.Buffer(self.device.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                          hostbuf=np.ascontiguousarray(samples, np.float32))
 
-    def hard_shadow(self, light) -> np.ndarray:
+    def hard_shadow(self, light, progress=None, check_cancelled=None) -> np.ndarray:
         p = self.prep
         if p.empty:
             return np.ones((p.H, p.W), np.float32)
-        ev, out = self.launch_hard(light)
+        ev, out = self.launch_hard(light, progress, check_cancelled)
         self.last_event = ev
         return self._read(out, (p.H, p.W), ev)
 
-    def soft_shadow(self, light_samples) -> np.ndarray:
+    def soft_shadow(self, light_samples, progress=None, check_cancelled=None) -> np.ndarray:
         p = self.prep
         samples = light_samples_array(light_samples)
         if p.empty or samples.shape[0] == 0:
             return np.ones((p.H, p.W), np.float32)
-        ev, out = self.launch_soft(self.soft_inputs(samples))
+        ev, out = self.launch_soft(self.soft_inputs(samples), progress, check_cancelled)
         self.last_event = ev
         return self._read(out, (p.H, p.W), ev)
 
 
-def hard_shadow(device, mask, fg_height, bg_height, light, thickness=1.0) -> np.ndarray:
+def hard_shadow(device, mask, fg_height, bg_height, light, thickness=1.0, *,
+                progress=None, check_cancelled=None) -> np.ndarray:
     """Hard shadow of the cutout from one light point (OpenCL).
 
     mask: (H, W), cutout where > 0.5. fg_height, bg_height: float (H, W) pixel
@@ -440,13 +493,21 @@ def hard_shadow(device, mask, fg_height, bg_height, light, thickness=1.0) -> np.
     the module docstring. thickness: how far (pixels) a ray may pass behind the
     cutout surface and still count as blocked.
     Returns lit float32 (H, W): 1 lit, 0 shadow. An empty mask returns all ones
-    without launching.
+    without launching. progress, check_cancelled: as :func:`soft_shadow`.
     """
-    return ShadowScene(device, mask, fg_height, bg_height, thickness).hard_shadow(light)
+    return ShadowScene(device, mask, fg_height, bg_height, thickness).hard_shadow(
+        light, progress, check_cancelled)
 
 
-def soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness=1.0) -> np.ndarray:
+def soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness=1.0, *,
+                progress=None, check_cancelled=None) -> np.ndarray:
     """Soft shadow: the fraction of light samples (N, 4) that reach each pixel,
-    float32 (H, W) in [0, 1] (1 fully lit), in one kernel launch. Invalid
-    (non-finite) samples count as reaching the pixel; N = 0 gives all ones."""
-    return ShadowScene(device, mask, fg_height, bg_height, thickness).soft_shadow(light_samples)
+    float32 (H, W) in [0, 1] (1 fully lit). Invalid (non-finite) samples count
+    as reaching the pixel; N = 0 gives all ones.
+
+    One kernel launch; with ``progress(fraction, message)`` or
+    ``check_cancelled()`` (a node's ``ctx.progress`` and ``ctx.check_cancelled``)
+    it runs in bands of rows of about ``BAND_WORK`` pixel-samples each, calling
+    them between bands (same result: every pixel is computed the same way)."""
+    return ShadowScene(device, mask, fg_height, bg_height, thickness).soft_shadow(
+        light_samples, progress, check_cancelled)

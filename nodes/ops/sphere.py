@@ -45,8 +45,23 @@ def sphere_cutout(camera: Camera, center_u: float, contact_v: float, radius: flo
     (P0,), _ = camera.back_project([center_u], [contact_v], [0.0])
     centre = np.array([P0[0], radius, P0[2]])
     H, W = camera.height, camera.width
+    rgba = np.zeros((H, W, 4), np.float32)
+    height = np.zeros((H, W), np.float32)
+    # only the pixels of the sphere's image can be hit: the rays are traced in the
+    # bounding box of its bounding cube's projected corners (exact when the cube is
+    # in front of the camera: the image of a convex body lies in the convex hull of
+    # its box's image), plus a pixel for the supersamples
+    r0, r1, c0, c1 = 0, H, 0, W
+    corners = centre + radius * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    cuvh, cD = camera.project(corners)
+    if np.all(cD > 0) and np.all(np.isfinite(cuvh)):
+        c0, c1 = max(0, int(np.floor(cuvh[:, 0].min())) - 1), min(W, int(np.ceil(cuvh[:, 0].max())) + 1)
+        r0, r1 = max(0, int(np.floor(cuvh[:, 1].min())) - 1), min(H, int(np.ceil(cuvh[:, 1].max())) + 1)
+        if c1 <= c0 or r1 <= r0:
+            return rgba, height
     u, v = camera.pixel_grid()
-    cov = np.zeros((H, W))
+    u, v = u[r0:r1, c0:c1], v[r0:r1, c0:c1]
+    cov = np.zeros(u.shape)
     n = int(supersample)
     for a in range(n):
         for b in range(n):
@@ -55,8 +70,7 @@ def sphere_cutout(camera: Camera, center_u: float, contact_v: float, radius: flo
     cov /= n * n
     P, _ = _hit(camera, u, v, centre, radius)
     uvh, D = camera.project(P)
-    height = np.where(cov > 0, uvh[..., 2], 0.0).astype(np.float32)
-    rgba = np.zeros((H, W, 4), np.float32)
-    rgba[..., :3] = cov[..., None] * np.asarray(color, np.float32)
-    rgba[..., 3] = cov
+    height[r0:r1, c0:c1] = np.where(cov > 0, uvh[..., 2], 0.0)
+    rgba[r0:r1, c0:c1, :3] = cov[..., None] * np.asarray(color, np.float32)
+    rgba[r0:r1, c0:c1, 3] = cov
     return rgba, height

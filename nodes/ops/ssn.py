@@ -21,8 +21,10 @@ Channel sets (the paper's Table 2 ablation):
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
+import os
 import pathlib
 
 import numpy as np
@@ -40,6 +42,16 @@ VARIANTS["ssnpp"] = VARIANTS["reldist"] + ("bg_gradient_x", "bg_gradient_y")
 
 #: resolution the network runs at (pixels); inputs are resized to it and back
 RESOLUTION = 256
+
+#: Softness the network is fed at most (radius / distance). Training covered
+#: 0.015 .. 0.45; up to 1 (a disk as wide as its distance) it extrapolates
+#: smoothly, beyond it is clamped: an absurd light (radius 1e300) then gives
+#: the softest shadow the model knows, never NaN.
+SOFTNESS_MAX = 1.0
+
+#: Environment variable a host sets to choose torch's intra-op threads for
+#: inference (a positive integer); see :func:`inference_threads`.
+THREADS_ENV = "PIXGRAPH_TORCH_THREADS"
 
 # Buffer channels in pixel units are brought to O(1) before entering the
 # network. Pixel heights and distances are divided by the image size, so the
@@ -162,14 +174,15 @@ def count_flops(model: SSN, size: int = RESOLUTION) -> int:
     return flops
 
 
-def stack_channels(buffers: dict[str, np.ndarray], channels: tuple[str, ...]) -> np.ndarray:
+def stack_channels(buffers: dict[str, np.ndarray], channels: tuple[str, ...],
+                   norm: float | None = None) -> np.ndarray:
     """Buffer channels (each float (H, W), pixel units) -> network input float32 (C, H, W).
 
-    Pixel-height-like channels are divided by the image height so that a
-    resized scene gives the same input; shadows are already in [0, 1]; the
-    background gradient is dimensionless and clipped to +-2.
+    Pixel-height-like channels are divided by ``norm`` pixels (default the
+    image height) so that a resized scene gives the same input; shadows are
+    already in [0, 1]; the background gradient is dimensionless and clipped to +-2.
     """
-    H = next(iter(buffers.values())).shape[0]
+    H = float(norm) if norm else next(iter(buffers.values())).shape[0]
     out = []
     for name in channels:
         x = np.nan_to_num(np.asarray(buffers[name], dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
@@ -200,40 +213,89 @@ def load_model(path: str | pathlib.Path) -> SSN:
     return model.to(memory_format=torch.channels_last)
 
 
-def predict(model: SSN, buffers: dict[str, np.ndarray], softness: float) -> np.ndarray:
+def inference_threads() -> int:
+    """Torch intra-op threads for one SSN++ inference.
+
+    ``PIXGRAPH_TORCH_THREADS`` when set (a host's choice; ValueError if it is
+    not a positive integer), else 1 thread per 4 CPUs this process may use
+    (at least 1, at most 4). Torch's own default (one thread per core) fights
+    PoCL's workers and any busy neighbour for the cores: its threads meet at a
+    barrier after every layer, so one preempted thread stalls them all.
+    Measured on a shared 2-core machine (benchmarks/ssn_threads_bench.py, 512^2
+    scene, medians): inference with 1 thread 93 ms, 155 ms next to 2 busy
+    processes (1.7x); with torch's default 2 threads 686 ms and 858 ms.
+    """
+    raw = os.environ.get(THREADS_ENV, "").strip()
+    if raw:
+        try:
+            n = int(raw)
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise ValueError(f"{THREADS_ENV} must be a positive integer, got {raw!r}")
+        return n
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cpus = os.cpu_count() or 1
+    return max(1, min(4, cpus // 4))
+
+
+@contextlib.contextmanager
+def torch_threads(n: int):
+    """Run the block with ``n`` torch intra-op threads, then restore the host's setting
+    (torch's thread count is per process: a host's own torch work keeps its own)."""
+    before = torch.get_num_threads()
+    if n != before:
+        torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        if n != before:
+            torch.set_num_threads(before)
+
+
+def predict(model: SSN, buffers: dict[str, np.ndarray], softness: float,
+            threads: int | None = None) -> np.ndarray:
     """Soft-shadow darkness (H, W) float32 in [0, 1] for one sample at any resolution.
 
     The buffers are resized to ``RESOLUTION`` (pixel-unit channels are
     normalised by ``stack_channels``), run through the network, and the result
-    is resized back.
+    is resized back. ``softness`` is clamped to [0, SOFTNESS_MAX] (ValueError
+    when NaN). threads: torch intra-op threads (default
+    :func:`inference_threads`).
     """
+    softness = float(softness)
+    if softness != softness:
+        raise ValueError("softness is NaN")
+    softness = min(max(softness, 0.0), SOFTNESS_MAX)
     x = torch.from_numpy(stack_channels(buffers, model.config.channels))[None]
     H, W = x.shape[-2:]
-    if (H, W) != (RESOLUTION, RESOLUTION):
-        x = F.interpolate(x, size=(RESOLUTION, RESOLUTION), mode="bilinear", align_corners=False)
-    with torch.inference_mode():
+    with torch_threads(threads or inference_threads()), torch.inference_mode():
+        if (H, W) != (RESOLUTION, RESOLUTION):
+            x = F.interpolate(x, size=(RESOLUTION, RESOLUTION), mode="bilinear", align_corners=False)
+        y = model(x.contiguous(memory_format=torch.channels_last), torch.tensor([softness]))
+        if (H, W) != (RESOLUTION, RESOLUTION):
+            y = F.interpolate(y, size=(H, W), mode="bilinear", align_corners=False)
+        return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
+
+
+def run_network(model: SSN, buffers: dict[str, np.ndarray], softness: float,
+                norm: float | None = None, threads: int | None = None) -> np.ndarray:
+    """Darkness (H, W) float32 in [0, 1] with the network run at the buffers' own
+    size (no resizing: H and W must be multiples of ``2**levels``); pixel-unit
+    channels are divided by ``norm`` px (see ``stack_channels``). ``ssn_crop``
+    runs it on a window at the trained scale, where ``norm = RESOLUTION``.
+    threads: torch intra-op threads (default :func:`inference_threads`)."""
+    x = torch.from_numpy(stack_channels(buffers, model.config.channels, norm))[None]
+    m = 2 ** model.config.levels
+    if x.shape[-2] % m or x.shape[-1] % m:
+        raise ValueError(f"run_network needs sides divisible by {m}, got {tuple(x.shape[-2:])}")
+    with torch_threads(threads or inference_threads()), torch.inference_mode():
         y = model(x.contiguous(memory_format=torch.channels_last), torch.tensor([float(softness)]))
-    if (H, W) != (RESOLUTION, RESOLUTION):
-        y = F.interpolate(y, size=(H, W), mode="bilinear", align_corners=False)
-    return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
+        return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
 
 
-def softness_of(light, camera, mask: np.ndarray, fg_height: np.ndarray) -> float:
-    """The light's softness as the training data defines it: disk radius over the
-    distance from the light's centre to the object's centre (dimensionless).
-
-    The object's centre is the mean of the cutout's reconstructed 3D points
-    (``camera.back_project``); a directional light's softness is the tangent of
-    its angular radius. Point lights have softness 0.
-    """
-    if light.kind == "directional":
-        return float(np.tan(light.angular_radius))
-    if light.radius <= 0.0:
-        return 0.0
-    inside = np.asarray(mask) > 0.5
-    u, v = camera.pixel_grid()
-    P, valid = camera.back_project(u[inside], v[inside], np.asarray(fg_height, np.float64)[inside])
-    if not valid.any():
-        raise ValueError("the cutout has no pixel below the horizon: cannot place it in 3D")
-    centre = P[valid].mean(axis=0)
-    return float(light.radius / max(np.linalg.norm(np.asarray(light.position) - centre), 1e-9))
+# the definition lives in a torch-free module (pixgraph.Shadow's method choice needs
+# it without SSN++); re-exported here, where the training code and the node read it
+from .softness import softness_of  # noqa: E402,F401

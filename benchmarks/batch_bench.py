@@ -1,0 +1,165 @@
+"""Batch throughput: composites per second for a light sweep at 512^2.
+
+Four ways of running the same rows (one light azimuth per row) of two graphs,
+the classical soft shadow (graphs/ground_shadow.yaml, 48 light samples) and
+SSN++ (graphs/ssn_wall_corner.yaml):
+
+- ``inprocess``: ``Session.batch`` in this process (one device, shared cache);
+- ``cli-loop``: one ``pixgraph run`` process per row, as a shell loop does
+  (measured on the first ``--cli-rows`` rows only: it is the slow baseline);
+- ``processes``: ``Session.batch(executor="processes", workers=2)``;
+- ``dask``: ``Session.batch(executor="dask", workers=2)`` on a ``LocalCluster``.
+
+Each run is timed end to end (pool or cluster start included) with a fresh
+session and no disk cache, ``--repeats`` times; the table shows medians. It also
+prints the median per-row seconds inside the workers and a simulated scale-out:
+throughput with N machines of ``--workers-per-machine`` workers, from the
+measured per-row cost and the Dask scheduler's per-task overhead (measured with
+no-op tasks on the same LocalCluster)::
+
+    T(N) = startup + max(rows * t_row / (N * w), rows * t_sched)   (rows: --sim-rows)
+
+    python benchmarks/batch_bench.py --rows 200            # the full run
+    python benchmarks/batch_bench.py --rows 24 --repeats 3 # on a shared 2-core machine
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _machine import cpu_model  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+GRAPHS = {"classical": "graphs/ground_shadow.yaml", "ssn": "graphs/ssn_wall_corner.yaml"}
+
+
+def azimuths(rows: int) -> list[float]:
+    return [round(-80.0 + 160.0 * i / max(1, rows - 1), 3) for i in range(rows)]
+
+
+def run_batch(graph: str, rows: int, executor: str, workers: int, out: str):
+    from pixgraph.session import Session
+
+    s = Session()  # fresh: memory cache empty, no disk cache
+    t0 = time.perf_counter()
+    res = s.batch(os.path.join(ROOT, graph), [{"light.azimuth": a} for a in azimuths(rows)],
+                  outputs={"final": os.path.join(out, "{row}.png")}, executor=executor, workers=workers,
+                  force=True)
+    wall = time.perf_counter() - t0
+    if res.failed:
+        raise SystemExit(f"{graph} {executor}: {len(res.failed)} rows failed:\n{res.table()}")
+    return wall, [r.seconds for r in res.results]
+
+
+def run_cli_loop(graph: str, rows: int, out: str) -> float:
+    exe = [sys.executable, "-m", "pixgraph"]
+    t0 = time.perf_counter()
+    for i, a in enumerate(azimuths(rows)):
+        subprocess.run(exe + ["run", os.path.join(ROOT, graph), "--no-disk-cache", "-q", "--set",
+                              f"light.azimuth={a}", "-o", f"final={out}/{i:04d}.png"], check=True)
+    return time.perf_counter() - t0
+
+
+def scheduler_overhead(tasks: int = 400) -> tuple[float, float]:
+    """(LocalCluster start seconds, seconds per no-op task through the scheduler, 2 workers)."""
+    from distributed import Client, LocalCluster
+
+    t0 = time.perf_counter()
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+    client = Client(cluster)
+    client.submit(int, 0, pure=False).result()
+    start = time.perf_counter() - t0
+    try:
+        per = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            client.gather(client.map(int, range(tasks), pure=False))
+            per.append((time.perf_counter() - t0) / tasks)
+        return start, statistics.median(per)
+    finally:
+        client.close()
+        cluster.close()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rows", type=int, default=200)
+    ap.add_argument("--cli-rows", type=int, default=8, help="rows of the per-call CLI loop")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers-per-machine", type=int, default=2)
+    ap.add_argument("--sim-rows", type=int, default=10000, help="rows of the simulated scale-out")
+    ap.add_argument("--graphs", default="classical,ssn")
+    ap.add_argument("--modes", default="inprocess,cli-loop,processes,dask")
+    args = ap.parse_args()
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    import torch
+
+    torch.set_num_threads(1)
+    load0 = os.getloadavg()
+    print(f"machine: {cpu_model()}; load average at start {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}")
+    print(f"rows {args.rows} (cli-loop {args.cli_rows}), 512x512, repeats {args.repeats}, medians\n")
+    tmp = tempfile.mkdtemp(prefix="batch_bench_")
+    report = {"machine": cpu_model(), "rows": args.rows, "cli_rows": args.cli_rows, "repeats": args.repeats,
+              "load_start": load0, "results": {}}
+    try:
+        print("| graph | mode | rows | wall s (median) | composites/s | per-row s in worker (median) |")
+        print("|---|---|---|---|---|---|")
+        for gname in args.graphs.split(","):
+            graph = GRAPHS[gname]
+            for mode in args.modes.split(","):
+                walls, per_row = [], []
+                n = args.cli_rows if mode == "cli-loop" else args.rows
+                for rep in range(args.repeats):
+                    out = os.path.join(tmp, f"{gname}-{mode}-{rep}")
+                    if mode == "cli-loop":
+                        walls.append(run_cli_loop(graph, n, out))
+                    else:
+                        w, secs = run_batch(graph, n, mode, 1 if mode == "inprocess" else args.workers, out)
+                        walls.append(w)
+                        per_row.extend(secs[1:] if len(secs) > 1 else secs)  # the first row opens the device
+                    shutil.rmtree(out, ignore_errors=True)
+                wall = statistics.median(walls)
+                row_s = statistics.median(per_row) if per_row else float("nan")
+                report["results"][f"{gname}/{mode}"] = {"rows": n, "walls": walls, "wall_median": wall,
+                                                       "throughput": n / wall, "per_row_median": row_s}
+                print(f"| {gname} | {mode} | {n} | {wall:.2f} | {n / wall:.2f} | "
+                      f"{'-' if mode == 'cli-loop' else f'{row_s:.3f}'} |", flush=True)
+        if "dask" in args.modes:
+            start, t_sched = scheduler_overhead()
+            report["dask_start_s"], report["dask_task_overhead_s"] = start, t_sched
+            print(f"\nDask LocalCluster(2) start {start:.2f} s; scheduler overhead {t_sched * 1e3:.2f} ms per task")
+            w = args.workers_per_machine
+            for gname in args.graphs.split(","):
+                t_row = report["results"][f"{gname}/dask"]["per_row_median"]
+                rows = args.sim_rows
+                print(f"\nsimulated scale-out, {gname}: {rows} rows, t_row {t_row:.3f} s, "
+                      f"{w} workers per machine, startup {start:.1f} s")
+                print("| machines | composites/s | bound by |")
+                print("|---|---|---|")
+                sim = {}
+                for machines in (1, 2, 4, 8, 16, 32, 64, 128, 256):
+                    work = rows * t_row / (machines * w)
+                    sched = rows * t_sched
+                    total = start + max(work, sched)
+                    sim[machines] = rows / total
+                    print(f"| {machines} | {rows / total:.1f} | {'workers' if work >= sched else 'scheduler'} |")
+                report["results"][f"{gname}/scale_out"] = sim
+        load1 = os.getloadavg()
+        report["load_end"] = load1
+        print(f"\nload average at end {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
+        print("\n" + json.dumps(report))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,171 @@
+"""The classical soft shadow of large images at a proxy resolution
+(``ops.upsample.proxy_soft_shadow``) against the full-resolution trace.
+
+    python benchmarks/proxy_bench.py --data data/wall_test --factor 4 --limit 8 --proxy 256 --proxy 512
+    python benchmarks/proxy_bench.py --data data/wall_test --factor 8 --limit 2 --proxy 512 --proxy 1024
+    python benchmarks/proxy_bench.py --data data/wall_test --factor 16 --limit 1 --proxy 1024 --no-full
+
+Benchmark scenes (256^2) are enlarged ``--factor`` times (``pixgraph_lab.rescale``:
+1024^2, 2048^2, 4096^2). For each, ``--samples`` light samples (default 64):
+
+* ``rmse_full``: RMSE of the proxy's darkness against the full-resolution
+  trace's, over background pixels (outside the cutout), and the max |error|;
+* ``rmse_gt``: both shrunk back to 256^2 against the Mitsuba ground truth
+  (does the proxy change the accuracy that counts?);
+* ``s``: wall-clock seconds of one call (after a warm-up at a 256-px proxy);
+  with ``--memory`` each call runs in a fresh process, which also reports
+  ``added_mib``: the peak resident memory during the call above what the
+  process (torch, OpenCL, the full-size inputs) held just before it (Linux:
+  the peak is reset through /proc/self/clear_refs).
+
+Machine and medians are printed. Nothing here is asserted by the tests.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from _machine import cpu_model
+
+
+def _scene(data, index, factor):
+    from pixgraph.device import Device
+    from pixgraph_lab.datagen.dataset import sample_files
+    from pixgraph_lab.evaluate import prepared_sample
+    from pixgraph_lab.rescale import rescaled
+    dev = Device.open()
+    s = prepared_sample(sample_files(data)[index], dev)
+    return s, rescaled(s, factor), dev
+
+
+def _trace(dev, big, samples, side):
+    from pixgraph_nodes.ops.lights import disk_samples
+    from pixgraph_nodes.ops.upsample import proxy_soft_shadow
+    pts = disk_samples(big["light"], big["camera"], samples)
+    return 1.0 - proxy_soft_shadow(dev, big["mask"].astype(np.float32), big["fg_height"], big["bg_height"],
+                                   pts, 1.0, side)
+
+
+def one(a) -> int:
+    """Subprocess mode: one trace; prints seconds and the peak resident memory it
+    added (Linux: the peak is reset just before the trace) as JSON, and saves the
+    darkness to ``--save``."""
+    s, big, dev = _scene(a.data, a.index, a.factor)
+    side = a.one if a.one > 0 else max(big["mask"].shape)
+    _trace(dev, big, a.samples, 256)          # build the OpenCL program off the clock
+    before = _rss_mib()
+    with open("/proc/self/clear_refs", "w") as fh:   # reset the peak (VmHWM) to the current RSS
+        fh.write("5")
+    t0 = time.perf_counter()
+    d = _trace(dev, big, a.samples, side)
+    sec = time.perf_counter() - t0
+    peak = _hwm_mib()
+    if a.save:
+        np.save(a.save, d.astype(np.float32))
+    print(json.dumps({"s": sec, "peak_mib": peak, "before_mib": before}))
+    return 0
+
+
+def _hwm_mib() -> float:
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def _rss_mib() -> float:
+    """Current resident memory [MiB] (Linux /proc)."""
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * resource.getpagesize() / 2 ** 20
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", default="data/wall_test")
+    ap.add_argument("--factor", type=int, default=4)
+    ap.add_argument("--limit", type=int, default=4)
+    ap.add_argument("--samples", type=int, default=64)
+    ap.add_argument("--proxy", type=int, action="append", default=None)
+    ap.add_argument("--no-full", action="store_true", help="skip the full-resolution trace (time only)")
+    ap.add_argument("--memory", action="store_true", help="also measure peak RSS in fresh processes")
+    ap.add_argument("--json", default=None)
+    ap.add_argument("--one", type=int, default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--index", type=int, default=0, help=argparse.SUPPRESS)
+    ap.add_argument("--save", default=None, help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.one is not None:
+        return one(a)
+    import torch
+    torch.set_num_threads(1)
+    from pixgraph_lab.metrics import shadow_metrics
+    from pixgraph_nodes.ops.resample import resize
+    proxies = a.proxy or [512]
+    rows = []
+    for i in range(a.limit):
+        s, big, dev = _scene(a.data, i, a.factor)
+        H, W = big["mask"].shape
+        inside = big["mask"]
+        g = s["shadow"].astype(np.float64)
+        valid = ~s["mask"] & s["bg_valid"]
+        res = {"index": i, "size": f"{W}x{H}"}
+
+        def run(side):
+            if not a.memory:
+                t0 = time.perf_counter()
+                d = _trace(dev, big, a.samples, side)
+                return d, time.perf_counter() - t0, None
+            with tempfile.TemporaryDirectory() as tmp:
+                path = os.path.join(tmp, "d.npy")
+                out = subprocess.run([sys.executable, __file__, "--data", a.data, "--factor", str(a.factor),
+                                      "--samples", str(a.samples), "--index", str(i), "--one", str(side),
+                                      "--save", path], capture_output=True, text=True, check=True).stdout
+                got = json.loads(out.strip().splitlines()[-1])
+                return np.load(path), got["s"], got["peak_mib"] - got["before_mib"]
+
+        if not a.memory:
+            _trace(dev, big, a.samples, 256)                   # warm-up
+        full = None
+        if not a.no_full:
+            full, res["full_s"], mem = run(max(H, W))
+            if mem is not None:
+                res["full_added_mib"] = mem
+            res["full_rmse_gt"] = shadow_metrics(resize(full, s["shadow"].shape), g, valid)["rmse"]
+        for p in proxies:
+            d, res[f"p{p}_s"], mem = run(p)
+            if mem is not None:
+                res[f"p{p}_added_mib"] = mem
+            res[f"p{p}_rmse_gt"] = shadow_metrics(resize(d, s["shadow"].shape), g, valid)["rmse"]
+            if full is not None:
+                e = (d - full)[~inside]
+                res[f"p{p}_rmse_full"] = float(np.sqrt(np.mean(e ** 2)))
+                res[f"p{p}_max_full"] = float(np.abs(e).max())
+        print(json.dumps(res), flush=True)
+        rows.append(res)
+    keys = [k for k in rows[0] if k not in ("index", "size")]
+    print(f"# proxy soft shadow, {a.samples} samples, {rows[0]['size']} ({a.limit} scenes of {a.data} x{a.factor});"
+          f" {cpu_model()}")
+    for k in keys:
+        v = [r[k] for r in rows if k in r]
+        agg = statistics.median(v) if k.endswith(("_s", "_mib")) else float(np.mean(v))
+        what = "median" if k.endswith(("_s", "_mib")) else ("max" if "max" in k else "mean")
+        if what == "max":
+            agg = float(np.max(v))
+        print(f"{k}: {agg:.4g} ({what})")
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump({"machine": cpu_model(), "args": vars(a), "rows": rows}, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,47 @@
+"""pixgraph.LoadMask: a cutout's mask (matte) from its own file (PNG, TIFF, EXR or .npy)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pixgraph import types as T
+from pixgraph.node import InputError, node, param, port
+from pixgraph.types import Shape
+
+from ._checks import file_shape, source
+
+from .ops.imageio import host_pixels, read_mask
+
+
+@node("pixgraph.LoadMask", version=1)
+class LoadMask:
+    """Read a mask: PNG/TIFF/EXR (the alpha channel if the file has one, else its
+    first channel, as stored: a matte is never sRGB-decoded) or ``.npy`` (the
+    PixHt-Lab authors' format; bool, 0..1 or 0..255). Connect it to
+    pixgraph.PlaceCutout's ``mask`` to cut out an image without alpha (a JPEG)."""
+
+    class Params:
+        path: Path = param(None, doc="mask file: .png, .tif, .exr or .npy (relative to the graph file)")
+
+    class Outputs:
+        mask: T.Mask = port(doc="float32 (H, W) coverage in [0, 1]")
+
+    impl_version = "1"
+
+    def bind(self, value, params):
+        return {"mask": np.clip(host_pixels(value, (1,), "a mask")[:, :, 0], 0.0, 1.0)}
+
+    def infer(self, ctx, inputs, params):
+        shape = file_shape(params.path, ctx.node_id)
+        if str(params.path).lower().endswith(".npy"):
+            a = np.load(params.path, mmap_mode="r", allow_pickle=False)
+            if a.dtype.kind == "f" and not np.isfinite(a).all():
+                raise InputError(f"{shape.source}: mask has NaN or infinite values")
+        return {"mask": Shape(shape.height, shape.width, 1, shape.source)}
+
+    def compute(self, ctx, inputs, params):
+        try:
+            return {"mask": read_mask(params.path)}
+        except (OSError, ValueError) as e:
+            raise InputError(f"{source(params.path, ctx.node_id)}: {str(e).splitlines()[0]}") from None

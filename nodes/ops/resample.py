@@ -1,0 +1,157 @@
+"""Resampling a pixel-height scene to another scale and window, and back.
+
+Used to run an effect at a scale other than the image's: SSN++ on a crop at
+the scale it was trained for (``ssn_crop``), the classical soft shadow at a
+proxy resolution (``upsample``).
+
+A :class:`Window` is an axis-aligned rectangle of the image, ``x0, y0`` its
+top-left pixel edge and ``w x h`` its size in image pixels (it may reach past
+the image: what lies outside is padded), resampled to ``out_w x out_h``
+pixels. Coordinates are continuous with pixel centres at ``i + 0.5`` (as
+``Camera.pixel_grid``), so a point ``(u, v)`` of the image is
+``((u - x0) kx, (v - y0) ky)`` in the window, ``kx = out_w / w``,
+``ky = out_h / h``; pixel heights are vertical lengths and scale by ``ky``.
+This map is affine in (u, v, h), so it keeps the straight rays of the
+pixel-height tracer: a hard shadow traced in the window is the image's hard
+shadow resampled (up to the resampling of the occluder itself).
+
+Arrays are float32 (H, W); resizing is bilinear, antialiased when shrinking
+(a triangle filter widened by the shrink factor, taps outside the image
+dropped and the rest renormalised: what torch's ``interpolate(mode="bilinear",
+antialias=True)`` and PIL compute), in numpy: no torch needed.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+
+@dataclasses.dataclass(frozen=True)
+class Window:
+    """A rectangle of the image [px] and the size it is resampled to [px]."""
+
+    x0: int
+    y0: int
+    w: int
+    h: int
+    out_w: int
+    out_h: int
+
+    def __post_init__(self):
+        if min(self.w, self.h, self.out_w, self.out_h) < 1:
+            raise ValueError(f"empty window {self}")
+
+    @property
+    def kx(self) -> float:
+        return self.out_w / self.w
+
+    @property
+    def ky(self) -> float:
+        return self.out_h / self.h
+
+    @classmethod
+    def whole(cls, H: int, W: int, max_side: int) -> "Window":
+        """The whole image, shrunk so that its longer side is ``max_side`` (never enlarged)."""
+        s = min(1.0, max_side / max(H, W))
+        return cls(0, 0, W, H, max(1, round(W * s)), max(1, round(H * s)))
+
+    def light_points(self, points) -> np.ndarray:
+        """Light points (N, 4) or (4,) ``(u, v, h, s)`` of the image in window pixels.
+        Points (s = +-1) are translated and scaled; directions (s = 0) only scaled."""
+        p = np.array(points, dtype=np.float64, copy=True)
+        q = p.reshape(-1, 4)
+        is_point = np.abs(q[:, 3]) > 0.5
+        q[:, 0] = np.where(is_point, q[:, 0] - self.x0, q[:, 0]) * self.kx
+        q[:, 1] = np.where(is_point, q[:, 1] - self.y0, q[:, 1]) * self.ky
+        q[:, 2] = q[:, 2] * self.ky
+        return q.reshape(p.shape).astype(np.float32)
+
+    def crop(self, a: np.ndarray, pad: str = "constant") -> np.ndarray:
+        """The window's pixels of ``a`` (image size) at image scale, (h, w); outside
+        the image padded with zeros (``pad="constant"``) or the nearest edge (``"edge"``)."""
+        a = np.asarray(a, dtype=np.float32)
+        H, W = a.shape
+        xa, ya = max(self.x0, 0), max(self.y0, 0)
+        xb, yb = min(self.x0 + self.w, W), min(self.y0 + self.h, H)
+        if xa >= xb or ya >= yb:
+            if pad == "edge":
+                raise ValueError("window does not overlap the image")
+            return np.zeros((self.h, self.w), np.float32)
+        inner = a[ya:yb, xa:xb]
+        widths = ((ya - self.y0, self.y0 + self.h - yb), (xa - self.x0, self.x0 + self.w - xb))
+        if widths == ((0, 0), (0, 0)):
+            return inner
+        return np.pad(inner, widths, mode=pad)
+
+    def shrink(self, a: np.ndarray, pad: str = "constant") -> np.ndarray:
+        """``crop`` then resize to (out_h, out_w)."""
+        return resize(self.crop(a, pad), (self.out_h, self.out_w))
+
+    def scene(self, mask, fg_height, bg_height):
+        """The pixel-height scene in the window: (mask float32 in {0, 1}, fg_height,
+        bg_height) at (out_h, out_w), heights in window pixels.
+
+        The mask is area-averaged and thresholded at 0.5; the cutout's height is
+        averaged over cutout pixels only (no mixing with the background's);
+        non-finite background heights become 0 before resizing."""
+        inside = (np.asarray(mask) > 0.5).astype(np.float32)
+        fg = np.where(inside > 0, np.nan_to_num(np.asarray(fg_height, np.float32)), 0.0)
+        cover = self.shrink(inside)
+        fg_sum = self.shrink(fg)
+        m = (cover > 0.5).astype(np.float32)
+        fg_w = np.where(cover > 1e-6, fg_sum / np.maximum(cover, 1e-6), 0.0) * self.ky * m
+        bg = np.nan_to_num(np.asarray(bg_height, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+        bg_w = self.shrink(bg, pad="edge") * self.ky
+        return m, fg_w.astype(np.float32), bg_w.astype(np.float32)
+
+    def paste(self, a_win: np.ndarray, H: int, W: int, fill: float = 0.0) -> np.ndarray:
+        """Place a window-scale map back into an (H, W) image (bilinear), ``fill`` outside
+        the window. Use :func:`upsample.masked_resize` first for edge-aware results."""
+        a = resize(np.asarray(a_win, np.float32), (self.h, self.w)) if a_win.shape != (self.h, self.w) else a_win
+        out = np.full((H, W), fill, np.float32)
+        xa, ya = max(self.x0, 0), max(self.y0, 0)
+        xb, yb = min(self.x0 + self.w, W), min(self.y0 + self.h, H)
+        if xa < xb and ya < yb:
+            out[ya:yb, xa:xb] = a[ya - self.y0:yb - self.y0, xa - self.x0:xb - self.x0]
+        return out
+
+
+def _axis_weights(n_in: int, n_out: int):
+    """(index (n_out, taps), weight (n_out, taps)) of a 1-D bilinear resize."""
+    scale = n_in / n_out
+    support = max(scale, 1.0)                      # triangle half-width in input px
+    centre = (np.arange(n_out) + 0.5) * scale - 0.5
+    taps = int(np.ceil(2 * support)) + 1
+    first = np.floor(centre - support).astype(np.int64) + 1
+    idx = first[:, None] + np.arange(taps)[None, :]
+    w = np.maximum(0.0, 1.0 - np.abs(idx - centre[:, None]) / support)
+    w[(idx < 0) | (idx >= n_in)] = 0.0
+    w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-12)
+    return np.clip(idx, 0, n_in - 1), w.astype(np.float32)
+
+
+def _resize_axis(a: np.ndarray, n_out: int, axis: int) -> np.ndarray:
+    if a.shape[axis] == n_out:
+        return a
+    idx, w = _axis_weights(a.shape[axis], n_out)
+    a = np.moveaxis(a, axis, -1)
+    out = np.empty(a.shape[:-1] + (n_out,), np.float32)
+    step = max(1, (1 << 24) // max(1, n_out * idx.shape[1]))   # rows per chunk: ~64 MB of taps
+    for r in range(0, a.shape[0], step):
+        out[r:r + step] = np.einsum("rot,ot->ro", a[r:r + step][:, idx], w)
+    return np.moveaxis(out, -1, axis)
+
+
+def resize(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Bilinear resize of a float (H, W) map to ``shape`` (antialiased when shrinking)."""
+    a = np.asarray(a, dtype=np.float32)
+    shape = tuple(int(s) for s in shape)
+    if a.shape == shape:
+        return a
+    return np.ascontiguousarray(_resize_axis(_resize_axis(a, shape[1], 1), shape[0], 0))
+
+
+def ceil_to(x: float, m: int) -> int:
+    return int(m * math.ceil(x / m - 1e-9))

@@ -1,0 +1,115 @@
+"""pixgraph.Shadow: the cutout's shadow by the cheapest method that meets an accuracy target."""
+from __future__ import annotations
+
+import numpy as np
+
+from pixgraph import types as T
+from pixgraph.node import InputError, node, param, port
+
+from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
+from .ops import choose as C
+from .ops.softness import softness_of
+from .ops.lights import disk_extremes, disk_samples, light_point
+from .ops.upsample import AUTO_MAX_SIDE, proxy_soft_shadow
+
+
+def _has_torch() -> bool:
+    import importlib.util
+    return importlib.util.find_spec("torch") is not None
+
+
+@node("pixgraph.Shadow", version=1)
+class Shadow:
+    """Shadow of a cutout, by the method the scene needs ("model no more than a scene
+    needs"). ``method: auto`` picks the cheapest of the hard shadow, the classical
+    soft shadow with 4-64 light samples and SSN++ whose 90th-percentile RMSE against
+    ray-traced ground truth, measured on the benchmark for this light's softness
+    and this kind of receiver (wall or ground), is at most ``max_rmse``; the choice
+    and why are in the run's log and in ``pixgraph explain`` (docs/auto.md).
+    ``hard``, ``soft`` (``samples``) and ``ssn`` force a method."""
+
+    class Inputs:
+        mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
+        fg_height: T.PixelHeight = port(doc="cutout pixel height [px]")
+        bg_height: T.PixelHeight = port(doc="background pixel height [px]")
+        light: T.Light = port(doc="the light; its radius / distance is the softness")
+        camera: T.Camera = port(doc="camera that converts the light to pixel-height space")
+
+    class Params:
+        method: str = param("auto", choices=("auto", "hard", "soft", "ssn"),
+                            doc="auto: cheapest expected to meet max_rmse; or force one")
+        max_rmse: float = param(0.06, min=0.0, max=1.0,
+                                doc="auto's accuracy target: RMSE of darkness against ground truth that at "
+                                    "most 10% of the benchmark's similar scenes exceeded")
+        samples: int = param(64, min=1, max=65536, doc="light samples of method soft")
+        thickness: float = param(1.0, min=0.0, max=1000.0, unit="px",
+                                 doc="occluder thickness of the pixel-height tracer")
+        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px",
+                           doc="classical shadows of images longer than this are traced at this size (0: never)")
+
+    class Outputs:
+        lit: T.Mask = port(doc="1 - darkness")
+        darkness: T.Mask = port(doc="1 = full shadow (what Composite takes)")
+
+    # the choice depends on the shipped table: a new table is a new implementation
+    impl_version = "1+table." + C.table_digest()
+
+    @staticmethod
+    def describe(params) -> str:
+        """What ``pixgraph explain`` shows before the run (the choice needs the inputs)."""
+        if params["method"] != "auto":
+            return f"method {params['method']} (forced)"
+        table = C.load_table()
+        n = sum(table.get("provenance", {}).get("data", {}).values()) or "?"
+        return (f"method auto: at run time, the cheapest of {', '.join(table['methods'])} whose 90th-percentile "
+                f"RMSE <= {params['max_rmse']:g} for the light's softness and the receiver "
+                f"(table weights/{C.TABLE.name}, {n} benchmark samples)")
+
+    def compute(self, ctx, inputs, params):
+        same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+        finite(mask=inputs.mask)
+        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
+        pixel_heights(bg_height=inputs.bg_height)
+        light, cam = inputs.light, inputs.camera
+        H, W = inputs.mask.shape
+        if not inside(inputs.mask).any():  # nothing casts a shadow
+            lit = np.ones((H, W), np.float32)
+            return {"lit": lit, "darkness": 1.0 - lit}
+        method = params.method
+        if method == "auto":
+            try:
+                softness, receiver, _ = C.scene_features(ctx.device, inputs.mask, inputs.fg_height,
+                                                          inputs.bg_height, light, cam, params.thickness)
+            except ValueError as e:
+                raise InputError(f"input 'fg_height': {e}") from None
+            table = C.load_table()
+            methods = [m for m in table["methods"] if m != "ssn" or _has_torch()]
+            if len(methods) < len(table["methods"]):
+                ctx.log("ssn is not a candidate: torch is not installed (pip install 'pixgraph[ssn]')")
+            c = C.choose(table, softness, receiver, H * W, params.max_rmse, methods)
+            ctx.log(f"auto chose {c.method}: {c.reason}; light softness {softness:.3g}, {receiver} receiver, "
+                    f"{W}x{H}: expected RMSE mean {c.expected_mean:.3f}, p90 {c.expected_p90:.3f}, "
+                    f"~{c.ms:.0f} ms")
+            if not c.met:
+                ctx.log(f"warning: no method is expected to meet max_rmse {params.max_rmse:g} here")
+            method = c.method
+        elif method == "soft":
+            method = f"soft:{params.samples}"
+        side = max(H, W) if params.proxy == 0 else params.proxy
+        if method == "ssn":
+            from .ops import ssn_crop                     # torch: imported only when SSN++ runs
+            from .ssn_soft_shadow import load_shipped
+            softness = softness_of(light, cam, inputs.mask, inputs.fg_height)
+            darkness, _ = ssn_crop.render(ctx.device, load_shipped("ssnpp"), inputs.mask, inputs.fg_height,
+                                          inputs.bg_height, light_point(light, cam), disk_extremes(light, cam),
+                                          softness, params.thickness, check_cancelled=ctx.check_cancelled)
+            finite_outputs(darkness=darkness)
+            return {"lit": 1.0 - darkness, "darkness": darkness}
+        if method == "hard" or not light.is_area:
+            samples = light_point(light, cam)[None]
+        else:
+            samples = disk_samples(light, cam, int(method.split(":")[1]), 0)
+        lit = proxy_soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, samples,
+                                params.thickness, side, progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        finite_outputs(lit=lit)
+        return {"lit": lit, "darkness": (1.0 - lit).astype(lit.dtype)}

@@ -1,0 +1,56 @@
+"""The classical soft shadow at a proxy resolution (ops/upsample.py, SoftShadow's
+``proxy`` param) against the full-resolution trace."""
+import pathlib
+
+import numpy as np
+import pytest
+
+from _shadow_scenes import figure
+from pixgraph.session import Session
+from pixgraph_nodes.ops.camera import Camera
+from pixgraph_nodes.ops.lights import disk_light, disk_samples
+from pixgraph_nodes.ops.shadow import soft_shadow
+from pixgraph_nodes.ops.upsample import proxy_soft_shadow
+
+GRAPHS = pathlib.Path(__file__).resolve().parents[1] / "graphs"
+
+
+def _scene(n=768):
+    m, fg, bg = figure(n, n)
+    cam = Camera(n, n, 50.0, horizon=0.25 * n)
+    foot = cam.back_project(np.array([n / 2]), np.array([0.88 * n]), np.array([0.0]))[0][0]
+    return m, fg, bg, cam, foot
+
+
+def test_no_proxy_at_or_below_its_size_is_the_plain_trace(device):
+    m, fg, bg, cam, foot = _scene(256)
+    S = disk_samples(disk_light(tuple(foot + [-1.5, 2.5, -2.0]), 0.3, target=tuple(foot)), cam, 8)
+    full = soft_shadow(device, m, fg, bg, S, 1.0)
+    assert np.array_equal(proxy_soft_shadow(device, m, fg, bg, S, 1.0, 256), full)
+    assert np.array_equal(proxy_soft_shadow(device, m, fg, bg, S, 1.0, 4096), full)
+    with pytest.raises(ValueError, match="at least 16"):
+        proxy_soft_shadow(device, m, fg, bg, S, 1.0, 8)
+
+
+@pytest.mark.parametrize("offset, radius", [((-1.5, 2.5, -2.0), 0.3), ((1.0, 1.5, 1.0), 0.05)])
+def test_a_proxy_three_times_smaller_stays_close_to_the_full_trace(device, offset, radius):
+    m, fg, bg, cam, foot = _scene(768)
+    S = disk_samples(disk_light(tuple(np.asarray(offset) + foot * [1, 0, 1]), radius, target=tuple(foot)), cam, 16)
+    full = soft_shadow(device, m, fg, bg, S, 1.0)
+    out = m < 0.5
+    assert (full[out] < 0.5).sum() > 5_000                   # a large shadow is compared
+    err = {p: float(np.sqrt(np.mean((proxy_soft_shadow(device, m, fg, bg, S, 1.0, p) - full)[out] ** 2)))
+           for p in (256, 384)}
+    # measured 0.016-0.018 at 256 px, 0.009-0.011 at 384 px
+    assert err[256] < 0.025 and err[384] < 0.016 and err[384] < err[256]
+
+
+def test_soft_shadow_node_proxy_param(device):
+    s = Session(device=device, disk_cache=None)
+    g = s.graph(GRAPHS / "ground_shadow.yaml")
+    run = lambda p: s.run(g, outputs=["shadow.darkness"], params={"shadow.proxy": p})["shadow.darkness"]
+    full = run(0)
+    assert np.array_equal(run(1024), full)                  # the default leaves 512^2 images alone
+    out = s.run(g, outputs=["cutout.alpha"])["cutout.alpha"] < 0.5
+    # measured 0.009
+    assert np.sqrt(np.mean((run(256) - full)[out] ** 2)) < 0.015

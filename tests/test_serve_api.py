@@ -1,0 +1,281 @@
+"""``pixgraph serve``'s HTTP API, with a real client (httpx) against a real server
+process on 127.0.0.1, serving a copy of graphs/wall_corner_shadow.yaml."""
+import io
+import os
+import threading
+
+import httpx
+import numpy as np
+import pytest
+from PIL import Image
+
+from pixgraph import fileio
+from pixgraph.registry import Registry
+from pixgraph_nodes.ops.imageio import linear_to_srgb, read_image
+from serve_helpers import copy_scene, running_server
+
+MAX_PIXELS = 300_000      # 512^2 = 262,144 fits; 600^2 does not
+MAX_BODY = 2_000_000
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    top = tmp_path_factory.mktemp("serve")
+    graph = copy_scene(str(top / "scene"))
+    os.makedirs(top / "extra")
+    with running_server(graph, "--max-pixels", str(MAX_PIXELS), "--max-body", str(MAX_BODY),
+                        "--allow-path", str(top / "extra")) as (url, proc):
+        yield {"url": url, "graph": graph, "top": top, "text": open(graph).read(), "proc": proc}
+
+
+@pytest.fixture
+def api(server):
+    """A client on the server, whose graph is reset to the file's text first."""
+    with httpx.Client(base_url=server["url"], timeout=120) as c:
+        r = c.post("/api/graph", content=server["text"])
+        assert r.status_code == 200, r.text
+        yield c
+
+
+def _error(r, status):
+    assert r.status_code == status, r.text
+    assert r.headers["content-type"].startswith("application/json")
+    body = r.json()
+    assert body["error"] and "Traceback" not in r.text
+    return body
+
+
+def test_graph_lists_nodes_params_and_types(api):
+    info = api.get("/api/graph").json()
+    ids = [n["id"] for n in info["nodes"]]
+    assert ids == ["cutout", "photo", "cam", "fg_h", "bg_h", "light", "shadow", "comp"]
+    light = next(n for n in info["nodes"] if n["id"] == "light")
+    assert light["params"]["azimuth"] == -25 and light["values"]["target_mode"] == "mask_foot"
+    assert light["inputs"] == {"camera": "cam.camera", "mask": "cutout.alpha"}
+    spec = info["types"]["pixgraph.Light"]
+    elevation = next(p for p in spec["params"] if p["name"] == "elevation")
+    assert (elevation["min"], elevation["max"], elevation["unit"]) == (-90.0, 90.0, "deg")
+    assert "pixgraph.SoftShadowSSN" in info["types"]          # the method toggle's choices
+    assert info["outputs"] == {"final": "comp.image"}
+    all_types = {t["type"] for t in api.get("/api/nodes").json()["types"]}
+    assert {"pixgraph.Light", "pixgraph.Composite"} <= all_types
+
+
+def test_run_then_param_change_reruns_only_downstream(api):
+    r = api.post("/api/run", json={"outputs": ["final"]}).json()
+    assert r["outputs"]["final"]["shape"] == [512, 512, 3]
+    r = api.post("/api/run", json={"params": {"light.azimuth": -10}}).json()
+    assert r["ran"] == ["light", "shadow", "comp"]
+    assert set(r["cached"]) == {"cutout", "photo", "cam", "fg_h", "bg_h"}
+    r = api.post("/api/run", json={"params": {"comp.opacity": 0.5}}).json()
+    assert r["ran"] == ["comp"]
+    r = api.post("/api/run", json={"params": {"light.azimuth": -25, "comp.opacity": 0.85}}).json()
+    # back to the first state: all of it from the cache
+    assert r["ran"] == []
+
+
+def test_png_is_the_srgb_of_the_exr(api):
+    png = api.get("/api/outputs/final.png")
+    exr = api.get("/api/outputs/final.exr")
+    assert png.headers["content-type"] == "image/png" and exr.headers["content-type"] == "image/x-exr"
+    shown = np.asarray(Image.open(io.BytesIO(png.content)), dtype=np.float32) / 255.0
+    path = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"pixgraph-serve-test-{os.getpid()}.exr")
+    with open(path, "wb") as f:
+        f.write(exr.content)
+    try:
+        linear, _ = read_image(path)
+    finally:
+        os.unlink(path)
+    assert shown.shape == linear.shape == (512, 512, 3)
+    np.testing.assert_allclose(shown, linear_to_srgb(np.clip(linear, 0, 1)), atol=0.51 / 255)
+    # any node output by "node.output", e.g. the shadow's darkness as a grey PNG
+    dark = np.asarray(Image.open(io.BytesIO(api.get("/api/outputs/shadow.darkness.png").content)))
+    assert dark.shape == (512, 512) and dark.max() > 200 and dark.min() == 0
+
+
+def test_preview_is_a_hard_shadow_at_half_resolution(api):
+    r = api.post("/api/run", json={"mode": "preview"}).json()
+    assert "shadow" in r["ran"] or "shadow" in r["cached"]
+    hard = np.asarray(Image.open(io.BytesIO(api.get("/api/outputs/shadow.darkness.png?mode=preview").content)))
+    assert set(np.unique(hard)) <= {0, 255}                 # a hard shadow: no penumbra
+    soft = np.asarray(Image.open(io.BytesIO(api.get("/api/outputs/shadow.darkness.png").content)))
+    assert ((soft > 10) & (soft < 245)).sum() > 1000          # the final one has a penumbra
+    png = api.post("/api/render", json={"mode": "preview"})
+    assert Image.open(io.BytesIO(png.content)).size == (256, 256)
+    assert png.headers["x-pixgraph-mode"] == "preview"
+
+
+def test_method_toggle_switches_the_shadow_node_type(api):
+    r = api.post("/api/params", json={"types": {"shadow": "pixgraph.SoftShadowSSN"}})
+    assert r.status_code == 200
+    assert "type: pixgraph.SoftShadowSSN" in r.json()["yaml"]
+    r = api.post("/api/run", json={}).json()
+    assert r["ran"] == ["shadow", "comp"]
+    r = api.post("/api/params", json={"types": {"shadow": "pixgraph.SoftShadow"}}).json()
+    assert "samples: 48" in r["yaml"]                         # its params come back with it
+
+
+def test_light_tip_drag_moves_the_light(api):
+    scene = api.get("/api/scene").json()
+    assert scene["roles"] == {"camera": "cam", "light": "light", "background": "bg_h", "shadow": "shadow"}
+    top = scene["light"]["top_uvh"]
+    r = api.post("/api/params", json={"light_tip": [150, 420]})
+    assert r.status_code == 200
+    scene = api.get("/api/scene").json()
+    assert scene["light"]["placement"] == "shadow_tip"
+    assert scene["light"]["tip_uv"] == pytest.approx([150, 420], abs=0.5)   # the tip follows the pointer
+    assert scene["light"]["top_uvh"] == top
+    # the elevation slider slides the tip along its ground direction, to that elevation
+    api.post("/api/params", json={"light_elevation": 20}).raise_for_status()
+    assert api.get("/api/scene").json()["light"]["elevation_deg"] == pytest.approx(20, abs=0.01)
+
+
+def test_save_writes_canonical_yaml(api, server):
+    api.post("/api/params", json={"params": {"light.azimuth": 12.5}}).raise_for_status()
+    r = api.post("/api/save", json={"path": "edited.yaml"}).json()
+    path = os.path.join(os.path.dirname(server["graph"]), "edited.yaml")
+    assert r["path"] == path
+    reg = Registry.discover()
+    g = fileio.load(path, reg)
+    assert g.nodes["light"].params["azimuth"] == 12.5
+    assert open(path).read() == fileio.dumps(g) == r["yaml"]
+    assert g.nodes["cutout"].params["path"] == "assets/figure.png"   # still relative to the graph
+
+
+def test_errors_unknown_node_and_bad_values(api):
+    e = _error(api.post("/api/params", json={"params": {"nope.sigma": 1}}), 400)
+    assert e["node"] == "nope"
+    e = _error(api.post("/api/params", json={"params": {"light.elevation": 500}}), 400)
+    assert e["node"] == "light" and e["field"] == "params.elevation" and "maximum 90" in e["error"]
+    e = _error(api.post("/api/params", json={"params": {"light.kind": "laser"}}), 400)
+    assert "laser" in e["error"]
+    _error(api.post("/api/params", json={"types": {"shadow": "pixgraph.Nope"}}), 400)
+    _error(api.post("/api/params", json={"light_tip": [1, "x"]}), 400)
+    _error(api.post("/api/run", json={"outputs": ["nothing"]}), 400)
+    _error(api.post("/api/run", json={"mode": "fast"}), 400)
+    _error(api.get("/api/outputs/light.light.png"), 400)       # not an image
+    _error(api.post("/api/params", content=b"{not json"), 400)
+    _error(api.post("/api/params", content=b"[1, 2]"), 400)
+    _error(api.post("/api/graph", content=b"pixgraph: 1\nnodes: {a: {type: x.Y}}\n"), 400)
+    _error(api.post("/api/graph", content=b"!!python/object/apply:os.system ['touch /tmp/x']\n"), 400)
+    _error(api.get("/api/no-such-thing"), 404)
+    _error(api.delete("/api/graph"), 405)
+    # the graph is unchanged by the rejected edits
+    assert api.get("/api/graph").json()["nodes"][5]["params"]["elevation"] == 32
+
+
+def test_paths_outside_the_roots_are_refused(api, server):
+    top = server["top"]
+    (top / "outside.png").write_bytes(open(os.path.join(os.path.dirname(server["graph"]), "assets",
+                                                        "figure.png"), "rb").read())
+    link = os.path.join(os.path.dirname(server["graph"]), "assets", "link.png")
+    if not os.path.lexists(link):
+        os.symlink(top / "outside.png", link)
+    for path in ("/etc/hostname", "../outside.png", str(top / "outside.png"), "assets/link.png",
+                 "/etc/no-such-file.png", "../../no-such-file.png"):   # refused alike: no probing outside
+        e = _error(api.post("/api/params", json={"params": {"cutout.path": path}}), 403)
+        assert e["node"] == "cutout" and e["field"] == "params.path", path
+    for path in ("/etc/hostname", "/etc/no-such-file.png"):
+        e = _error(api.post("/api/graph", content=server["text"].replace("assets/figure.png", path)), 403)
+        assert e["node"] == "cutout"
+    assert "not found" in _error(api.post("/api/params", json={"params": {"cutout.path": "assets/nope.png"}}),
+                                 400)["error"]
+    _error(api.post("/api/save", json={"path": "../escaped.yaml"}), 403)
+    assert not (top / "escaped.yaml").exists()
+    _error(api.post("/api/save", json={"path": "edited.txt"}), 400)
+    # an explicitly allowed root is readable
+    (top / "extra" / "figure.png").write_bytes((top / "outside.png").read_bytes())
+    assert api.post("/api/params", json={"params": {"cutout.path": str(top / "extra" / "figure.png")}}).status_code == 200
+
+
+def _png(w, h):
+    buf = io.BytesIO()
+    Image.new("RGB", (w, h), (200, 100, 50)).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def test_image_and_request_size_limits(api):
+    r = api.put("/api/uploads/small.png", content=_png(64, 48))
+    assert r.status_code == 200 and r.json()["pixels"] == 64 * 48
+    e = _error(api.put("/api/uploads/big.png", content=_png(600, 600)), 413)
+    assert "360000 pixels" in e["error"]
+    _error(api.put("/api/uploads/../x.png", content=_png(8, 8)), 404)
+    _error(api.put("/api/uploads/evil.sh", content=b"echo"), 400)
+    _error(api.put("/api/uploads/junk.png", content=b"not a png"), 400)
+    _error(api.put("/api/uploads/huge.png", content=b"\0" * (MAX_BODY + 1)), 413)
+    e = _error(api.post("/api/params", json={"params": {"cam.width": 2048}}), 413)
+    assert e["node"] == "cam"
+
+
+def test_stale_renders_are_dropped_and_running_ones_cancelled(api):
+    assert api.post("/api/render", json={"client": "t", "seq": 5, "mode": "preview"}).status_code == 200
+    _error(api.post("/api/render", json={"client": "t", "seq": 3, "mode": "preview"}), 409)
+    # a slow final render is cancelled by a newer preview of the same client
+    api.post("/api/params", json={"params": {"shadow.samples": 1000}}).raise_for_status()
+    results = {}
+
+    def slow():
+        with httpx.Client(base_url=str(api.base_url), timeout=120) as c:
+            results["final"] = c.post("/api/render", json={"client": "t", "seq": 10, "mode": "final",
+                                                           "params": {"light.azimuth": 5}})
+
+    t = threading.Thread(target=slow)
+    t.start()
+    import time
+    time.sleep(0.5)
+    newer = api.post("/api/render", json={"client": "t", "seq": 11, "mode": "preview"})
+    t.join()
+    assert newer.status_code == 200
+    assert results["final"].status_code == 409
+
+
+def test_nodes_json_is_what_the_page_is_built_from(capsys):
+    import json
+
+    from pixgraph.cli import main
+
+    assert main(["nodes", "pixgraph.Light", "--json"]) == 0
+    light = json.loads(capsys.readouterr().out)
+    kind = next(p for p in light["params"] if p["name"] == "kind")
+    assert kind["choices"] == ["point", "disk", "directional"] and kind["default"] == "disk"
+    assert [p["name"] for p in light["inputs"]] == ["camera", "mask"] and light["inputs"][1]["optional"]
+    assert main(["nodes", "--json"]) == 0
+    assert "pixgraph.SoftShadowSSN" in {t["type"] for t in json.loads(capsys.readouterr().out)}
+
+
+BAD_EDITS = [
+    {"params": {"light.azimuth": 10 ** 400}}, {"params": {"light.azimuth": "north"}},
+    {"params": {"light.tip_uv": [1]}}, {"params": {"light": 5}}, {"params": {"": 1}},
+    {"params": {"light.": 1}}, {"params": {"light.nope": 1}}, {"params": "light.azimuth=3"},
+    {"params": {"cam.width": 10 ** 30}}, {"params": {"cam.width": 0.5}}, {"params": {"fg_h.method": None}},
+    {"types": "x"}, {"types": {"light": "pixgraph.HardShadow"}}, {"types": {"ghost": "pixgraph.HardShadow"}},
+    {"light_elevation": "high"}, {"light_elevation": 95}, {"light_tip": [float("nan"), 3]},
+    {"light_tip": "here"},
+]
+BAD_RUNS = [{"outputs": 5}, {"outputs": ["comp.nope"]}, {"mode": 5}]   # bad for /api/run only
+
+
+@pytest.mark.parametrize("data", BAD_EDITS + BAD_RUNS, ids=range(len(BAD_EDITS + BAD_RUNS)))
+def test_every_bad_edit_is_a_4xx_json_error(api, server, data):
+    import json
+
+    raw = json.dumps(data).encode()     # NaN as the JSON extension Python writes
+    for path in ("/api/params", "/api/run") if data in BAD_EDITS else ("/api/run",):
+        r = api.post(path, content=raw)
+        assert 400 <= r.status_code < 500 and r.json()["error"], (path, r.status_code, r.text)
+    assert api.get("/api/graph.yaml").text == fileio.dumps(fileio.loads(server["text"], Registry.discover(),
+                                                                  base_dir=os.path.dirname(server["graph"])))
+
+
+def test_bad_render_requests_and_posted_graphs(api):
+    for data in ({"client": 5, "seq": 1}, {"client": "c", "seq": "1"}, {"output": ["final"]},
+                 {"output": "light.light"}, {"mode": "draft"}):
+        _error(api.post("/api/render", json=data), 400)
+    laughs = "pixgraph: 1\na: &a [1, 1, 1, 1, 1, 1, 1, 1, 1]\nb: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a]\n"
+    assert "anchors" in _error(api.post("/api/graph", content=laughs.encode()), 400)["error"]
+    _error(api.post("/api/graph", content=b"\xff\xfe"), 400)
+    _error(api.post("/api/save", json={"path": 5}), 400)
+    _error(api.post("/api/save", json={"path": "no/such/folder/x.yaml"}), 400)
+    _error(api.get("/api/outputs/final.gif"), 404)
+    _error(api.get("/api/outputs/final.png?scale=0"), 400)
+    _error(api.get("/static/../state.py"), 404)
