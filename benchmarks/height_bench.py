@@ -48,17 +48,16 @@ def timed(fn, runs: int) -> tuple[float, float]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--weights", default=str(ROOT / "nodes" / "weights" / "cutout_height.pt"))
-    ap.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
+    ap.add_argument("--threads", type=int, default=1,
+                    help="torch threads of the predictor (its default is 1; 0: torch's default)")
     ap.add_argument("--runs", type=int, default=31)
     ap.add_argument("--size", type=int, default=256)
     a = ap.parse_args(argv)
     import torch
-    if a.threads:
-        torch.set_num_threads(a.threads)
     sys.path.insert(0, str(ROOT))
     from pixgraph_nodes.ops.heightmaps import contact_line_height
     from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, prepare, straight_srgb
-    pred = LearnedHeightPredictor(a.weights)
+    pred = LearnedHeightPredictor(a.weights, threads=a.threads or None)
     rgba = test_cutout(a.size)
     colour, alpha = straight_srgb(rgba)
     x, _, _ = prepare(colour, alpha, pred.size)
@@ -66,7 +65,8 @@ def main(argv=None) -> int:
     whole = timed(lambda: pred.predict(rgba), a.runs)
     net = timed(lambda: pred.predict_normalised(x[None]), a.runs)
     heur = timed(lambda: contact_line_height(rgba[..., 3]), a.runs)
-    print(f"machine: {cpu_model()}, torch {torch.__version__}, {torch.get_num_threads()} threads")
+    print(f"machine: {cpu_model()}, torch {torch.__version__}, predictor threads "
+          f"{a.threads or torch.get_num_threads()}")
     print(f"model: {a.weights} ({n_params} parameters, runs at {pred.size}^2)")
     print(f"input {a.size}x{a.size}, median (min) of {a.runs} runs:")
     print(f"  learned predict, whole   {whole[0]:7.1f} ms ({whole[1]:.1f})")

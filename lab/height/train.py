@@ -81,7 +81,8 @@ def augment(x, t, w, gen):
     theta[:, 0, 0], theta[:, 1, 1] = sx, 1.0 / s
     theta[:, 0, 2], theta[:, 1, 2] = tx, ty
     grid = F.affine_grid(theta.to(dev), list(x.shape), align_corners=False)
-    full = torch.cat([x, t[:, None], w[:, None]], 1)
+    # t is normalised (height / bh where w > 0): resample t w and w, then divide
+    full = torch.cat([x, (t * w)[:, None], w[:, None]], 1)
     out = F.grid_sample(full, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
     # the row channel is a vertical ramp in bh units: evaluate it at the source rows
     S = x.shape[-1]

@@ -24,6 +24,7 @@ module (and the node that uses it) works without torch.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import pathlib
@@ -193,7 +194,7 @@ class LearnedHeightPredictor:
     rgba: float32 (H, W, 4) linear premultiplied colour + alpha, any size.
     """
 
-    def __init__(self, path: str | pathlib.Path = WEIGHTS, threads: int | None = None):
+    def __init__(self, path: str | pathlib.Path = WEIGHTS, threads: int | None = 1):
         import torch
         ck = torch.load(path, map_location="cpu", weights_only=True)
         cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else ck["config"]
@@ -204,20 +205,33 @@ class LearnedHeightPredictor:
         self.device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
         self.model.to(self.device)
         self.config = cfg
-        if threads:
-            torch.set_num_threads(threads)
+        # the network is small (~0.1 GFLOP at 64^2): one thread is as fast as two on an
+        # idle machine and much faster on a busy one (benchmarks/height_bench.py)
+        self.threads = threads
 
     def predict_normalised(self, x: np.ndarray) -> np.ndarray:
         """(N, 6, S, S) inputs -> (N, S, S) height / bh."""
         import torch
-        with torch.inference_mode():
+        with self._threads(), torch.inference_mode():
             return self.model(torch.from_numpy(x).to(self.device)).float().cpu().numpy()
+
+    @contextlib.contextmanager
+    def _threads(self):
+        import torch
+        before = torch.get_num_threads()
+        if self.threads and self.device.type == "cpu":
+            torch.set_num_threads(self.threads)
+        try:
+            yield
+        finally:
+            torch.set_num_threads(before)
 
     def predict(self, rgba: np.ndarray, threshold: float = 0.5) -> np.ndarray:
         rgba = np.asarray(rgba, np.float32)
         colour, alpha = straight_srgb(rgba)
-        x, box, bh = prepare(colour, alpha, self.size, threshold)
-        if box is None:
-            return np.zeros(alpha.shape, np.float32)
-        pred = self.predict_normalised(x[None])[0]
-        return paste(pred, box, bh, alpha > threshold)
+        with self._threads():
+            x, box, bh = prepare(colour, alpha, self.size, threshold)
+            if box is None:
+                return np.zeros(alpha.shape, np.float32)
+            pred = self.predict_normalised(x[None])[0]
+            return paste(pred, box, bh, alpha > threshold)
