@@ -3,6 +3,9 @@ learned predictor."""
 from __future__ import annotations
 
 import functools
+import hashlib
+import importlib.util
+import pathlib
 
 import numpy as np
 
@@ -50,6 +53,16 @@ def cutout_rgba(mask: np.ndarray, image: np.ndarray) -> np.ndarray:
     return np.concatenate([rgb * m[..., None], m[..., None]], axis=2).astype(np.float32)
 
 
+def _weights_version() -> str:
+    """What the learned method's result depends on besides its inputs: the shipped
+    weights' digest, or that torch is missing (then it falls back to the contact line,
+    and that result must not be served later as a learned one)."""
+    if importlib.util.find_spec("torch") is None:
+        return "no-torch"
+    path = pathlib.Path(__file__).parent / "weights" / "cutout_height.pt"
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:12] if path.exists() else "no-weights"
+
+
 @node("pixgraph.CutoutHeight", version=1)
 class CutoutHeight:
     """Pixel height of a cutout standing on the ground. ``contact_line`` (default, alpha
@@ -78,7 +91,7 @@ class CutoutHeight:
     class Outputs:
         height: T.PixelHeight = port(doc="cutout pixel height [px], 0 outside the mask")
 
-    impl_version = "2"  # 2: method learned; bump when weights/cutout_height.pt changes
+    impl_version = "2+" + _weights_version()  # 2: method learned
 
     def compute(self, ctx, inputs, params):
         mask = np.asarray(inputs.mask, dtype=np.float32)
