@@ -117,6 +117,21 @@ def _procedural(kind: str, rng: np.random.Generator):
     return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
 
 
+def read_urdf_mesh(obj_id: str) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (V, 3) float64 (z up, as in the file) and faces (F, 3) int64 of the
+    pybullet ``random_urdfs`` mesh ``"urdf:NUM"``; ``ValueError`` for a broken one."""
+    import pybullet_data
+    import trimesh
+    num = obj_id.split(":", 1)[1]
+    path = os.path.join(pybullet_data.getDataPath(), "random_urdfs", num, num + ".obj")
+    m = trimesh.load(path, force="mesh", process=False)
+    V = np.asarray(m.vertices, np.float64)
+    if not np.isfinite(V).all() or len(m.faces) == 0:
+        # a few random_urdfs files are broken (168.obj is all "v nan nan nan")
+        raise ValueError(f"{obj_id}: mesh has non-finite vertices or no faces")
+    return V, np.asarray(m.faces, np.int64)
+
+
 def load_object(obj_id: str, rng: np.random.Generator, height_range=(0.4, 1.6)):
     """Vertices (V, 3) float64 world units and faces (F, 3) int64 of a posed object.
 
@@ -126,17 +141,8 @@ def load_object(obj_id: str, rng: np.random.Generator, height_range=(0.4, 1.6)):
     with its base bounding-box centre at X = Z = 0.
     """
     if obj_id.startswith("urdf:"):
-        import pybullet_data
-        import trimesh
-        num = obj_id.split(":", 1)[1]
-        path = os.path.join(pybullet_data.getDataPath(), "random_urdfs", num, num + ".obj")
-        m = trimesh.load(path, force="mesh", process=False)
-        V = np.asarray(m.vertices, np.float64)
-        if not np.isfinite(V).all() or len(m.faces) == 0:
-            # a few random_urdfs files are broken (168.obj is all "v nan nan nan")
-            raise ValueError(f"{obj_id}: mesh has non-finite vertices or no faces")
+        V, F = read_urdf_mesh(obj_id)
         V = V @ _random_rotation(rng).T
-        F = np.asarray(m.faces, np.int64)
         V[:, 1] *= rng.uniform(1.0, 2.5)
     else:
         V, F = _procedural(obj_id, rng)

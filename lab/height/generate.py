@@ -139,17 +139,11 @@ def _h(R):
 def raw_object(obj_id: str, rng: np.random.Generator):
     """Unposed mesh (V, F), y up, as modelled (urdf: z-up file turned y-up, stretched)."""
     if obj_id.startswith("urdf:"):
-        import pybullet_data
-        import trimesh
-        num = obj_id.split(":", 1)[1]
-        path = os.path.join(pybullet_data.getDataPath(), "random_urdfs", num, num + ".obj")
-        m = trimesh.load(path, force="mesh", process=False)
-        V = np.asarray(m.vertices, np.float64)
-        if not np.isfinite(V).all() or len(m.faces) == 0:
-            raise ValueError(f"{obj_id}: broken mesh")
+        from pixgraph_lab.datagen.objects import read_urdf_mesh
+        V, F = read_urdf_mesh(obj_id)
         V = V[:, [0, 2, 1]] * np.array([1, 1, -1])          # z-up -> y-up
         V[:, 1] *= rng.uniform(1.0, 2.5)
-        return V, np.asarray(m.faces, np.int64)
+        return V, F
     if obj_id in ("proc:table", "proc:mushroom", "proc:tee"):
         return _extra_procedural(obj_id, rng)
     from pixgraph_lab.datagen.objects import _procedural
