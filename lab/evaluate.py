@@ -40,6 +40,7 @@ import time
 import numpy as np
 
 from .datagen.dataset import load_sample, sample_files
+from .failure import stroke_width
 from .metrics import shadow_metrics
 
 BASELINES = ("renderer_hard", "hard", "soft:4", "soft:16", "soft:64", "soft:256")
@@ -130,7 +131,7 @@ def sample_factors(s: dict) -> dict:
     return {"index": meta["index"], "background": meta["scene"]["background"], "object": meta["scene"]["object"],
             "elevation_deg": lt["elevation_deg"], "relative_radius": lt["relative_radius"],
             "wall_clearance": meta["scene"]["background_params"].get("clearance", float("nan")),
-            "object_height": meta["scene"]["object_height"],
+            "object_height": meta["scene"]["object_height"], "stroke_width": stroke_width(s["mask"]),
             "light_behind_camera": int(meta["light_uvhs"][3] < 0)}
 
 
