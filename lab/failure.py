@@ -95,14 +95,14 @@ def failure_charts(rows, out_dir: str, prefix: str = "failure_", title: str = ""
     for key, (label, edges, logx) in FACTORS.items():
         if not any(np.isfinite(_value(r, key)) for r in rows):
             continue
-        fig, ax = plt.subplots(figsize=(6, 4))
+        fig, ax = plt.subplots(figsize=(8, 4))
         centers = np.sqrt(edges[:-1] * edges[1:]) if logx else (edges[:-1] + edges[1:]) / 2
         for m in methods:
             means, counts, overall = _binned(rows, m, key, edges)
             ok = counts >= 1
             if m == methods[0]:                     # every method sees the same samples
                 for c, n in zip(centers[ok], counts[ok]):
-                    ax.annotate(f"n={n}", (c, 1.0), xycoords=("data", "axes fraction"), xytext=(0, -9),
+                    ax.annotate(f"n={n}", (c, 0.0), xycoords=("data", "axes fraction"), xytext=(0, 3),
                                 textcoords="offset points", ha="center", fontsize=6, color="gray")
             ax.plot(centers[ok], means[ok], "o-", label=m, ms=3)
             big = np.where(counts >= MIN_BIN, means, np.nan)
@@ -113,10 +113,12 @@ def failure_charts(rows, out_dir: str, prefix: str = "failure_", title: str = ""
                              f"(n={counts[b]})")
         if logx:
             ax.set_xscale("log")
+        ax.set_xticks(edges, [f"{e:.2g}" for e in edges], fontsize=7)   # the bin edges
+        ax.minorticks_off()
         ax.set_xlabel(label)
         ax.set_ylabel("mean RMSE")
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         if title:
             ax.set_title(title, fontsize=9)
         fig.tight_layout()
