@@ -8,6 +8,7 @@ import pytest
 pytest.importorskip("mitsuba", reason="Mitsuba 3 not installed: pip install -e .[datagen]")
 
 from pixgraph_lab import evaluate as E  # noqa: E402
+from pixgraph_lab import failure as F  # noqa: E402
 from pixgraph_lab.datagen import generate  # noqa: E402
 from pixgraph_lab.datagen.dataset import load_sample, sample_files  # noqa: E402
 from pixgraph_lab.metrics import shadow_metrics  # noqa: E402
@@ -56,6 +57,10 @@ def test_baselines_are_always_present_and_renderer_row_is_exact(bench, device):
         row = next(r for r in rows if r["method"] == "renderer_hard" and r["index"] == s["meta"]["index"])
         for k in ("rmse", "rmse_s", "ssim", "zncc"):
             assert row[k] == pytest.approx(ref[k], abs=1e-12)
+    for r in rows:                                    # thinness from each sample's own mask
+        s = load_sample(sample_files(bench)[r["index"]])
+        assert r["stroke_width"] == pytest.approx(F.stroke_width(s["mask"]))
+        assert 0.0 < r["stroke_width"] <= 0.7
     summ = E.summarize(rows, ["renderer_hard", "hard", "soft:4"])
     assert [r["method"] for r in summ] == ["renderer_hard", "hard", "soft:4"]
     assert all(r["ms"] >= 0 for r in summ)
@@ -104,7 +109,8 @@ def test_cli_writes_table_and_charts(bench, tmp_path, capsys):
     for m in E.BASELINES:
         assert f"| {m} |" in text
     for name in ("table.md", "table.csv", "per_sample.csv", "speed_accuracy.png",
-                 "failure_elevation_deg.png", "failure_relative_radius.png", "failure_background.png"):
+                 "failure_elevation_deg.png", "failure_relative_radius.png", "failure_background.png",
+                 "failure_stroke_width.png"):
         assert os.path.getsize(out / name) > 0, name
     with open(out / "table.csv") as fh:
         table = list(csv.DictReader(fh))
