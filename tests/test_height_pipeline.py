@@ -1,7 +1,6 @@
 """The predictor's lab pipeline at toy size (docs/height.md's commands): generate
 cutouts with true pixel heights, train two steps, resume, evaluate. Needs Mitsuba."""
 import json
-import math
 
 import numpy as np
 import pytest
@@ -26,10 +25,16 @@ def test_splits_are_object_disjoint():
 def test_generated_heights_are_the_visible_surface_heights():
     arrays, meta = generate.make_sample("test", 0, seed=0, res=64)
     cam = meta["camera"]
-    f = cam["width"] / 2 / math.tan(math.radians(cam["hfov"]) / 2)
     m = arrays["mask"]
     h = arrays["height"].astype(np.float32)
     assert m.sum() > 10 and np.all(h[~m] == 0)
+    # back-projected (design: Y = H_cam h / (v + h - horizon)), every object pixel lies
+    # between the ground and the object's top; this sample's top is in view (measured
+    # 0.989 of object_height; heights off by a factor 2 would give 0.634)
+    v = np.arange(h.shape[0], dtype=np.float64)[:, None] + 0.5
+    Y = (cam["cam_height"] * h / (v + h - cam["horizon"]))[m]
+    assert Y.min() > -1e-3 and Y.max() < 1.01 * meta["object_height"]
+    assert Y.max() > 0.9 * meta["object_height"] and Y.min() < 0.05 * meta["object_height"]
     # the top of the object is at world height object_height: its pixel height is
     # f Y / D, at most what the object's highest point gives at the nearest depth;
     # and the lowest mask pixels of an object resting on the ground are near 0
