@@ -38,7 +38,6 @@ import subprocess
 import sys
 import time
 
-import numpy as np
 
 from _machine import cpu_model
 

@@ -38,6 +38,16 @@ def source(path: str, node_id: str) -> str:
     return f"{path if rel.startswith('..') else rel!r} (node {node_id!r})"
 
 
+def npy_finite(path, message: str) -> None:
+    """Raise ``InputError(message)`` when an ``.npy`` file holds NaN or inf. The file
+    is memory-mapped, not decoded, so ``validate`` finds it before anything runs;
+    other formats are checked when they are read."""
+    if str(path).lower().endswith(".npy"):
+        a = np.load(path, mmap_mode="r", allow_pickle=False)
+        if a.dtype.kind == "f" and not np.isfinite(a).all():
+            raise InputError(message)
+
+
 def file_shape(path: str, node_id: str) -> Shape:
     """The ``Shape`` of an image or ``.npy`` file from its header; an unreadable file
     is an ``InputError`` naming it."""

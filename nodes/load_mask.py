@@ -9,7 +9,7 @@ from pixgraph import types as T
 from pixgraph.node import InputError, node, param, port
 from pixgraph.types import Shape
 
-from ._checks import file_shape, source
+from ._checks import file_shape, npy_finite, source
 
 from .ops.imageio import host_pixels, read_mask
 
@@ -34,10 +34,7 @@ class LoadMask:
 
     def infer(self, ctx, inputs, params):
         shape = file_shape(params.path, ctx.node_id)
-        if str(params.path).lower().endswith(".npy"):
-            a = np.load(params.path, mmap_mode="r", allow_pickle=False)
-            if a.dtype.kind == "f" and not np.isfinite(a).all():
-                raise InputError(f"{shape.source}: mask has NaN or infinite values")
+        npy_finite(params.path, f"{shape.source}: mask has NaN or infinite values")
         return {"mask": Shape(shape.height, shape.width, 1, shape.source)}
 
     def compute(self, ctx, inputs, params):

@@ -10,7 +10,7 @@ from pixgraph import types as T
 from pixgraph.node import InputError, node, param, port
 from pixgraph.types import Shape
 
-from ._checks import file_shape, source
+from ._checks import file_shape, npy_finite
 from .ops.heightmaps import load_pixel_height
 
 
@@ -40,11 +40,7 @@ class LoadPixelHeight:
 
     def infer(self, ctx, inputs, params):
         shape = file_shape(params.path, ctx.node_id)
-        if str(params.path).lower().endswith(".npy"):
-            # an .npy map is read as it is mapped (no decoding): NaN is found before running
-            a = np.load(params.path, mmap_mode="r", allow_pickle=False)
-            if a.dtype.kind == "f" and not np.isfinite(a).all():
-                raise InputError(f"param 'path': {shape.source}: pixel height has non-finite values")
+        npy_finite(params.path, f"param 'path': {shape.source}: pixel height has non-finite values")
         return {"height": Shape(shape.height, shape.width, 1, shape.source)}
 
     def compute(self, ctx, inputs, params):

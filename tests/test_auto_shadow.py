@@ -1,7 +1,6 @@
 """pixgraph.Shadow with method auto (ops/choose.py, lab/auto_table.py): the choice
 follows the measured table, the node computes exactly the chosen method, and
 explain / the run's log say what was chosen and why."""
-import json
 import pathlib
 
 import numpy as np

@@ -1,6 +1,5 @@
 """docs/own-photo.md: every command runs and prints what the page says; the example
 makes a soft shadow that climbs the wall from a plain RGBA cutout and a photo."""
-import os
 import pathlib
 import re
 import shlex

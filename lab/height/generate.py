@@ -239,7 +239,6 @@ def render_cutout(camera, V, F, rng: np.random.Generator, subsamples: int = 2):
 
 
 def make_sample(split: str, index: int, seed: int = 0, res: int = 256):
-    from pixgraph_lab.datagen.scene import place_object
     from pixgraph_nodes.ops.camera import Camera
     rng = np.random.default_rng([seed, 7, SPLIT_CODE[split], index])
     urdfs, procs = object_pool(split)

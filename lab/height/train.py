@@ -104,7 +104,6 @@ def augment(x, t, w, gen):
 
 
 def masked_loss(p, t, w):
-    import torch
     wsum = w.sum().clamp(min=1.0)
     l0 = (w * (p - t).abs()).sum() / wsum
     wx = w[:, :, 1:] * w[:, :, :-1]

@@ -19,7 +19,6 @@ import os
 import re
 import time
 from importlib import resources
-from typing import Any
 
 import anyio
 from starlette.applications import Starlette
