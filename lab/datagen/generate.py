@@ -39,7 +39,7 @@ def sample_rng(seed: int, benchmark: str, split: str, index: int) -> np.random.G
 
 def make_sample(benchmark: str, split: str, index: int, seed: int = 0, res: int = 256,
                 light_samples: int = 256, min_shadow_frac: float = 0.002, soft_rng=None,
-                return_scene: bool = False):
+                return_scene: bool = False, mix: int = 1):
     """Build and ray-cast one sample. Returns ``(arrays, meta)``.
 
     min_shadow_frac: the visible hard shadow (and for ``wall`` its part on walls)
@@ -49,6 +49,9 @@ def make_sample(benchmark: str, split: str, index: int, seed: int = 0, res: int 
     sample twice (checks.py --noise).
     return_scene: also return the ``SampleRenderer`` and ``DiskLight`` (for checks
     that cast more rays into the same scene).
+    mix: the object mix (``objects.choose_object``): 1 = the generator's first
+    objects (meshes + solid procedural shapes), 2 = also thin open objects (tables,
+    chairs, frames in train; arches, benches in test) a quarter of the time.
     """
     from .render import SampleRenderer, render
     rng = sample_rng(seed, benchmark, split, index)
@@ -60,7 +63,7 @@ def make_sample(benchmark: str, split: str, index: int, seed: int = 0, res: int 
         scene_tries += 1
         if scene_tries > 200:
             raise RuntimeError(f"sample {index}: no valid scene in 200 tries")
-        obj_id = choose_object(split, rng)
+        obj_id = choose_object(split, rng, mix=mix)
         try:
             V, F = load_object(obj_id, rng)
         except ValueError:          # broken source mesh: draw another object
@@ -94,7 +97,7 @@ def make_sample(benchmark: str, split: str, index: int, seed: int = 0, res: int 
             shadow, err = arrays["shadow"], arrays["shadow_stderr"].astype(np.float32)
             pen = (shadow > 0.01) & (shadow < 0.99) & ~m
             meta = {
-                "format": FORMAT_VERSION, "benchmark": benchmark, "split": split, "index": index,
+                "format": FORMAT_VERSION, "benchmark": benchmark, "split": split, "index": index, "mix": mix,
                 "rng": [seed, BENCH_CODE[benchmark], SPLIT_CODE[split], index],
                 "scene": spec.to_json(), "light": light.to_json(),
                 "light_uvhs": [float(x) for x in arrays["light_uvhs"]], "albedo": [float(a) for a in albedo],
@@ -142,6 +145,9 @@ def main(argv=None) -> int:
     ap.add_argument("--res", type=int, default=256, help="image size in pixels (square)")
     ap.add_argument("--light-samples", type=int, default=256,
                     help="disk-light samples per pixel for the soft shadow (rounded up to k*k)")
+    ap.add_argument("--mix", type=int, choices=(1, 2), default=1,
+                    help="object mix: 1 = meshes + solid shapes (the first benchmarks), "
+                         "2 = also thin open objects (tables, chairs, frames / arches, benches)")
     ap.add_argument("--no-progress", action="store_true")
     a = ap.parse_args(argv)
     from tqdm import tqdm
@@ -150,7 +156,7 @@ def main(argv=None) -> int:
     variant = select_variant()
     os.makedirs(a.out, exist_ok=True)
     config = {"benchmark": a.benchmark, "split": a.split, "n": a.n, "start": a.start, "seed": a.seed,
-              "res": a.res, "light_samples": a.light_samples, "mitsuba_variant": variant,
+              "res": a.res, "light_samples": a.light_samples, "mix": a.mix, "mitsuba_variant": variant,
               "command": " ".join(["python -m pixgraph_lab.datagen.generate"] + (argv or sys.argv[1:])),
               "host": platform.node()}
     t0 = time.perf_counter()
@@ -160,7 +166,7 @@ def main(argv=None) -> int:
         p = sample_path(a.out, i)
         if os.path.exists(p):
             continue
-        arrays, meta = make_sample(a.benchmark, a.split, i, a.seed, a.res, a.light_samples)
+        arrays, meta = make_sample(a.benchmark, a.split, i, a.seed, a.res, a.light_samples, mix=a.mix)
         save_sample(p, arrays, meta)
         made += 1
         if made % 25 == 0:

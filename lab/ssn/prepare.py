@@ -39,8 +39,16 @@ def sample_light(sample: dict) -> Light:
 
 
 def softness(sample: dict) -> float:
-    """Light radius over its distance to the object (dimensionless)."""
-    return float(sample["meta"]["light"]["relative_radius"])
+    """The light's softness exactly as ``pixgraph.SoftShadowSSN`` computes it at run
+    time (``ssn.softness_of``): disk radius over the distance from the light's
+    centre to the mean of the cutout's reconstructed 3D points (dimensionless).
+
+    The first training set used the generator's ``relative_radius`` instead
+    (radius over the distance to the centre of the object's 3D bounding box,
+    including parts the camera cannot see), which is not what the node can know.
+    """
+    return ssn.softness_of(sample_light(sample), sample["camera"], sample["mask"],
+                           np.where(sample["mask"], sample["fg_height"], 0.0))
 
 
 def sample_inputs(device, sample: dict, thickness: float = 1.0):
