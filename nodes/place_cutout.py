@@ -46,7 +46,7 @@ class PlaceCutout:
         alpha: T.Mask = port(doc="cutout coverage on the canvas")
         height: T.PixelHeight = port(doc="cutout pixel height on the canvas [canvas px], 0 outside")
 
-    impl_version = "1"
+    impl_version = "2"   # 2: jumps found by second differences (steep faces blended)
 
     def infer(self, ctx, inputs, params):
         """Checks from file headers: alpha or mask, sizes, and a foot that keeps the

@@ -35,6 +35,31 @@ def test_foot_lands_on_the_point_and_heights_scale_by_s(s):
     np.testing.assert_allclose(ph[inner], contact_line_height(alpha)[inner], atol=0.6 * max(1.0, s))
 
 
+def test_steep_faces_are_blended_and_steps_are_not():
+    """A face seen at a grazing angle changes pixel height by many px per px but is
+    one plane: placed at s = 1.5 its heights are the linear interpolation, s times
+    (no staircase from nearest-pixel sampling). A step between two surfaces is
+    not blended: no placed height lies strictly between the two levels."""
+    h, w = 40, 40
+    a = np.zeros((h, w), np.float32)
+    a[2:-2, 2:-2] = 1.0
+    x = np.arange(w, dtype=np.float32)[None, :].repeat(h, 0)
+    ramp = (100.0 + 6.0 * (x + 0.5)) * a                       # 6 px of height per px
+    rgba = np.concatenate([a[:, :, None].repeat(3, 2), a[:, :, None]], axis=2)
+    s = 1.5
+    _, pa, ph = place_cutout(rgba, a, ramp, (120, 120), (60.0, 100.0), s)
+    ax, ay = foot_of_mask(a)
+    X = ax + ((np.arange(120) + 0.5) - 60.0) / s               # source x of each canvas column
+    inner = (pa > 0.999) & (np.abs(np.arange(120)[None, :] - 60) < 20 * s - 4)
+    expect = s * (100.0 + 6.0 * X)[None, :].repeat(120, 0)
+    assert inner.sum() > 500
+    np.testing.assert_allclose(ph[inner], expect[inner], atol=1e-2)
+    step = np.where(x < 20, 100.0, 160.0).astype(np.float32) * a
+    _, pa, ph = place_cutout(rgba, a, step, (120, 120), (60.0, 100.0), s)
+    inside = pa > 0.999
+    assert not ((ph[inside] > 100.0 * s + 1e-3) & (ph[inside] < 160.0 * s - 1e-3)).any()
+
+
 def test_premultiplied_edges_keep_their_colour():
     rgba, a, h = _box_cutout()
     img, alpha, _ = place_cutout(rgba, a, None, (200, 200), (100.3, 150.7), 1.37)

@@ -44,7 +44,16 @@ def shipped(sample):
 
 
 def __getattr__(name: str):
-    """``run_<folder>``: the model in ``$PIXGRAPH_SSN_RUNS/<folder>/model.pt``."""
+    """``run_<folder>``: the model in ``$PIXGRAPH_SSN_RUNS/<folder>/model.pt`` on the
+    whole 256² frame; ``node_run_<folder>``: that model the way the node runs it
+    (window at the trained scale + reach gate, ``_node``)."""
+    if name.startswith("node_run_") and len(name) > 9:
+        folder = name[9:]
+
+        def node_run(sample):
+            return _node(sample, model=_model(_run(folder)))
+        node_run.__name__ = name
+        return node_run
     if name.startswith("run_") and len(name) > 4:
         folder = name[4:]
 
@@ -55,14 +64,15 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def _node(sample, gate=True):
+def _node(sample, gate=True, model=None):
     from pixgraph_nodes.ops import ssn_crop
     from pixgraph_nodes.ops.lights import disk_extremes, light_point
     from pixgraph_nodes.ssn_soft_shadow import load_shipped
     light, cam = sample["light"], sample["camera"]
     mask = sample["mask"].astype("float32")
     softness = ssn.softness_of(light, cam, mask, sample["fg_height"])
-    d, _ = ssn_crop.render(sample["device"], load_shipped("ssnpp"), mask, sample["fg_height"],
+    model = load_shipped("ssnpp") if model is None else model
+    d, _ = ssn_crop.render(sample["device"], model, mask, sample["fg_height"],
                            sample["bg_height"], light_point(light, cam), disk_extremes(light, cam),
                            softness, 1.0, gate=gate)
     return d

@@ -154,6 +154,9 @@ def main(argv=None) -> int:
     ap.add_argument("--lr", type=float, default=2e-3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
+    ap.add_argument("--init", type=pathlib.Path,
+                    help="start from these weights (a model.pt / shipped .pt of the same config) "
+                         "instead of a random initialisation; recorded in the model's provenance")
     ap.add_argument("--ssim-weight", type=float, default=0.0,
                     help="weight of the (1 - SSIM) structure term (0: plain L1 + L2, the first model)")
     ap.add_argument("--grad-weight", type=float, default=0.0,
@@ -179,6 +182,15 @@ def main(argv=None) -> int:
     torch.manual_seed(args.seed)
     random.seed(args.seed)
     model = ssn.SSN(config).to(dev)
+    init_info = None
+    if args.init:
+        blob = torch.load(args.init, map_location="cpu", weights_only=True)
+        if blob["config"] != vars(config):
+            raise SystemExit(f"{args.init}: weights for {blob['config']}, not {vars(config)}")
+        model.load_state_dict({k: v.float() for k, v in blob["state"].items()})
+        import hashlib
+        init_info = {"path": str(args.init), "sha256": hashlib.sha256(args.init.read_bytes()).hexdigest()[:16],
+                     "its_meta": {k: blob["meta"].get(k) for k in ("train_data", "steps", "seed", "val_rmse")}}
     opt = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=1e-4)
     step, elapsed = 0, 0.0
     gen = torch.Generator().manual_seed(args.seed)
@@ -244,6 +256,7 @@ def main(argv=None) -> int:
     plot_log(log_path, args.out / "loss.png")
     meta = {"train_data": str(args.data), "seed": args.seed, "steps": step,
             "loss": {"l1": 1.0, "l2": 10.0, "ssim": args.ssim_weight, "grad": args.grad_weight},
+            "init": init_info, "lr": args.lr, "batch": args.batch,
             "minutes": round((time.perf_counter() - t0) / 60, 1), "val_rmse": round(vr, 5),
             "params": ssn.count_params(model), "gflops_256": round(ssn.count_flops(model.cpu()) / 1e9, 3),
             "data_info": _data_info(args.data)}

@@ -59,11 +59,30 @@ def _resample(planes: np.ndarray, wy: np.ndarray, wx: np.ndarray) -> np.ndarray:
 
 
 def _jumps(h: np.ndarray, inside: np.ndarray, jump: float) -> np.ndarray:
-    """(h, w) float 1 where a pixel's 3x3 neighbourhood inside the object spans more
-    than ``jump`` pixels of height (a depth discontinuity), else 0."""
-    hi = _filter3(np.where(inside, h, -np.inf), np.max, -np.inf)
-    lo = _filter3(np.where(inside, h, np.inf), np.min, np.inf)
-    return (inside & (hi - lo > jump)).astype(np.float32)
+    """(h, w) float 1 where a pixel's 3x3 neighbourhood inside the object holds a
+    depth discontinuity, else 0.
+
+    A discontinuity is a second difference of the height (along x or y, over three
+    pixels inside the object) above ``jump`` px: a plane's pixel height is locally
+    linear in the image however steep it is (a face seen at a grazing angle changes
+    height by many px per px and is still one surface), while a step from one
+    surface to another bends it by the step's size.
+    """
+    H, W = h.shape
+    d2 = np.zeros((H, W), np.float32)
+    for axis in (0, 1):
+        n = h.shape[axis]
+        if n < 3:
+            continue
+        a = [np.take(h, np.arange(k, n - 2 + k), axis=axis) for k in range(3)]
+        ok = np.take(inside, np.arange(0, n - 2), axis=axis) & np.take(inside, np.arange(1, n - 1), axis=axis) \
+            & np.take(inside, np.arange(2, n), axis=axis)
+        c = np.where(ok, np.abs(a[0] - 2 * a[1] + a[2]), 0.0)
+        if axis == 0:
+            d2[1:-1, :] = np.maximum(d2[1:-1, :], c)
+        else:
+            d2[:, 1:-1] = np.maximum(d2[:, 1:-1], c)
+    return (inside & (_filter3(d2, np.max, 0.0) > jump)).astype(np.float32)
 
 
 def _filter3(a: np.ndarray, reduce, pad: float) -> np.ndarray:
@@ -105,8 +124,9 @@ def place_cutout(image: np.ndarray, alpha: np.ndarray, height: np.ndarray | None
     pixel height [cutout px] or None. foot: (u, v) canvas point [px] where the
     cutout's anchor lands; scale: size factor s > 0; flip: mirror left-right about
     the anchor. anchor: (x, y) in cutout pixels, default the alpha's foot.
-    jump: a height step [cutout px] between neighbouring cutout pixels above which
-    heights are not blended but taken from the nearest pixel.
+    jump: a bend of the height field [cutout px] (second difference over three
+    pixels) above which it is a depth edge: heights within a pixel of it are not
+    blended but taken from the nearest pixel.
     Returns ``(image, alpha, height)`` on the canvas: premultiplied colour
     (H, W, C), alpha (H, W) and pixel height [canvas px] (H, W), 0 outside the
     cutout (None when ``height`` is None). Parts outside the canvas are cropped.
