@@ -192,6 +192,28 @@ def test_object_and_background_splits_are_disjoint():
     assert {"two_corners", "curved"} <= set(scene.WALL_KINDS_TEST) - set(scene.WALL_KINDS_TRAIN)
 
 
+def test_thin_open_objects_mix_2_only_and_split_by_kind():
+    """Mix 2 draws thin open objects (train: table, chair, frame; test: arch,
+    bench) about a quarter of the time; mix 1 draws exactly what it drew before
+    they existed (same ids from the same generator state)."""
+    for split, kinds in (("train", set(objects.THIN_TRAIN)), ("test", set(objects.THIN_TEST))):
+        got = [objects.choose_object(split, np.random.default_rng(i), mix=2) for i in range(400)]
+        thin = [g for g in got if g in set(objects.THIN_TRAIN + objects.THIN_TEST)]
+        assert set(thin) == kinds                       # every kind, and none of the other split's
+        assert 0.18 < len(thin) / len(got) < 0.32
+        old = [objects.choose_object(split, np.random.default_rng(i)) for i in range(400)]
+        assert not set(old) & set(objects.THIN_TRAIN + objects.THIN_TEST)
+        assert old == [objects.choose_object(split, np.random.default_rng(i), mix=1) for i in range(400)]
+    trimesh = pytest.importorskip("trimesh")
+    for kind in objects.THIN_TRAIN + objects.THIN_TEST:
+        for seed in range(10):
+            V, F = objects.load_object(kind, np.random.default_rng(seed))
+            assert V[:, 1].min() == pytest.approx(0.0, abs=1e-9) and 0.3 < V[:, 1].max() < 2.5
+            # open: the parts fill a small fraction of the bounding box (a solid box fills 1)
+            fill = abs(trimesh.Trimesh(V, F, process=False).volume) / np.prod(V.max(0) - V.min(0))
+            assert 0.005 < fill < 0.35, (kind, seed, fill)
+
+
 def test_background_templates_build(variant):
     base = np.array([0.0, 0.0, -3.0])
     rng = np.random.default_rng(3)
