@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .resample import Window, resize
+from .resample import Window, _axis_weights, _resize_axis
 from .shadow import soft_shadow
 
 #: ``proxy="auto"``: images whose longer side is at most this are traced at
@@ -35,7 +35,7 @@ AUTO_MAX_SIDE = 1024
 MIN_PROXY_THICKNESS = 1.0
 
 
-def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shape) -> np.ndarray:
+def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shape, band: int = 256) -> np.ndarray:
     """Resize ``lo`` (h, w) to ``shape`` (H, W), not mixing across the cutout's outline.
 
     mask_lo (h, w) and mask_hi (H, W): the cutout (> 0.5) at both resolutions.
@@ -43,21 +43,43 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
     outside ``mask_lo`` (weights renormalised), a pixel inside of those inside;
     where no such pixel is within reach (a gap thinner than a proxy pixel) it
     falls back to the plain bilinear value. Returns float32 (H, W).
+
+    The columns are resized first on the small image (five (h, W) planes), then
+    the output is made ``band`` rows at a time, so besides the result only a
+    band's temporaries are held at full resolution (a 4096^2 output no longer
+    needs a dozen full-size float arrays).
     """
     lo = np.asarray(lo, np.float32)
-    shape = tuple(int(s) for s in shape)
+    H, W = (int(s) for s in shape)
+    h = lo.shape[0]
     inside_lo = np.asarray(mask_lo) > 0.5
-    inside_hi = np.asarray(mask_hi) > 0.5
-    plain = resize(lo, shape)
-    out = plain.copy()
-    for side_lo, side_hi in ((~inside_lo, ~inside_hi), (inside_lo, inside_hi)):
-        if not side_hi.any() or not side_lo.any():
-            continue
-        w = side_lo.astype(np.float32)
-        den = resize(w, shape)
-        num = resize(lo * w, shape)
-        ok = side_hi & (den > 1e-3)
-        out[ok] = num[ok] / den[ok]
+    sides = [s for s in (~inside_lo, inside_lo) if s.any()]
+    planes = [lo]
+    for side in sides:
+        wgt = side.astype(np.float32)
+        planes += [wgt, lo * wgt]
+    cols = [_resize_axis(p_, W, 1) for p_ in planes]          # (h, W) each
+    if h == H:
+        idx, wts = np.arange(H)[:, None], np.ones((H, 1), np.float32)
+    else:
+        idx, wts = _axis_weights(h, H)
+    out = np.empty((H, W), np.float32)
+    for r0 in range(0, H, band):
+        r1 = min(H, r0 + band)
+        ix, wt = idx[r0:r1], wts[r0:r1]
+
+        def rows(c):
+            return np.einsum("rtx,rt->rx", c[ix], wt)
+        res = rows(cols[0])
+        inside_hi = np.asarray(mask_hi[r0:r1]) > 0.5
+        for k, side in enumerate(sides):
+            side_hi = inside_hi if side is inside_lo else ~inside_hi
+            if not side_hi.any():
+                continue
+            den, num = rows(cols[1 + 2 * k]), rows(cols[2 + 2 * k])
+            ok = side_hi & (den > 1e-3)
+            res[ok] = num[ok] / den[ok]
+        out[r0:r1] = res
     return out
 
 
