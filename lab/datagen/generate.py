@@ -126,7 +126,8 @@ def write_index(out: str, config: dict, n: int) -> dict:
             with np.load(p) as z:
                 metas.append(json.loads(str(z["meta"])))
     index = {"format": FORMAT_VERSION, "config": config, "count": len(metas), "samples": metas}
-    tmp = os.path.join(out, "index.json.tmp")
+    # one temp file per process: shards (--start) of one folder run side by side
+    tmp = os.path.join(out, f"index.json.{os.getpid()}.tmp")
     with open(tmp, "w") as fh:
         json.dump(index, fh, indent=1)
     os.replace(tmp, os.path.join(out, "index.json"))
