@@ -194,3 +194,22 @@ def test_cutout_in_front_of_another_shadows_only_its_true_band(device, light):
     # outline it was 0.20 and 0.18 (a wedge of ~700 wrong pixels)
     assert (got & true).sum() / (got | true).sum() > 0.75
     assert not (got & ~_dilate(true, 2)).any(), "shadow outside the pole's true band"
+
+
+def test_memory_order_of_the_inputs_does_not_matter(device):
+    """The kernels read row-major buffers: Fortran-ordered or transposed-view
+    inputs (a host's arrays, a resize's axis swap) give the same shadow as C-ordered
+    ones. Before the tracer made its inputs C-contiguous, a Fortran-ordered scene
+    was uploaded transposed (a 4096^2 proxy shadow came out nearly empty)."""
+    mask, fg, bg = sc.figure(96, 128)
+    light = np.array([0.3 * 128, -0.4 * 96, 2.0 * 96, 1.0])
+    ref = S.hard_shadow(device, mask, fg, bg, light, thickness=2.0)
+    f_ordered = [np.asfortranarray(a) for a in (mask, fg, bg)]
+    t_views = [np.ascontiguousarray(a.T).T for a in (mask, fg, bg)]   # C data of the transpose, viewed back
+    assert not f_ordered[1].flags.c_contiguous and not t_views[1].flags.c_contiguous
+    assert (ref < 0.5).sum() > 200
+    for args in (f_ordered, t_views):
+        assert np.array_equal(S.hard_shadow(device, *args, light, thickness=2.0), ref)
+    soft = S.soft_shadow(device, mask, fg, bg, np.array([light, light + [3, 0, 0, 0]], np.float32), 2.0)
+    np.testing.assert_array_equal(S.soft_shadow(device, *f_ordered, np.array([light, light + [3, 0, 0, 0]],
+                                                                             np.float32), 2.0), soft)

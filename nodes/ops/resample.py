@@ -89,22 +89,41 @@ class Window:
         """``crop`` then resize to (out_h, out_w)."""
         return resize(self.crop(a, pad), (self.out_h, self.out_w))
 
-    def scene(self, mask, fg_height, bg_height):
+    def scene(self, mask, fg_height, bg_height, band: int = 512):
         """The pixel-height scene in the window: (mask float32 in {0, 1}, fg_height,
         bg_height) at (out_h, out_w), heights in window pixels.
 
         The mask is area-averaged and thresholded at 0.5; the cutout's height is
         averaged over cutout pixels only (no mixing with the background's);
-        non-finite background heights become 0 before resizing."""
-        inside = (np.asarray(mask) > 0.5).astype(np.float32)
-        fg = np.where(inside > 0, np.nan_to_num(np.asarray(fg_height, np.float32)), 0.0)
-        cover = self.shrink(inside)
-        fg_sum = self.shrink(fg)
+        non-finite background heights become 0 before resizing.
+
+        Same numbers as ``shrink`` of each map, made ``band`` input rows at a
+        time (the column pass of the separable resize is row by row), so a 4096^2
+        image's scene needs no full-size float copies of its three maps."""
+        mask_c, fg_c, bg_c = self._crop_raw(mask), self._crop_raw(fg_height), self._crop_raw(bg_height, "edge")
+        h = mask_c.shape[0]
+        planes = np.empty((3, h, self.out_w), np.float32)       # cover, fg sum, bg after the column pass
+        for r0 in range(0, h, band):
+            r = slice(r0, min(h, r0 + band))
+            inside = (np.asarray(mask_c[r]) > 0.5).astype(np.float32)
+            fg = np.where(inside > 0, np.nan_to_num(np.asarray(fg_c[r], np.float32)), 0.0).astype(np.float32)
+            bg = np.nan_to_num(np.asarray(bg_c[r], np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+            for k, a in enumerate((inside, fg, bg)):
+                planes[k, r] = _resize_axis(a, self.out_w, 1)
+        cover, fg_sum, bg_w = (np.ascontiguousarray(_resize_axis(planes[k], self.out_h, 0)) for k in range(3))
         m = (cover > 0.5).astype(np.float32)
         fg_w = np.where(cover > 1e-6, fg_sum / np.maximum(cover, 1e-6), 0.0) * self.ky * m
-        bg = np.nan_to_num(np.asarray(bg_height, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
-        bg_w = self.shrink(bg, pad="edge") * self.ky
-        return m, fg_w.astype(np.float32), bg_w.astype(np.float32)
+        return m, fg_w.astype(np.float32), (bg_w * self.ky).astype(np.float32)
+
+    def _crop_raw(self, a, pad: str = "constant") -> np.ndarray:
+        """``crop`` without converting the dtype: a view when the window lies inside."""
+        a = np.asarray(a)
+        H, W = a.shape
+        xa, ya = max(self.x0, 0), max(self.y0, 0)
+        xb, yb = min(self.x0 + self.w, W), min(self.y0 + self.h, H)
+        if xa >= xb or ya >= yb or (xa, ya, xb, yb) != (self.x0, self.y0, self.x0 + self.w, self.y0 + self.h):
+            return self.crop(a, pad)
+        return a[ya:yb, xa:xb]
 
     def paste(self, a_win: np.ndarray, H: int, W: int, fill: float = 0.0) -> np.ndarray:
         """Place a window-scale map back into an (H, W) image (bilinear), ``fill`` outside

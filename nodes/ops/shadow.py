@@ -130,9 +130,12 @@ class Prepared:
     """
 
     def __init__(self, mask, fg_height, bg_height, thickness=1.0):
-        mask = np.asarray(mask)
-        fg = np.asarray(fg_height, dtype=np.float32)
-        bg = np.asarray(bg_height, dtype=np.float32)
+        # C order: the kernels read the buffers row-major; a transposed or
+        # Fortran-ordered view (a host's array, a resize's axis swap) would be
+        # uploaded as its raw memory, i.e. transposed
+        mask = np.ascontiguousarray(mask)
+        fg = np.ascontiguousarray(fg_height, dtype=np.float32)
+        bg = np.ascontiguousarray(bg_height, dtype=np.float32)
         if mask.ndim != 2 or fg.shape != mask.shape or bg.shape != mask.shape:
             raise ValueError(f"mask, fg_height and bg_height must share one (H, W) shape, got "
                              f"{mask.shape}, {fg.shape}, {bg.shape}")

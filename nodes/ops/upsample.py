@@ -103,4 +103,5 @@ def proxy_soft_shadow(device, mask, fg_height, bg_height, light_samples, thickne
     lit = soft_shadow(device, m, fg, bg, win.light_points(light_samples),
                       max(thickness * win.ky, MIN_PROXY_THICKNESS), progress=progress,
                       check_cancelled=check_cancelled)
-    return np.clip(masked_resize(lit, m, mask, (H, W)), 0.0, 1.0).astype(np.float32)
+    out = masked_resize(lit, m, mask, (H, W))
+    return np.clip(out, 0.0, 1.0, out=out)      # in place: no second full-size copy
