@@ -154,6 +154,9 @@ def main(argv=None) -> int:
     ap.add_argument("--lr", type=float, default=2e-3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=0, help="torch threads (0: torch's default)")
+    ap.add_argument("--eval-every", type=float, default=60.0,
+                    help="seconds between validation runs (and checkpoints); a 5%% validation split of "
+                         "5,800 scenes takes ~20 s on one core")
     ap.add_argument("--init", type=pathlib.Path,
                     help="start from these weights (a model.pt / shipped .pt of the same config) "
                          "instead of a random initialisation; recorded in the model's provenance")
@@ -243,7 +246,7 @@ def main(argv=None) -> int:
         running += loss.item()
         seen += 1
         bar.update(int(time.perf_counter() - t0) - bar.n)
-        if elapsed - last_eval >= 60.0 or step == 1:
+        if elapsed - last_eval >= args.eval_every or step == 1:
             last_eval = elapsed
             vl, vr = evaluate(model, vx, vs, vt, vw, dev)
             writer.writerow([step, round(elapsed / 60, 2), round(running / max(seen, 1), 5), round(vl, 5), round(vr, 5)])
