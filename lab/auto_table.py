@@ -185,7 +185,7 @@ def report(records, res, targets) -> str:
         for x in g:
             counts[x["method"]] = counts.get(x["method"], 0) + 1
         ch = ", ".join(f"{k} {v}" for k, v in sorted(counts.items(), key=lambda kv: -kv[1]))
-        lines.append(f"| {t:g} | {100 * (e > t).mean():.0f}% | {e.mean():.4f} | {ms:.1f} | {ref_ms / ms:.1f}x | "
+        lines.append(f"| {t:g} | {100 * (e > t).mean():.1f}% | {e.mean():.4f} | {ms:.1f} | {ref_ms / ms:.1f}x | "
                      f"{100 * np.mean([x['met'] for x in g]):.0f}% | {ch} |")
     return "\n".join(lines) + "\n"
 
