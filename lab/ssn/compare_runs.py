@@ -3,7 +3,7 @@
     python -m pixgraph_lab.ssn.compare_runs --data data/ssn_train2 runs/v2_plain runs/v2_struct
 
 The validation split is the one ``train.py`` holds out when no ``--val`` is given
-(5 % of the prepared samples, permutation seeded 1234), so a choice between runs
+(``train.split_indices``: 5 % of the prepared samples, permutation seeded 1234), so a choice between runs
 made here never looks at the benchmarks' test split. For each run: RMSE and the
 benchmark's SSIM (``pixgraph_lab.metrics``, over counted pixels: outside the
 cutout) per sample, averaged, on the whole 256² frame.
@@ -19,6 +19,8 @@ import torch
 from pixgraph_lab.metrics import rmse, ssim
 from pixgraph_nodes.ops import ssn
 
+from .train import split_indices
+
 
 def val_split(folder: pathlib.Path, variant: str = "ssnpp"):
     """(x, softness, target, weight) of the held-out samples, read shard by shard."""
@@ -28,8 +30,7 @@ def val_split(folder: pathlib.Path, variant: str = "ssnpp"):
         with np.load(f) as z:
             sizes.append(len(z["softness"]))
     n = sum(sizes)
-    perm = torch.randperm(n, generator=torch.Generator().manual_seed(1234))
-    want = set(perm[:max(1, n // 20)].tolist())
+    want = set(split_indices(n)[0].tolist())
     xs, ss, ts, ws = [], [], [], []
     at = 0
     for f, k in zip(files, sizes):

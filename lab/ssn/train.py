@@ -64,6 +64,14 @@ def load_shards(folder: pathlib.Path, variant: str):
     return torch.from_numpy(x), torch.from_numpy(np.concatenate(ss)), torch.from_numpy(t), torch.from_numpy(w)
 
 
+def split_indices(n: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """(validation, training) sample indices when no ``--val`` is given: 5 % held
+    out by a permutation seeded 1234 (``compare_runs`` reads the same split)."""
+    perm = torch.randperm(n, generator=torch.Generator().manual_seed(1234))
+    nval = max(1, n // 20)
+    return perm[:nval], perm[nval:]
+
+
 def augment(x, target, weight, gen: torch.Generator):
     """Horizontal flips: a mirrored scene is a valid scene. The x-gradient of the
     background pixel height changes sign under the flip."""
@@ -175,10 +183,7 @@ def main(argv=None) -> int:
         vx, vs, vt, vw = load_shards(args.val, args.variant)
         train_idx = torch.arange(len(x))
     else:
-        g = torch.Generator().manual_seed(1234)
-        perm = torch.randperm(len(x), generator=g)
-        nval = max(1, len(x) // 20)
-        vi, ti = perm[:nval], perm[nval:]
+        vi, ti = split_indices(len(x))
         vx, vs, vt, vw = x[vi], s[vi], t[vi], w[vi]
         # the training samples are drawn through ``train_idx``: x[ti] would copy
         # the whole set (another 6-7 GB for 5,800 scenes)
