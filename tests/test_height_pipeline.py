@@ -64,3 +64,47 @@ def test_generate_train_resume_evaluate(tmp_path):
     assert evaluate.main(["--heights", str(d / "test"), "--weights", str(run / "best.pt"),
                           "--out", str(tmp_path / "eval")]) == 0
     assert "learned MAE px" in (tmp_path / "eval" / "report.md").read_text()
+
+
+def test_benchmark_renders_become_height_samples(tmp_path):
+    """from_benchmark copies a benchmark's cutout (colour, alpha, mask, the renderer's
+    pixel height) into the height-sample format, by object split, and refuses test
+    splits; train.load_splits concatenates the folders."""
+    from pixgraph_lab.datagen import generate as dgen
+    from pixgraph_lab.datagen.dataset import load_sample, sample_files
+    from pixgraph_lab.height import from_benchmark
+    src = tmp_path / "wall_train"
+    assert dgen.main(["--benchmark", "wall", "--split", "train", "--n", "3", "--seed", "3", "--out", str(src),
+                      "--res", "48", "--light-samples", "4", "--no-progress"]) == 0
+    d = tmp_path / "height"
+    assert from_benchmark.main(["--src", str(src), "--out", str(d), "--start", "100", "--min-pixels", "1"]) == 0
+    written = sorted(d.glob("*_bench/[0-9]*.npz"))
+    assert len(written) == 3 and [p.name for p in written] == sorted(f"{100 + i:05d}.npz" for i in range(3))
+    for p, f in zip(sorted(written, key=lambda p: p.name), sample_files(str(src))):
+        s = load_sample(f)
+        with np.load(p) as z:
+            meta = json.loads(str(z["meta"]))
+            assert meta["object"] == s["meta"]["scene"]["object"]
+            assert p.parent.name == generate.height_split(meta["object"]) + "_bench"
+            np.testing.assert_array_equal(z["mask"], s["mask"])
+            # heights: float16 of the renderer's, zero off the object
+            np.testing.assert_allclose(z["height"].astype(np.float32),
+                                       np.where(s["mask"], s["fg_height"], 0), rtol=1e-3, atol=1e-2)
+            # colour: 8-bit sRGB of the linear render (decoded back within quantisation)
+            from pixgraph_lab.height.evaluate import srgb_decode
+            back = srgb_decode(z["rgb"].astype(np.float32) / 255)
+            lin = np.clip(s["rgb"].astype(np.float32), 0, 1)
+            assert np.abs(back - lin)[s["mask"]].max() < 0.01
+            assert np.abs(z["alpha"] / 255 - s["alpha"]).max() <= 0.5 / 255 + 1e-6
+    # a second run writes nothing new (resumable) and a test split is refused
+    mtimes = [p.stat().st_mtime_ns for p in written]
+    assert from_benchmark.main(["--src", str(src), "--out", str(d), "--start", "100", "--min-pixels", "1"]) == 0
+    assert [p.stat().st_mtime_ns for p in written] == mtimes
+    test_src = tmp_path / "wall_test"
+    assert dgen.main(["--benchmark", "wall", "--split", "test", "--n", "1", "--seed", "3", "--out", str(test_src),
+                      "--res", "48", "--light-samples", "4", "--no-progress"]) == 0
+    with pytest.raises(SystemExit, match="only benchmark train splits"):
+        from_benchmark.main(["--src", str(test_src), "--out", str(d)])
+    splits = sorted({p.parent.name for p in written})
+    both = train.load_splits(str(d), splits, 32)
+    assert len(both["x"]) == 3 and len(both["meta"]) == 3 and both["x"].shape[1:] == (6, 32, 32)

@@ -66,6 +66,16 @@ def load_split(data: str, split: str, size: int, limit: int | None = None):
     return out
 
 
+def load_splits(data: str, splits, size: int, limit: int | None = None):
+    """``load_split`` of several sub-folders, concatenated (``limit`` applies to each)."""
+    parts = [load_split(data, s, size, limit) for s in splits]
+    if len(parts) == 1:
+        return parts[0]
+    out = {k: np.concatenate([p[k] for p in parts]) for k in ("x", "t", "w", "bh")}
+    out["meta"] = [m for p in parts for m in p["meta"]]
+    return out
+
+
 def augment(x, t, w, gen):
     """Random flips / zoom / shift / colour (module doc) on a batch (torch tensors)."""
     import torch
@@ -150,6 +160,10 @@ def main(argv=None) -> int:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--limit", type=int, default=None, help="use at most this many training samples")
+    ap.add_argument("--train-splits", default="train",
+                    help="comma-separated sub-folders of --data to train on, e.g. train,train_bench "
+                         "(train_bench: pixgraph_lab.height.from_benchmark)")
+    ap.add_argument("--val-splits", default="val", help="comma-separated validation sub-folders")
     a = ap.parse_args(argv)
     import torch
     torch.set_num_threads(a.threads)
@@ -158,8 +172,8 @@ def main(argv=None) -> int:
     from pixgraph_nodes.ops.learned_height import build_model
     os.makedirs(a.out, exist_ok=True)
     t_load = time.perf_counter()
-    train = load_split(a.data, "train", a.size, a.limit)
-    val = load_split(a.data, "val", a.size)
+    train = load_splits(a.data, a.train_splits.split(","), a.size, a.limit)
+    val = load_splits(a.data, a.val_splits.split(","), a.size)
     print(f"data: {len(train['x'])} train, {len(val['x'])} val ({time.perf_counter() - t_load:.0f} s to load)",
           flush=True)
     model = build_model(a.base, a.levels).to(device)
