@@ -114,6 +114,9 @@ def measure(device, index: int, res: int, scale: float, seed: int = 0, margin: i
     f_h = np.where(f_mask > 0, d_h[idx[0], idx[1]], 0.0).astype(np.float32)
     f_soft = 1.0 - soft_shadow(device, f_mask, f_h, bg_h, samples, thickness)
     floor_iou = iou(d_soft > 0.5, f_soft > 0.5)
+    # like for like: the direct render made into a cutout the way the small one was
+    # (coverage mask, nearest-centre heights) against the placed cutout
+    cov_iou = iou(f_soft > 0.5, p_soft > 0.5)
     soft_rmse = float(np.sqrt(np.mean((d_soft - p_soft)[free] ** 2)))
     from scipy.ndimage import binary_erosion
 
@@ -122,7 +125,7 @@ def measure(device, index: int, res: int, scale: float, seed: int = 0, margin: i
     mask_iou = float(((big["alpha"] > 0.5) & (p_alpha > 0.5)).sum() / ((big["alpha"] > 0.5) | (p_alpha > 0.5)).sum())
     return {"index": index, "object": spec.obj_id, "background": spec.bg_kind, "res": res, "scale": scale,
             "canvas": canvas_res, "cutout": [int(c1 - c0), int(r1 - r0)], "foot": [float(foot[0]), float(foot[1])],
-            "soft_iou": soft_iou, "floor_iou": floor_iou, "hard_iou": hard_iou, "soft_rmse": soft_rmse, "mask_iou": mask_iou,
+            "soft_iou": soft_iou, "floor_iou": floor_iou, "cov_iou": cov_iou, "hard_iou": hard_iou, "soft_rmse": soft_rmse, "mask_iou": mask_iou,
             "height_median_abs_px": float(np.median(herr)), "height_max_px": float(big["fg_height"].max()),
             "height_ratio": float(np.percentile(p_height[p_alpha > 0.5], 90) / np.percentile(height[alpha > 0.5], 90))}
 
@@ -138,13 +141,13 @@ def main(argv=None) -> int:
     from pixgraph.device import Device
 
     device = Device.open()
-    print("index object                          bg            scale canvas cutout   soft_IoU floor_IoU hard_IoU "
+    print("index object                          bg            scale canvas cutout   soft_IoU floor_IoU  cov_IoU hard_IoU "
           "soft_RMSE mask_IoU |dh| med px  max h px")
     for i in args.index:
         for s in args.scale:
             r = measure(device, i, args.res, s, solid=args.solid, thickness=args.thickness)
             print(f"{i:5d} {r['object'][:31]:31s} {r['background']:13s} {s:5.2f} {r['canvas']:6d} "
-                  f"{r['cutout'][0]:3d}x{r['cutout'][1]:<4d} {r['soft_iou']:8.4f} {r['floor_iou']:9.4f} {r['hard_iou']:8.4f} {r['soft_rmse']:9.4f} {r['mask_iou']:8.4f} "
+                  f"{r['cutout'][0]:3d}x{r['cutout'][1]:<4d} {r['soft_iou']:8.4f} {r['floor_iou']:9.4f} {r['cov_iou']:8.4f} {r['hard_iou']:8.4f} {r['soft_rmse']:9.4f} {r['mask_iou']:8.4f} "
                   f"{r['height_median_abs_px']:11.3f} {r['height_max_px']:9.1f}")
     return 0
 
