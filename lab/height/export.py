@@ -34,11 +34,12 @@ def main(argv=None) -> int:
     if os.path.exists(tj):
         info = json.load(open(tj))
     data = {}
-    for split in ("train", "val", "test"):
+    for split in ("train", "train_bench", "val", "val_bench", "test"):
         cfgs = [json.load(open(p)) for p in sorted(glob.glob(os.path.join(a.data, split, "config_*.json")))]
         data[split] = {"samples": len(glob.glob(os.path.join(a.data, split, "[0-9]" * 5 + ".npz"))),
                        "generator": [c["command"] for c in cfgs],
-                       "seconds_per_sample": [round(c["seconds"] / max(c["new_samples"], 1), 3) for c in cfgs]}
+                       "seconds_per_sample": [round(c["seconds"] / max(c["new_samples"], 1), 3)
+                                              for c in cfgs if "new_samples" in c]}
     prov = {
         "command": info.get("command", a.command),
         "seed": info.get("seed", 0),
