@@ -1,7 +1,7 @@
 """Compare trained cutout-height runs on the validation splits (never the test split).
 
     python -m pixgraph_lab.height.compare_runs --data data/height --split val --split val_bench \
-        nodes/weights/cutout_height.pt runs/height2/best.pt runs/height3/best.pt
+        nodes/weights/cutout_height.pt runs/height3/best.pt
 
 For each checkpoint and each validation sub-folder of ``--data`` (objects unseen
 in training: ``val`` from ``generate``, ``val_bench`` from ``from_benchmark``):
@@ -30,12 +30,14 @@ def main(argv=None) -> int:
     from .train import evaluate, load_split
     cols = " | ".join(f"{s} MAE px" for s in a.split)
     print(f"| checkpoint | size | params | {cols} | mean |\n|---|---|---|" + "---|" * (len(a.split) + 1))
-    heur = {}
+    heur, splits = {}, {}                      # splits: (name, size) -> arrays, loaded once
     for path in a.checkpoints:
         pred = LearnedHeightPredictor(path)
         maes = []
         for s in a.split:
-            val = load_split(a.data, s, pred.size)
+            if (s, pred.size) not in splits:
+                splits[s, pred.size] = load_split(a.data, s, pred.size)
+            val = splits[s, pred.size]
             mae, hmae = evaluate(pred.model, val, pred.device)
             pred.model.eval()
             heur.setdefault(s, hmae)

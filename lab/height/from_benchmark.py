@@ -13,9 +13,8 @@ height-sample format of ``generate`` (``NNNNN.npz``: ``rgb`` uint8 sRGB straight
 colour, ``alpha`` uint8, ``mask`` bool, ``height`` float16 [px], ``meta``).
 
 Splits stay object-disjoint: each sample goes by its object's
-``generate.height_split`` to ``OUT/train_bench`` or ``OUT/val_bench``; objects of
-the height test split are skipped (the benchmarks' *train* splits hold none, and
-this checks it). Use only benchmark *train* splits as sources: the test splits are
+``generate.height_split`` to ``OUT/train_bench`` or ``OUT/val_bench``; an object of
+the height test split is an error (the benchmarks' *train* splits hold none). Use only benchmark *train* splits as sources: the test splits are
 what the predictor is scored on. Output index = ``--start`` + the running count of
 sources, so two sources never collide; existing files are skipped (resumable).
 """
