@@ -127,10 +127,11 @@ def prepare(colour: np.ndarray, alpha: np.ndarray, size: int, threshold: float =
     return x, box, bh, np.where(w > 1e-3, target, 0.0).astype(np.float32), w
 
 
-def paste(pred: np.ndarray, box, bh: float, mask: np.ndarray) -> np.ndarray:
+def paste(pred: np.ndarray, box, bh: float, mask: np.ndarray, clip: bool = True) -> np.ndarray:
     """Map the network's output (size, size) (height / bh) back to the input frame:
-    (H, W) pixel height [px], 0 outside ``mask``. Normalised convolution: the
-    output and the crop's mask are resized separately and divided."""
+    (H, W) pixel height [px], 0 outside ``mask`` (and >= 0 unless ``clip`` is
+    False). Normalised convolution: the output and the crop's mask are resized
+    separately and divided."""
     H, W = mask.shape
     out = np.zeros((H, W), np.float32)
     if box is None:
@@ -146,7 +147,7 @@ def paste(pred: np.ndarray, box, bh: float, mask: np.ndarray) -> np.ndarray:
     y0, x0 = max(top, 0), max(left, 0)
     y1, x1 = min(top + side, H), min(left + side, W)
     out[y0:y1, x0:x1] = val[y0 - top:y1 - top, x0 - left:x1 - left]
-    return np.where(mask, np.maximum(out, 0.0) * bh, 0.0).astype(np.float32)
+    return np.where(mask, (np.maximum(out, 0.0) if clip else out) * bh, 0.0).astype(np.float32)
 
 
 def build_model(base: int = 8, levels: int = 4):
@@ -194,7 +195,8 @@ class LearnedHeightPredictor:
     rgba: float32 (H, W, 4) linear premultiplied colour + alpha, any size.
     """
 
-    def __init__(self, path: str | pathlib.Path = WEIGHTS, threads: int | None = 1):
+    def __init__(self, path: str | pathlib.Path = WEIGHTS, threads: int | None = 1,
+                 flip_average: bool | None = None, heuristic_detail: bool | None = None):
         import torch
         ck = torch.load(path, map_location="cpu", weights_only=True)
         cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else ck["config"]
@@ -208,6 +210,12 @@ class LearnedHeightPredictor:
         # the network is small (~0.1 GFLOP at 64^2): one thread is as fast as two on an
         # idle machine and much faster on a busy one (benchmarks/height_bench.py)
         self.threads = threads
+        # inference options (``predict``); None: the checkpoint's choice (``config["inference"]``,
+        # chosen on the validation split by lab/height/inference_study.py), else off
+        inf = cfg.get("inference", {})
+        self.flip_average = bool(inf.get("flip_average", False) if flip_average is None else flip_average)
+        self.heuristic_detail = bool(inf.get("heuristic_detail", False) if heuristic_detail is None
+                                     else heuristic_detail)
 
     def predict_normalised(self, x: np.ndarray) -> np.ndarray:
         """(N, 6, S, S) inputs -> (N, S, S) height / bh."""
@@ -227,11 +235,31 @@ class LearnedHeightPredictor:
             torch.set_num_threads(before)
 
     def predict(self, rgba: np.ndarray, threshold: float = 0.5) -> np.ndarray:
+        """(H, W) pixel height [px], 0 outside the cutout (alpha > threshold).
+
+        ``flip_average``: the network also reads the mirrored crop and the two
+        outputs (the second mirrored back) are averaged; training saw mirrored
+        samples, so both are equally valid guesses. ``heuristic_detail``: the
+        network's output is a correction of the contact-line channel at the
+        network's size (64^2); adding back what the 64^2 round trip of that
+        channel lost, ``h_contact - paste(resized h_contact)``, keeps the full-size
+        heuristic's detail (steps between columns, the silhouette's edge) wherever
+        the network does not correct it.
+        """
         rgba = np.asarray(rgba, np.float32)
         colour, alpha = straight_srgb(rgba)
+        mask = alpha > threshold
         with self._threads():
             x, box, bh = prepare(colour, alpha, self.size, threshold)
             if box is None:
                 return np.zeros(alpha.shape, np.float32)
-            pred = self.predict_normalised(x[None])[0]
-            return paste(pred, box, bh, alpha > threshold)
+            if self.flip_average:
+                both = self.predict_normalised(np.stack([x, x[:, :, ::-1]]).copy())
+                pred = 0.5 * (both[0] + both[1][:, ::-1])
+            else:
+                pred = self.predict_normalised(x[None])[0]
+            if not self.heuristic_detail:
+                return paste(pred, box, bh, mask)
+            lost = contact_line_height(mask) / bh - paste(x[4], box, 1.0, mask, clip=False)
+            return np.where(mask, np.maximum(paste(pred, box, bh, mask, clip=False) + lost * bh, 0.0),
+                            0.0).astype(np.float32)
