@@ -6,7 +6,9 @@ Every table carries the baseline rows, measured on the same samples, whatever
 ``--method`` asks for: ``renderer_hard`` (the renderer's own hard shadow from the
 light's centre), ``hard`` (our pixel-height hard shadow) and ``soft:4``,
 ``soft:16``, ``soft:64``, ``soft:256`` (the classical pixel-height soft shadow:
-the average of hard shadows from N sunflower samples of the disk light).
+the average of hard shadows from N sunflower samples of the disk light), unless
+``--no-baselines`` asks for the given methods only (to add one to an earlier
+evaluation of the same folder: concatenate the two ``per_sample.csv``).
 
 Method specs:
 
@@ -246,8 +248,13 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None, help="output folder (default <data>/eval)")
     ap.add_argument("--no-failure", action="store_true", help="skip the failure charts")
     ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--no-baselines", action="store_true",
+                    help="only the --method specs (to add a method to an earlier evaluation: its "
+                         "per_sample.csv rows have the same columns and can be concatenated)")
     a = ap.parse_args(argv)
-    specs = list(BASELINES) + [m for m in a.method if m not in BASELINES]
+    if a.no_baselines and not a.method:
+        ap.error("--no-baselines needs at least one --method")
+    specs = ([] if a.no_baselines else list(BASELINES)) + [m for m in a.method if m not in BASELINES or a.no_baselines]
     for m in specs:
         Method(m, a.thickness)                       # fail on a bad spec before any work
     out = a.out or os.path.join(a.data, "eval")

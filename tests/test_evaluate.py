@@ -116,3 +116,23 @@ def test_cli_writes_table_and_charts(bench, tmp_path, capsys):
         table = list(csv.DictReader(fh))
     assert [r["method"] for r in table] == list(E.BASELINES)
     assert all(0.0 <= float(r["rmse"]) <= 1.0 and -1 <= float(r["zncc"]) <= 1 for r in table)
+
+
+def test_no_baselines_rows_concatenate_with_an_earlier_evaluation(bench, tmp_path, capsys):
+    full, extra = tmp_path / "full", tmp_path / "extra"
+    assert E.main(["--data", bench, "--out", str(full), "--no-progress", "--no-failure"]) == 0
+    assert E.main(["--data", bench, "--out", str(extra), "--no-progress", "--no-failure",
+                   "--no-baselines", "--method", "soft:64"]) == 0
+    capsys.readouterr()
+    with open(full / "per_sample.csv") as fh:
+        rows_full = list(csv.DictReader(fh))
+    with open(extra / "per_sample.csv") as fh:
+        rows_extra = list(csv.DictReader(fh))
+    assert {r["method"] for r in rows_extra} == {"soft:64"}            # nothing else was run
+    assert list(rows_extra[0]) == list(rows_full[0])                   # same columns: concatenable
+    # the same method on the same samples gives the same errors (deterministic tracer)
+    a = {r["index"]: float(r["rmse"]) for r in rows_full if r["method"] == "soft:64"}
+    b = {r["index"]: float(r["rmse"]) for r in rows_extra}
+    assert a.keys() == b.keys() and all(abs(a[k] - b[k]) < 1e-9 for k in a)
+    with pytest.raises(SystemExit):
+        E.main(["--data", bench, "--no-baselines"])
