@@ -11,6 +11,7 @@ from .ops import choose as C
 from .ops.softness import softness_of
 from .ops.lights import disk_extremes, disk_samples, light_point
 from .ops.upsample import AUTO_MAX_SIDE, proxy_soft_shadow
+from .ssn_soft_shadow import SoftShadowSSN
 
 
 def _has_torch() -> bool:
@@ -52,7 +53,8 @@ class Shadow:
         darkness: T.Mask = port(doc="1 = full shadow (what Composite takes)")
 
     # the choice depends on the shipped table: a new table is a new implementation
-    impl_version = "1+table." + C.table_digest()
+    # the result depends on the shipped table and, through method ssn, on SSN++'s weights and inference
+    impl_version = "1+table." + C.table_digest() + "+ssn." + SoftShadowSSN.impl_version
 
     @staticmethod
     def describe(params) -> str:

@@ -122,3 +122,24 @@ def test_the_docs_example_runs(capsys):
     exec(compile(blocks[0], "auto.md", "exec"), {})
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 2 and all(ln.split()[1] in C.load_table()["methods"] for ln in lines)
+
+
+def test_new_ssn_weights_or_table_invalidate_cached_shadow_results():
+    # method ssn (and auto choosing it) runs the shipped SSN++ weights: a Shadow result cached
+    # with other weights or another table must not be served, so the node's version carries both
+    from pixgraph_nodes.shadow import Shadow
+    from pixgraph_nodes.ssn_soft_shadow import SoftShadowSSN
+    assert Shadow.impl_version.endswith("+ssn." + SoftShadowSSN.impl_version)
+    assert "table." + C.table_digest() in Shadow.impl_version
+
+
+def test_the_docs_printed_choice_is_what_the_graph_logs(device):
+    # docs/auto.md shows `pixgraph run graphs/auto_shadow.yaml`'s log line; it must be today's
+    import re
+    text = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "auto.md").read_text()
+    shown = re.search(r"\$ pixgraph run graphs/auto_shadow\.yaml[^\n]*\n(shadow: [^\n]*)\n", text).group(1)
+    events = []
+    fresh = Session(device=device, disk_cache=None)          # nothing cached: the node runs and logs
+    fresh.run(fresh.graph(GRAPH), outputs=["shadow.darkness"], on_event=events.append)
+    logs = [e.message for e in events if type(e).__name__ == "NodeLog"]
+    assert shown == "shadow: " + logs[0]
