@@ -80,8 +80,9 @@ class SoftShadowSSN:
         darkness: T.Mask = port(doc="soft shadow, 1 = full shadow (what Composite takes)")
 
     # bump when the shipped weights or the inference change (2: NHWC layout; 3: softness clamped to 1;
-    # 4: window at the trained scale, softness clamped to the trained range; 5: v2 weights)
-    impl_version = "5"
+    # 4: window at the trained scale, softness clamped to the trained range; 5: v2 weights;
+    # 6: v3 weights)
+    impl_version = "6"
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
