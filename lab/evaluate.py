@@ -254,7 +254,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.no_baselines and not a.method:
         ap.error("--no-baselines needs at least one --method")
-    specs = ([] if a.no_baselines else list(BASELINES)) + [m for m in a.method if m not in BASELINES or a.no_baselines]
+    specs = list(a.method) if a.no_baselines else list(BASELINES) + [m for m in a.method if m not in BASELINES]
     for m in specs:
         Method(m, a.thickness)                       # fail on a bad spec before any work
     out = a.out or os.path.join(a.data, "eval")

@@ -180,6 +180,8 @@ def _mirrorable_cutout():
     if mbox[5] != Wc - (box[5] + box[6]):       # rounding put it one pixel off: widen by one
         a = np.pad(a, ((0, 0), (0, 1)))
         img = np.pad(img, ((0, 0), (0, 1), (0, 0)))
+        box, mbox = lh.crop_box(a > 0.5), lh.crop_box(a[:, ::-1] > 0.5)
+    assert mbox[5] == a.shape[1] - (box[5] + box[6]) and mbox[4] == box[4]
     return img, a
 
 

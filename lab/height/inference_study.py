@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 
 import numpy as np
 
@@ -66,6 +67,8 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.ship and os.path.basename(os.path.normpath(a.heights)) != "val":
         ap.error("--ship chooses on the validation split only (--heights .../val)")
+    if a.ship and a.weights:
+        ap.error("--ship sets the shipped weights' options: leave out --weights")
     import torch
     torch.set_num_threads(1)
     from pixgraph_nodes.ops.learned_height import WEIGHTS, LearnedHeightPredictor
@@ -116,7 +119,7 @@ def main(argv=None) -> int:
         prov_path = WEIGHTS.with_suffix(".json")
         prov = json.loads(prov_path.read_text()) if prov_path.exists() else {}
         prov["inference"] = dict(inference, rule=RULE, command="python -m pixgraph_lab.height.inference_study "
-                                 + " ".join(argv if argv is not None else __import__("sys").argv[1:]),
+                                 + " ".join(argv if argv is not None else sys.argv[1:]),
                                  validation=table)
         prov_path.write_text(json.dumps(prov, indent=1) + "\n")
         print(f"wrote inference {inference} into {WEIGHTS} and {prov_path}")

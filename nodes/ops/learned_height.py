@@ -260,6 +260,6 @@ class LearnedHeightPredictor:
                 pred = self.predict_normalised(x[None])[0]
             if not self.heuristic_detail:
                 return paste(pred, box, bh, mask)
-            lost = contact_line_height(mask) / bh - paste(x[4], box, 1.0, mask, clip=False)
-            return np.where(mask, np.maximum(paste(pred, box, bh, mask, clip=False) + lost * bh, 0.0),
-                            0.0).astype(np.float32)
+            # paste is linear in its input for one mask: paste(pred) - paste(x[4]) in one call
+            h = paste(pred - x[4], box, bh, mask, clip=False) + contact_line_height(mask)
+            return np.where(mask, np.maximum(h, 0.0), 0.0).astype(np.float32)
