@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Install pixgraph and what it needs on a fresh machine.
-#   ./setup.sh          the package and SSN++ (the `ssn` extra: torch) to run every example graph
+#   ./setup.sh          the package, SSN++ (the `ssn` extra: torch) to run every example graph, and
+#                       the `serve` extra (starlette, uvicorn, Pillow) for `pixgraph serve`
 #   ./setup.sh test     plus the lab, test, ground-truth (Mitsuba) and batch (Dask) extras, the
 #                       separate bpy venv the Blender add-on test runs in (hosts/blender/bpy_env.py),
 #                       and Debian's chromium for the browser test of 'pixgraph serve'
@@ -9,8 +10,8 @@
 # build kernels at all on CPUs newer than it knows ("unknown target CPU").
 set -euo pipefail
 cd "$(dirname "$0")"
-extras="[ssn]"
-[ "${1:-}" = "test" ] && extras="[ssn,lab,test,datagen,batch]"
+extras="[ssn,serve]"
+[ "${1:-}" = "test" ] && extras="[ssn,serve,lab,test,datagen,batch]"
 
 debs=()
 dpkg -s pocl-opencl-icd >/dev/null 2>&1 || debs+=(pocl-opencl-icd)

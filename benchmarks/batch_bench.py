@@ -4,11 +4,11 @@ Four ways of running the same rows (one light azimuth per row) of two graphs,
 the classical soft shadow (graphs/ground_shadow.yaml, 48 light samples) and
 SSN++ (graphs/ssn_wall_corner.yaml):
 
-- ``inprocess``: ``Session.batch`` in this process (one device, shared cache);
+- ``inprocess``: ``pixgraph_batch.batch(session)`` in this process (one device, shared cache);
 - ``cli-loop``: one ``pixgraph run`` process per row, as a shell loop does
   (measured on the first ``--cli-rows`` rows only: it is the slow baseline);
-- ``processes``: ``Session.batch(executor="processes", workers=2)``;
-- ``dask``: ``Session.batch(executor="dask", workers=2)`` on a ``LocalCluster``.
+- ``processes``: ``pixgraph_batch.batch(session, executor="processes", workers=2)``;
+- ``dask``: ``pixgraph_batch.batch(session, executor="dask", workers=2)`` on a ``LocalCluster``.
 
 Each run is timed end to end (pool or cluster start included) with a fresh
 session and no disk cache, ``--repeats`` times; the table shows medians. It also
@@ -46,11 +46,12 @@ def azimuths(rows: int) -> list[float]:
 
 
 def run_batch(graph: str, rows: int, executor: str, workers: int, out: str):
+    import pixgraph_batch
     from pixgraph.session import Session
 
     s = Session()  # fresh: memory cache empty, no disk cache
     t0 = time.perf_counter()
-    res = s.batch(os.path.join(ROOT, graph), [{"light.azimuth": a} for a in azimuths(rows)],
+    res = pixgraph_batch.batch(s, os.path.join(ROOT, graph), [{"light.azimuth": a} for a in azimuths(rows)],
                   outputs={"final": os.path.join(out, "{row}.png")}, executor=executor, workers=workers,
                   force=True)
     wall = time.perf_counter() - t0

@@ -94,7 +94,7 @@ def _parser() -> argparse.ArgumentParser:
 
     b = sub.add_parser("batch", parents=[common, graph_opts, cache_opts],
                        help="run a graph over a manifest's rows or a sweep (see docs/batch.md)")
-    from .batch import add_arguments as _batch_arguments
+    from pixgraph_batch import add_arguments as _batch_arguments
 
     _batch_arguments(b)
 
@@ -423,7 +423,7 @@ def _cmd_cache(args, registry) -> int:
 
 
 def _cmd_batch(args, registry) -> int:
-    from .batch import cli_batch
+    from pixgraph_batch import cli_batch
 
     return cli_batch(args, _session(args, registry), parse_sets(args.set), UsageError)
 
@@ -431,8 +431,12 @@ def _cmd_batch(args, registry) -> int:
 def _cmd_serve(args, registry) -> int:
     import dataclasses
 
-    from .serve.app import serve
-    from .serve.state import Limits, ServeError, ServeState
+    try:
+        from pixgraph_serve.app import serve
+        from pixgraph_serve.state import Limits, ServeError, ServeState
+    except ImportError as e:
+        raise UsageError(f"pixgraph serve needs the 'serve' extra ({e.name} is missing): "
+                         "pip install 'pixgraph[serve]'") from None
 
     limits = Limits()
     if args.max_pixels is not None:

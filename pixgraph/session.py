@@ -187,26 +187,5 @@ class Session:
         self.last_run = self.engine.run(plan, cancel, on_event)
         return self.last_run.values
 
-    def batch(self, graph_or_path, rows=None, outputs=None, template: str = "out/{row}_{name}.png",
-              sweeps=(), params=None, executor: str = "inprocess", workers: int = 2,
-              scheduler: str | None = None, force: bool = False, progress: bool = False, **kw):
-        """Run the graph once per row and write each row's outputs; returns a
-        ``batch.BatchResult`` (a failed row is reported there, not raised).
-
-        rows: a manifest path (CSV/YAML), or ``{"node.param": value, "id": ...}``
-            mappings; crossed with ``sweeps`` (``"light.azimuth=0:360:15"``).
-        outputs: ``{name: template}`` or names (each written to ``template``);
-            default every image output of the graph.
-        executor: ``"inprocess"`` (this session), ``"processes"`` (``workers``
-            spawned processes) or ``"dask"`` (``scheduler``: an address, a
-            ``distributed.Client`` or a cluster object; none: a ``LocalCluster``
-            of ``workers`` processes). See ``pixgraph.batch`` and docs/batch.md.
-        force: re-render rows whose outputs are already done.
-        """
-        from . import batch
-
-        return batch.batch(self, graph_or_path, rows, outputs, template, sweeps, params, executor=executor,
-                           workers=workers, scheduler=scheduler, force=force, progress=progress, **kw)
-
     def cache_stats(self) -> dict:
         return {"memory": self.memory.stats(), "disk": self.disk.stats() if self.disk else None}

@@ -11,7 +11,8 @@ import time
 import numpy as np
 import pytest
 
-from pixgraph import batch as B
+import pixgraph_batch as B
+from pixgraph_batch import batch as run_batch
 from pixgraph.cli import main
 from pixgraph.registry import Registry
 from pixgraph.session import Session
@@ -155,15 +156,15 @@ def test_changed_input_rerenders_only_its_rows(scene, tmp_path):
         (tmp_path / "cut" / f"c{k}.png").write_bytes((scene / "cutouts" / f"c{k}.png").read_bytes())
     sweeps = [f"cutout.path={tmp_path}/cut/*.png", "light.azimuth=0:90:30"]
     kw = dict(outputs={"final": str(tmp_path / "out/{stem}_{light_azimuth}.png")}, sweeps=sweeps)
-    first = s.batch(scene / "g.yaml", **kw)
+    first = run_batch(s, scene / "g.yaml", **kw)
     assert (first.count("done"), first.count("skipped")) == (6, 0)
-    assert s.batch(scene / "g.yaml", **kw).count("skipped") == 6
+    assert run_batch(s, scene / "g.yaml", **kw).count("skipped") == 6
     (tmp_path / "cut" / "c1.png").write_bytes((scene / "cutouts" / "c3.png").read_bytes())
-    third = s.batch(scene / "g.yaml", **kw)
+    third = run_batch(s, scene / "g.yaml", **kw)
     assert [r.status for r in third.results] == ["skipped"] * 3 + ["done"] * 3
     # a file changed behind the batch's back is rendered again too
     (tmp_path / "out" / "c0_30.png").write_bytes(b"not the image")
-    assert [r.row for r in s.batch(scene / "g.yaml", **kw).results if r.status == "done"] == ["0001"]
+    assert [r.row for r in run_batch(s, scene / "g.yaml", **kw).results if r.status == "done"] == ["0001"]
 
 
 def test_sweep_and_manifest_parsing(tmp_path):
@@ -207,8 +208,8 @@ def _same_files(tmp_path, a, b, n):
 def test_dask_local_cluster_matches_in_process(scene, tmp_path):
     pytest.importorskip("distributed", reason="the batch extra (dask.distributed) is part of ./setup.sh test")
     s = Session()
-    ref = s.batch(scene / "g.yaml", **_sweep_kw(tmp_path, scene, "inproc"))
-    res = s.batch(scene / "g.yaml", executor="dask", workers=2, **_sweep_kw(tmp_path, scene, "dask"))
+    ref = run_batch(s, scene / "g.yaml", **_sweep_kw(tmp_path, scene, "inproc"))
+    res = run_batch(s, scene / "g.yaml", executor="dask", workers=2, **_sweep_kw(tmp_path, scene, "dask"))
     assert ref.count("done") == res.count("done") == 6, res.table()
     assert res.workers == 2
     assert all(r.worker and not r.worker.endswith(f":{os.getpid()}") for r in res.results)  # ran in the workers
@@ -220,9 +221,9 @@ def test_process_pool_matches_in_process(scene, tmp_path):
     s = Session()
     kw = _sweep_kw(tmp_path, scene, "inproc")
     kw["sweeps"] = [f"cutout.path={scene}/cutouts/c[0-1].png", "light.azimuth=-60:60:60"]
-    ref = s.batch(scene / "g.yaml", **kw)
+    ref = run_batch(s, scene / "g.yaml", **kw)
     kw["outputs"] = {k: v.replace("inproc", "pool") for k, v in kw["outputs"].items()}
-    res = s.batch(scene / "g.yaml", executor="processes", workers=2, **kw)
+    res = run_batch(s, scene / "g.yaml", executor="processes", workers=2, **kw)
     assert ref.count("done") == res.count("done") == 4, res.table()
     assert all(not r.worker.endswith(f":{os.getpid()}") for r in res.results)
     _same_files(tmp_path, "inproc", "pool", 4)
@@ -281,7 +282,7 @@ def test_rows_never_write_over_their_inputs(scene, tmp_path):
     (tmp_path / "cut").mkdir()
     src = (scene / "cutouts" / "c1.png").read_bytes()
     (tmp_path / "cut" / "c1.png").write_bytes(src)
-    res = Session().batch(scene / "g.yaml", sweeps=[f"cutout.path={tmp_path}/cut/*.png"],
+    res = run_batch(Session(), scene / "g.yaml", sweeps=[f"cutout.path={tmp_path}/cut/*.png"],
                           outputs={"final": str(tmp_path / "cut" / "{stem}.png")})
     assert [r.status for r in res.results] == ["failed"] and "would write over" in res.results[0].error
     assert (tmp_path / "cut" / "c1.png").read_bytes() == src

@@ -3,8 +3,8 @@ of the object's top ends (no HTTP: ``ServeState`` in-process)."""
 import numpy as np
 import pytest
 
-from pixgraph.serve import scene
-from pixgraph.serve.state import ServeState
+from pixgraph_serve import scene
+from pixgraph_serve.state import ServeState
 from serve_helpers import copy_scene
 
 

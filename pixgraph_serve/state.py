@@ -18,12 +18,12 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .. import fileio
-from ..engine import NodeError, NodeInputError, RunResult
-from ..events import CancelToken
-from ..graph import Graph, GraphError, NodeInstance, validate
-from ..paths import PathError
-from ..session import Session
+from pixgraph import fileio
+from pixgraph.engine import NodeError, NodeInputError, RunResult
+from pixgraph.events import CancelToken
+from pixgraph.graph import Graph, GraphError, NodeInstance, validate
+from pixgraph.paths import PathError
+from pixgraph.session import Session
 
 #: previews swap these node types for a cheaper one with the same ports
 PREVIEW_TYPES = {"pixgraph.SoftShadow": "pixgraph.HardShadow",
@@ -165,7 +165,7 @@ class ServeState:
                           "inputs": {k: str(v) for k, v in inst.inputs.items()}})
         used = {inst.type for inst in g.nodes.values()}
         used |= {t for t in self.method_types() if t in self.registry}
-        from ..reference import as_dict
+        from pixgraph.reference import as_dict
 
         return {"file": self.graph_path, "nodes": nodes,
                 "outputs": {k: str(v) for k, v in g.outputs.items()},

@@ -27,12 +27,12 @@ from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, Response
 from starlette.routing import Route
 
-from ..events import Cancelled, CancelToken
+from pixgraph.events import Cancelled, CancelToken
 from . import scene
 from .state import ServeError, ServeState, encode_exr, encode_png
 
 log = logging.getLogger("pixgraph.serve")
-STATIC = resources.files("pixgraph.serve") / "static"
+STATIC = resources.files("pixgraph_serve") / "static"
 UPLOAD_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,100}\.(png|jpg|jpeg|tif|tiff|exr)$", re.I)
 
 
@@ -141,7 +141,7 @@ def create_app(state: ServeState) -> Starlette:
         return JSONResponse(state.info())
 
     async def nodes(request):
-        from ..reference import as_dict
+        from pixgraph.reference import as_dict
 
         return JSONResponse({"types": [as_dict(s) for s in state.registry.specs()]})
 

@@ -36,9 +36,9 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import yaml
 
-from . import __version__
-from .graph import Graph, GraphError
-from .hashing import canonical_json
+from pixgraph import __version__
+from pixgraph.graph import Graph, GraphError
+from pixgraph.hashing import canonical_json
 
 DEFAULT_TEMPLATE = "out/{row}_{name}.png"
 EXECUTORS = ("inprocess", "processes", "dask")
@@ -261,7 +261,7 @@ def make_items(graph: Graph, rows: Sequence[Row], registry, outputs: Mapping[str
 
 
 def _image_outputs(graph: Graph, registry) -> list[str]:
-    from . import types as T
+    from pixgraph import types as T
 
     names = []
     for name, ref in graph.outputs.items():
@@ -377,7 +377,7 @@ def run_item(session, graph: Graph, item: Item, force: bool = False) -> ItemResu
 def _check_outputs(session, graph: Graph, item: Item) -> None:
     """Output paths are the user's own (any folder, like ``pixgraph run -o``), but
     never hold control characters and never overwrite a file this row reads."""
-    from .paths import bad_characters, quote
+    from pixgraph.paths import bad_characters, quote
 
     reads = {os.path.realpath(graph.file)} if graph.file else set()
     for nid, inst in graph.nodes.items():
@@ -398,7 +398,7 @@ def _write_output(session, graph: Graph, plan, name: str, value, path: str) -> N
 
     from pixgraph_nodes.ops.imageio import write_data, write_image
 
-    from . import types as T
+    from pixgraph import types as T
 
     if not isinstance(value, np.ndarray):
         raise BatchError(f"output {name!r} is a {type(value).__name__}, not an image")
@@ -412,7 +412,7 @@ def _write_output(session, graph: Graph, plan, name: str, value, path: str) -> N
 def user_files(graph: Graph, registry, items: Sequence[Item]) -> list[str]:
     """The files that rows' path overrides name: the user's own (from a manifest,
     a sweep or ``--set``), allowed by the path policy like ``pixgraph run --set``."""
-    from .paths import bad_characters
+    from pixgraph.paths import bad_characters
 
     files = set()
     for item in items:
@@ -507,7 +507,7 @@ def init_worker(config: WorkerConfig) -> None:
         if _WORKER.get("config") == config and "session" in _WORKER:
             return
         limit_threads(config.threads)
-        from .session import Session
+        from pixgraph.session import Session
 
         s = Session(device=config.device, cache_bytes=config.cache_bytes, disk_cache=config.disk_cache,
                     allow_paths=config.allow_paths, strict_paths=config.strict_paths)
@@ -787,7 +787,7 @@ def cli_batch(args, session, shared_params: Mapping[str, Any], usage_error) -> i
         if workers < 1:
             raise BatchError("the number of workers must be >= 1")
         show = not args.quiet and sys.stderr.isatty()
-        result = session.batch(args.graph, args.manifest, outputs, args.template, args.sweep, shared_params,
+        result = batch(session, args.graph, args.manifest, outputs, args.template, args.sweep, shared_params,
                                executor=executor, workers=workers, scheduler=args.scheduler, force=args.force,
                                progress=show, threads=args.threads, device=args.device)
     except BatchError as e:
