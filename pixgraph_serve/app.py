@@ -28,11 +28,12 @@ from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, R
 from starlette.routing import Route
 
 from pixgraph.events import Cancelled, CancelToken
-from . import scene
+from . import files, scene
 from .state import ServeError, ServeState, encode_exr, encode_png
 
 log = logging.getLogger("pixgraph.serve")
 STATIC = resources.files("pixgraph_serve") / "static"
+STATIC_NAME = re.compile(r"^[a-z][a-z0-9_]{0,40}\.(js|css)$")
 UPLOAD_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,100}\.(png|jpg|jpeg|tif|tiff|exr)$", re.I)
 
 
@@ -121,9 +122,10 @@ def create_app(state: ServeState) -> Starlette:
 
     async def static(request):
         name = request.path_params["name"]
-        if name not in ("app.js", "style.css"):
+        if not STATIC_NAME.match(name) or not (STATIC / name).is_file():
             raise ServeError(404, f"no static file {name!r}")
-        return FileResponse(str(STATIC / name), headers={"Cache-Control": "no-store"})
+        media = "text/javascript" if name.endswith(".js") else "text/css"
+        return FileResponse(str(STATIC / name), media_type=media, headers={"Cache-Control": "no-store"})
 
     async def graph_info(request):
         return JSONResponse(state.info())
@@ -192,6 +194,9 @@ def create_app(state: ServeState) -> Starlette:
         name = data.get("output", "final")
         if not isinstance(name, str):
             raise ServeError(400, "output must be an output name", field="output")
+        scale = data.get("scale", state.limits.preview_scale if mode == "preview" else 1)
+        if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 16:
+            raise ServeError(400, f"scale must be an integer 1..16, got {scale!r}", field="scale")
         client, seq = data.get("client"), data.get("seq")
         tracked = client is not None
         if tracked:
@@ -217,7 +222,6 @@ def create_app(state: ServeState) -> Starlette:
             finally:
                 if tracked and renders.tokens.get(client) is token:
                     del renders.tokens[client]
-        scale = state.limits.preview_scale if mode == "preview" else 1
         png = await anyio.to_thread.run_sync(lambda: encode_png(values[name], name, scale))
         return Response(png, media_type="image/png", headers={
             "X-Pixgraph-Seq": str(seq if tracked else ""), "X-Pixgraph-Mode": mode,
@@ -268,6 +272,7 @@ def create_app(state: ServeState) -> Starlette:
         Route("/api/render", render, methods=["POST"]),
         Route("/api/save", save, methods=["POST"]),
         Route("/api/uploads/{name}", upload, methods=["PUT"]),
+        *files.routes(state, locked, json_body),
     ]
 
     async def serve_error(request, exc: ServeError):

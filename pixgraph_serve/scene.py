@@ -22,6 +22,7 @@ import numpy as np
 from .state import ServeError, ServeState
 
 CAMERA, LIGHT, BACKGROUND = "pixgraph.Camera", "pixgraph.Light", "pixgraph.BackgroundHeight"
+PLACE = "pixgraph.PlaceCutout"
 
 
 def _first(state: ServeState, type_id: str) -> str | None:
@@ -38,7 +39,7 @@ def roles(state: ServeState) -> dict[str, str | None]:
                        if inst.type in state.method_types()
                        and any(r.node == light for r in inst.inputs.values())), None)
     return {"camera": _first(state, CAMERA), "light": light, "background": _first(state, BACKGROUND),
-            "shadow": shadow}
+            "shadow": shadow, "place": _first(state, PLACE)}
 
 
 def _anchors(state: ServeState, r: dict) -> tuple[Any, Any, tuple[float, float, float] | None]:
@@ -98,7 +99,14 @@ def describe(state: ServeState) -> dict:
     g = state.graph
     if r["camera"]:
         v = state.registry.get(CAMERA).coerce_params(g.nodes[r["camera"]].params)
-        out["camera"] = {"width": v["width"], "height": v["height"], "horizon": v["horizon"]}
+        w, h = v["width"], v["height"]
+        if not (w and h):  # the camera takes its size from its image: ask the camera value
+            cam = state.run([f"{r['camera']}.camera"])[0][f"{r['camera']}.camera"]
+            w, h = cam.width, cam.height
+        out["camera"] = {"width": w, "height": h, "horizon": v["horizon"]}
+    if r["place"]:
+        values, _ = state.run([f"{r['place']}.alpha"])
+        out["place"] = {**_values(state, r["place"]), "bbox": _bbox(values[f"{r['place']}.alpha"])}
     if r["background"]:
         out["background"] = _values(state, r["background"])
     if r["shadow"]:
@@ -111,6 +119,15 @@ def describe(state: ServeState) -> dict:
                         "top_uvh": list(top) if top else None,
                         "tip_uv": list(shadow_tip(cam, light, top) or []) or None}
     return out
+
+
+def _bbox(alpha) -> list[float] | None:
+    """[u0, v0, u1, v1] [px] of the pixels an alpha covers (> 0.5), edges of pixels."""
+    m = np.asarray(alpha) > 0.5
+    rows, cols = np.nonzero(m.any(axis=1))[0], np.nonzero(m.any(axis=0))[0]
+    if not len(rows):
+        return None
+    return [float(cols[0]), float(rows[0]), float(cols[-1] + 1), float(rows[-1] + 1)]
 
 
 def _values(state: ServeState, nid: str) -> dict:

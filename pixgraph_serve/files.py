@@ -1,0 +1,219 @@
+"""The user's own files in the page: build a graph from a template around an opened
+photo and cutout, and save a graph with the files it reads beside it.
+
+The server knows no node types here either: a *template* is a YAML graph shipped by
+a node pack (a ``templates/`` folder next to the module its ``pixgraph.nodes``
+entry point names) in which a string ``"$photo"``, ``"$cutout"`` or ``"$mask"``
+stands for a file the user opened, and a string ``"=EXPR"`` for a number computed
+from the photo's size ``W`` x ``H`` and the cutout's ``w`` x ``h`` [px] (numbers,
+``+ - * /`` and parentheses only). Which template: ``own_photo`` for an RGBA
+cutout, ``own_photo_mask`` for an RGB cutout with a mask file.
+
+Opened files arrive through ``PUT /api/uploads/NAME`` (the upload folder, an
+allowed root) and are named here by the paths that call returned, so they pass
+the same path rules as any graph's paths.
+"""
+from __future__ import annotations
+
+import ast
+import filecmp
+import importlib.metadata
+import os
+import shutil
+from importlib import resources
+from typing import Any
+
+import yaml
+
+from .state import ServeError, ServeState
+
+ENTRY_POINT_GROUP = "pixgraph.nodes"
+FILE_ROLES = ("photo", "cutout", "mask")
+
+
+def template_text(name: str) -> str:
+    """The text of template ``name`` from the first installed node pack that ships it."""
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        module = ep.value.split(":", 1)[0].strip()
+        try:
+            f = resources.files(module) / "templates" / f"{name}.yaml"
+            if f.is_file():
+                return f.read_text(encoding="utf-8")
+        except (ModuleNotFoundError, TypeError):
+            continue
+    raise ServeError(404, f"no node pack ships a graph template {name!r} (templates/{name}.yaml)")
+
+
+def _number(expr: str, env: dict[str, float], where: str) -> float:
+    """Evaluate ``expr`` (numbers, names from ``env``, + - * / and parentheses)."""
+    def ev(n):
+        if isinstance(n, ast.Expression):
+            return ev(n.body)
+        if isinstance(n, ast.Constant) and isinstance(n.value, (int, float)) and not isinstance(n.value, bool):
+            return float(n.value)
+        if isinstance(n, ast.Name) and n.id in env:
+            return float(env[n.id])
+        if isinstance(n, ast.UnaryOp) and isinstance(n.op, (ast.USub, ast.UAdd)):
+            v = ev(n.operand)
+            return -v if isinstance(n.op, ast.USub) else v
+        if isinstance(n, ast.BinOp) and isinstance(n.op, (ast.Add, ast.Sub, ast.Mult, ast.Div)):
+            a, b = ev(n.left), ev(n.right)
+            if isinstance(n.op, ast.Div):
+                if b == 0:
+                    raise ServeError(500, f"template {where}: {expr!r} divides by zero")
+                return a / b
+            return a + b if isinstance(n.op, ast.Add) else a - b if isinstance(n.op, ast.Sub) else a * b
+        raise ServeError(500, f"template {where}: {expr!r} is not a number expression of {', '.join(env)}")
+
+    try:
+        tree = ast.parse(expr, mode="eval")
+    except SyntaxError:
+        raise ServeError(500, f"template {where}: {expr!r} is not an expression") from None
+    return round(ev(tree), 2)
+
+
+def fill(template: str, files: dict[str, str], sizes: dict[str, float]) -> str:
+    """The graph YAML of ``template`` with ``$role`` strings replaced by ``files[role]``
+    and ``=EXPR`` strings by their values; raises ServeError for a file it needs
+    and was not given."""
+    doc = yaml.safe_load(template)
+
+    def sub(v, where):
+        if isinstance(v, str) and v.startswith("$"):
+            role = v[1:]
+            if role not in files:
+                raise ServeError(400, f"this graph needs a {role} file", field=role)
+            return files[role]
+        if isinstance(v, str) and v.startswith("="):
+            return _number(v[1:], sizes, where)
+        if isinstance(v, list):
+            return [sub(x, where) for x in v]
+        if isinstance(v, dict):
+            return {k: sub(x, f"{where}.{k}") for k, x in v.items()}
+        return v
+
+    for nid, node in (doc.get("nodes") or {}).items():
+        if isinstance(node, dict) and isinstance(node.get("params"), dict):
+            node["params"] = sub(node["params"], nid)
+    return yaml.safe_dump(doc, sort_keys=False)
+
+
+def _size(path: str) -> tuple[int, int]:
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        raise ServeError(400, f"cannot read image {os.path.basename(path)}: {oiio.geterror()}")
+    spec = inp.spec()
+    inp.close()
+    return int(spec.width), int(spec.height)
+
+
+def open_files(state: ServeState, data: dict) -> dict:
+    """``{"photo": path, "cutout": path, "mask": path?}`` (paths from the upload API,
+    or relative to the served graph's folder) -> the served graph becomes the
+    template filled in with them. Returns ``{"template", "yaml"}``."""
+    files = {}
+    for role in FILE_ROLES:
+        v = data.get(role)
+        if v is None or v == "":
+            continue
+        if not isinstance(v, str):
+            raise ServeError(400, f"{role} must be a path", field=role)
+        files[role] = v
+    for role in ("photo", "cutout"):
+        if role not in files:
+            raise ServeError(400, f"open needs a {role} file", field=role)
+    resolved = {}
+    policy = state.session.paths.with_roots([state.root])
+    for role, v in files.items():
+        path = os.path.normpath(os.path.join(state.root, os.path.expanduser(v)))
+        try:
+            policy.check_read(path, node=role, param="path")
+        except Exception as e:  # a PathError: the same rule as any graph path
+            raise ServeError(403, str(e), field=role) from None
+        if not os.path.isfile(path):
+            raise ServeError(404, f"{role}: no file {os.path.basename(path)}", field=role)
+        resolved[role] = path
+    W, H = _size(resolved["photo"])
+    w, h = _size(resolved["cutout"])
+    name = "own_photo_mask" if "mask" in resolved else "own_photo"
+    text = fill(template_text(name), resolved, {"W": W, "H": H, "w": w, "h": h})
+    state.load_text(text)
+    return {"template": name, "yaml": state.yaml()}
+
+
+def _beside(src: str, folder: str) -> str:
+    """Copy ``src`` into ``folder`` under its own name (or name_2, name_3, ... when
+    another file of that name is there); a file with the same bytes is reused."""
+    base, ext = os.path.splitext(os.path.basename(src))
+    for k in range(1, 1000):
+        name = f"{base}{'' if k == 1 else f'_{k}'}{ext}"
+        dest = os.path.join(folder, name)
+        if not os.path.exists(dest):
+            shutil.copyfile(src, dest)
+            return dest
+        if filecmp.cmp(src, dest, shallow=False):
+            return dest
+    raise ServeError(409, f"save: too many files named {base}*{ext} in {folder}")
+
+
+def save_with_files(state: ServeState, path: str | None) -> dict:
+    """Save the graph to ``path`` (relative to the served graph's folder) with every
+    file it reads from the upload folder copied beside it; the saved graph names
+    them relative to itself, and the served graph then reads the copies.
+    Returns ``{"path", "copied": [names], "yaml"}``."""
+    from pixgraph import fileio
+
+    target = state.graph_path if not path else os.path.normpath(os.path.join(state.root, path))
+    if not target.endswith((".yaml", ".yml")):
+        raise ServeError(400, f"save: {path!r} must end in .yaml or .yml", field="path")
+    try:
+        state.session.policy_for(state.graph).check_write(target)
+    except Exception as e:
+        raise ServeError(403, str(e), field="path") from None
+    folder = os.path.dirname(target)
+    os.makedirs(folder, exist_ok=True)
+    uploads = os.path.realpath(state.upload_dir)
+    live: dict[str, Any] = {}
+    copied = []
+    for nid, inst in state.graph.nodes.items():
+        spec = state.registry.get(inst.type)
+        for p in spec.params:
+            if p.kind != "path" or p.writes or not inst.params.get(p.name):
+                continue
+            src = os.path.realpath(state.graph.resolve_path(os.fspath(inst.params[p.name])))
+            if os.path.commonpath([src, uploads]) != uploads:
+                continue
+            dest = _beside(src, folder)
+            copied.append(os.path.basename(dest))
+            inside = os.path.commonpath([dest, state.root]) == state.root
+            live[f"{nid}.{p.name}"] = os.path.relpath(dest, state.root) if inside else dest
+    if live:
+        state.set_params(live)   # the served graph reads the copies from now on
+    try:
+        fileio.dump(state.graph, target, state.registry)  # relative paths rebased
+    except OSError as e:
+        raise ServeError(400, f"save: cannot write {path or target}: {e.strerror or e}", field="path") from None
+    with open(target, encoding="utf-8") as f:
+        return {"path": target, "copied": copied, "yaml": f.read()}
+
+
+def routes(state: ServeState, locked, json_body):
+    """Starlette routes of this module: ``POST /api/open`` and ``POST /api/save_files``."""
+    from starlette.responses import JSONResponse
+    from starlette.routing import Route
+
+    async def open_route(request):
+        data = await json_body(request)
+        return JSONResponse(await locked(open_files, state, data))
+
+    async def save_route(request):
+        data = await json_body(request)
+        p = data.get("path")
+        if p is not None and not isinstance(p, str):
+            raise ServeError(400, "path must be a string", field="path")
+        return JSONResponse(await locked(save_with_files, state, p))
+
+    return [Route("/api/open", open_route, methods=["POST"]),
+            Route("/api/save_files", save_route, methods=["POST"])]

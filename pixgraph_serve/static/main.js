@@ -1,0 +1,53 @@
+// pixgraph serve: the page's start-up (see app.js for the map of the modules).
+"use strict";
+
+import {$, api, showError} from "./app.js";
+import {wireFiles} from "./files.js";
+import {cutoutWheel, drawHandles} from "./handles.js";
+import {buildPanel, syncControls, wireToolbar} from "./panel.js";
+import {finalize, render, ui} from "./render.js";
+import {setImageSize, view, wireView} from "./view.js";
+
+let reRender = null;
+
+// After a zoom, ask again for an image fine enough for the screen (cached: only re-encoded).
+function onViewChange() {
+  if (!ui.drag) drawHandles();
+  clearTimeout(reRender);
+  const need = Math.max(1, Math.floor(1 / (view.k * (window.devicePixelRatio || 1))));
+  if (view.bitmap && need < view.scale) reRender = setTimeout(() => { if (!ui.drag) finalize({}); }, 250);
+}
+
+// The graph, its handles and a first final image: at start and after opening files.
+async function load() {
+  try {
+    [ui.info, ui.scene] = await Promise.all([api("GET", "/api/graph"), api("GET", "/api/scene")]);
+  } catch (err) {
+    showError(err.message);
+    return;
+  }
+  if (ui.scene.camera) setImageSize(ui.scene.camera.width, ui.scene.camera.height);
+  if (!$("save-name").value) $("save-name").value = ui.info.file.split(/[\\/]/).pop();
+  buildPanel();
+  syncControls();
+  drawHandles();
+  await render({}, "final");
+  document.body.dataset.synced = ui.shownSeq;
+  document.body.dataset.ready = String(Number(document.body.dataset.ready || 0) + 1);
+}
+
+function main() {
+  wireView();
+  view.listeners.push(onViewChange);
+  view.wheelHook = cutoutWheel;
+  ui.onScene.push(() => {
+    if (ui.scene.camera) setImageSize(ui.scene.camera.width, ui.scene.camera.height);
+    syncControls();
+    if (!ui.drag) drawHandles();   // never pull a handle from under the pointer
+  });
+  wireToolbar();
+  wireFiles(load);
+  load();
+}
+
+main();

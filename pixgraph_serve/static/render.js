@@ -1,0 +1,99 @@
+// The render queue. Every edit is sent as one POST /api/render {edits, mode, scale,
+// client, seq}: while a handle or slider moves, "preview" renders (hard shadow)
+// go out one at a time, the newest edit waiting in `pending`; when the pointer
+// stops a "final" render follows at once. Both come back at about the screen's
+// size (`scale`: the server box-filters the image by that integer factor). The
+// server drops or cancels renders superseded by a newer seq (409), and the page
+// never shows an image older than the one shown.
+"use strict";
+
+import {$, api, request, showError} from "./app.js";
+import {show, view} from "./view.js";
+
+export const ui = {
+  client: Math.random().toString(36).slice(2), seq: 0, shownSeq: 0,
+  inflight: false, pending: null, info: null, scene: null,
+  drag: null, renders: 0, onScene: [],
+};
+
+window.pixgraphShown = [];   // what was displayed, for tests and timing
+
+// The integer downscale that still gives at least one image pixel per screen pixel.
+function screenScale() {
+  const k = view.k * (window.devicePixelRatio || 1);
+  return Math.max(1, Math.min(16, Math.floor(1 / Math.max(k, 1e-6))));
+}
+
+function merge(a, b) {
+  return {...(a || {}), ...b, params: {...((a || {}).params || {}), ...(b.params || {})}};
+}
+
+export async function render(edits, mode) {
+  const seq = ++ui.seq;
+  const scale = screenScale();
+  const t0 = performance.now();
+  let r;
+  try {
+    r = await request("/api/render", {method: "POST", headers: {"Content-Type": "application/json"},
+      body: JSON.stringify({...edits, mode, scale, output: "final", client: ui.client, seq})});
+  } catch (err) {
+    showError(`server unreachable: ${err.message}`);
+    return false;
+  }
+  if (r.status === 409) return false;          // superseded by a newer render: dropped
+  if (!r.ok) {
+    const data = await r.json().catch(() => ({error: r.statusText}));
+    showError(data.error);
+    markBad(data);
+    return false;
+  }
+  const blob = await r.blob();
+  if (seq < ui.shownSeq) return true;           // a newer image is already shown
+  ui.shownSeq = seq;
+  const bmp = await createImageBitmap(blob);
+  show(bmp, scale);
+  ui.renders++;
+  const ms = Math.round(performance.now() - t0);
+  $("status").textContent = `${mode} ${bmp.width}x${bmp.height} (1/${scale}) in ${ms} ms; ` +
+    `ran: ${r.headers.get("X-Pixgraph-Ran") || "nothing (cached)"}`;
+  window.pixgraphShown.push({seq, mode, ms, scale, width: bmp.width, height: bmp.height,
+                             server_ms: 1000 * Number(r.headers.get("X-Pixgraph-Seconds") || 0)});
+  showError("");
+  markBad(null);
+  return true;
+}
+
+// Previews one at a time, the newest edit waiting; a final render goes out at once.
+export function preview(edits) {
+  ui.pending = merge(ui.pending, edits);
+  if (ui.inflight) return;
+  const next = ui.pending;
+  ui.pending = null;
+  ui.inflight = true;
+  render(next, "preview").finally(() => {
+    ui.inflight = false;
+    if (ui.pending && ui.drag) preview({});
+  });
+}
+
+export async function finalize(edits) {
+  ui.pending = null;
+  const ok = await render(edits, "final");
+  if (ok) await refresh();
+  return ok;
+}
+
+// Graph and handles from the server, after an edit has been applied.
+export async function refresh() {
+  [ui.info, ui.scene] = await Promise.all([api("GET", "/api/graph"), api("GET", "/api/scene")]);
+  for (const f of ui.onScene) f();
+  document.body.dataset.synced = ui.shownSeq;
+}
+
+export function markBad(data) {
+  for (const el of document.querySelectorAll(".param .bad")) el.classList.remove("bad");
+  if (data && data.node && data.field && data.field.startsWith("params.")) {
+    const el = document.querySelector(`[data-param="${data.node}.${data.field.slice(7)}"]`);
+    if (el) el.classList.add("bad");
+  }
+}
