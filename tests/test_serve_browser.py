@@ -47,9 +47,16 @@ def _png(data: bytes) -> np.ndarray:
 
 
 def _shown(page) -> np.ndarray:
-    """The pixels of the image the page displays (its canvas), (H, W, 3) in [0, 1]."""
-    url = page.evaluate("document.getElementById('view').toDataURL('image/png')")
+    """The pixels of the image the page displays, at the resolution it came in, (H, W, 3) in [0, 1]."""
+    url = page.evaluate("window.pixgraphView.imageDataURL()")
     return _png(base64.b64decode(url.split(",", 1)[1]))
+
+
+def _screen(page, u, v):
+    """Page coordinates of image pixel (u, v) through the page's view transform."""
+    box = page.locator("#stage").bounding_box()
+    x, y = page.evaluate(f"window.pixgraphView.toScreen({u}, {v})")
+    return box["x"] + x, box["y"] + y
 
 
 def _shadow(shown, photo, alpha):
@@ -82,11 +89,12 @@ def test_drag_light_moves_the_shadow_and_bad_value_shows_error(browser, server):
 
     box = page.locator("#light-handle").bounding_box()
     x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
-    target = page.locator("#view").bounding_box()
-    tx, ty = target["x"] + 120, target["y"] + 500     # the floor, in front of the figure, left
+    tx, ty = _screen(page, 120, 500)     # the floor, in front of the figure, left
     page.mouse.move(x, y)
     page.mouse.down()
     page.mouse.move(tx, ty, steps=12)
+    # hold still until a preview is drawn (a pointer-up right away would supersede it)
+    page.wait_for_function(f"window.pixgraphShown.some(s => s.mode === 'preview' && s.seq > {seq0})", timeout=60000)
     page.mouse.up()
     _wait_final(page, seq0)
     after = _shadow(_shown(page), photo, alpha)
@@ -146,9 +154,10 @@ def test_wall_and_horizon_handles_and_method_toggle(browser, server):
     nodes = {n["id"]: n for n in httpx.get(server + "/api/graph").json()["nodes"]}
     cu, cv = nodes["bg_h"]["params"]["corner"]
     assert abs(cu - 320) <= 1.5 and abs(cv - 290) <= 1.5
-    # the right handle sits on the wall-floor line at u = 504: moved down 30 px, the
-    # line through the corner and it is 30 / (504 - 320) steeper
-    assert nodes["bg_h"]["params"]["right_slope"] == pytest.approx(0.45 + 30 / (504 - 320), abs=0.01)
+    # the right handle sits on the wall-floor line at u = 0.97 W: moved down 30 px (the
+    # 512² image is shown 1:1), the line through the corner and it is 30 / (0.97 W - 320) steeper
+    assert page.evaluate("window.pixgraphView.state.k") == 1
+    assert nodes["bg_h"]["params"]["right_slope"] == pytest.approx(0.45 + 30 / (0.97 * 512 - 320), abs=0.01)
     assert nodes["cam"]["params"]["horizon"] == pytest.approx(145, abs=1.5)
     seq = page.evaluate("window.pixgraphShown.at(-1).seq")
     page.locator("input[name=method][value='pixgraph.SoftShadowSSN']").check()
