@@ -30,7 +30,8 @@ def _first(state: ServeState, type_id: str) -> str | None:
 
 
 def roles(state: ServeState) -> dict[str, str | None]:
-    """Node ids of the camera, light, background template and shadow (None when absent)."""
+    """Node ids of the camera, light, background template and shadow (None when absent),
+    and of the cutout's placement when there is one."""
     g = state.graph
     light = _first(state, LIGHT)
     shadow = None
@@ -38,8 +39,12 @@ def roles(state: ServeState) -> dict[str, str | None]:
         shadow = next((nid for nid, inst in g.nodes.items()
                        if inst.type in state.method_types()
                        and any(r.node == light for r in inst.inputs.values())), None)
-    return {"camera": _first(state, CAMERA), "light": light, "background": _first(state, BACKGROUND),
-            "shadow": shadow, "place": _first(state, PLACE)}
+    out = {"camera": _first(state, CAMERA), "light": light, "background": _first(state, BACKGROUND),
+           "shadow": shadow}
+    place = _first(state, PLACE)
+    if place is not None:   # the cutout placed on the photo (own-photo graphs)
+        out["place"] = place
+    return out
 
 
 def _anchors(state: ServeState, r: dict) -> tuple[Any, Any, tuple[float, float, float] | None]:
@@ -104,7 +109,7 @@ def describe(state: ServeState) -> dict:
             cam = state.run([f"{r['camera']}.camera"])[0][f"{r['camera']}.camera"]
             w, h = cam.width, cam.height
         out["camera"] = {"width": w, "height": h, "horizon": v["horizon"]}
-    if r["place"]:
+    if r.get("place"):
         values, _ = state.run([f"{r['place']}.alpha"])
         out["place"] = {**_values(state, r["place"]), "bbox": _bbox(values[f"{r['place']}.alpha"])}
     if r["background"]:
