@@ -40,6 +40,40 @@ METHODS = {"hard": "pixgraph.HardShadow", "classical soft": "pixgraph.SoftShadow
            "SSN++": "pixgraph.SoftShadowSSN"}
 
 
+def photo_files(dest: str, width: int = 5120, height: int = 3840, mask: bool = True) -> dict[str, str]:
+    """A photo-like ``width`` x ``height`` JPEG and a cutout scaled to it, made from the
+    repo's own assets (graphs/assets/own_photo.jpg and own_cutout.png, which our
+    renderers made): the photo upsampled (Lanczos) with fine multi-octave grain so it
+    is not flat at full size; the cutout as RGB + a mask PNG (``mask``) or RGBA.
+    Returns ``{"photo", "cutout"[, "mask"]}`` paths in ``dest``."""
+    import numpy as np
+    from PIL import Image
+
+    assets = os.path.join(REPO, "graphs", "assets")
+    os.makedirs(dest, exist_ok=True)
+    photo = Image.open(os.path.join(assets, "own_photo.jpg")).convert("RGB").resize((width, height), Image.LANCZOS)
+    rng = np.random.default_rng(22)
+    grain = np.zeros((height, width), np.float32)
+    for cell, amp in ((1, 3.0), (4, 3.0), (16, 4.0)):       # px per random value, grey levels
+        small = rng.normal(0.0, amp, (height // cell + 1, width // cell + 1)).astype(np.float32)
+        grain += np.repeat(np.repeat(small, cell, 0), cell, 1)[:height, :width]
+    arr = np.asarray(photo, np.float32) + grain[:, :, None]
+    out = {"photo": os.path.join(dest, f"photo_{width}x{height}.jpg")}
+    Image.fromarray(np.clip(arr, 0, 255).astype(np.uint8)).save(out["photo"], quality=90)
+    cut = Image.open(os.path.join(assets, "own_cutout.png")).convert("RGBA")
+    k = height / 480.0
+    cut = cut.resize((round(cut.width * k), round(cut.height * k)), Image.LANCZOS)
+    if mask:
+        out["cutout"] = os.path.join(dest, "figure_rgb.png")
+        out["mask"] = os.path.join(dest, "figure_mask.png")
+        cut.convert("RGB").save(out["cutout"])
+        cut.getchannel("A").save(out["mask"])
+    else:
+        out["cutout"] = os.path.join(dest, "figure_rgba.png")
+        cut.save(out["cutout"])
+    return out
+
+
 def start(graph: str):
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()

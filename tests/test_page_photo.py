@@ -1,0 +1,298 @@
+"""The page of ``pixgraph serve`` with your own photo, in headless Chromium (Debian's
+``chromium`` driven by Playwright): the own-photo graph whose camera takes its size
+from the photo, and a generated photo of a few megapixels (20 MP in the slow test)
+opened in the page as a photo, an RGB cutout and a mask file. Everything is
+checked on what the page shows: screenshots, the handles' boxes on the screen,
+the pixels of the image it drew, and the params the server ends up with.
+"""
+import base64
+import io
+import os
+import shutil
+import subprocess
+import sys
+
+import httpx
+import numpy as np
+import pytest
+from PIL import Image
+
+from serve_helpers import GRAPHS, REPO, running_server
+from test_serve_browser import ARGS, CHROMIUM
+
+sys.path.insert(0, os.path.join(REPO, "benchmarks"))
+from serve_bench import photo_files  # noqa: E402
+
+VIEWPORT = {"width": 1280, "height": 800}
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not os.path.exists(CHROMIUM):
+        if os.environ.get("CI"):
+            pytest.fail("Debian's chromium is missing: './setup.sh test' installs it")
+        pytest.skip("Debian's chromium is not installed ('./setup.sh test' installs it)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        yield b
+        b.close()
+
+
+def own_photo_copy(dest) -> str:
+    """graphs/own_photo.yaml (its camera has no size: it takes the photo's) and its assets."""
+    os.makedirs(os.path.join(dest, "assets"), exist_ok=True)
+    for name in ("own_photo.jpg", "own_cutout.png"):
+        shutil.copy(os.path.join(GRAPHS, "assets", name), os.path.join(dest, "assets", name))
+    shutil.copy(os.path.join(GRAPHS, "own_photo.yaml"), os.path.join(dest, "own_photo.yaml"))
+    return os.path.join(dest, "own_photo.yaml")
+
+
+def _png(data: bytes) -> np.ndarray:
+    return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"), dtype=np.float32) / 255.0
+
+
+def shown(page) -> np.ndarray:
+    """The image the page drew, at the resolution it came in (H, W, 3) in [0, 1]."""
+    url = page.evaluate("window.pixgraphView.imageDataURL()")
+    return _png(base64.b64decode(url.split(",", 1)[1]))
+
+
+def stage_shot(page) -> np.ndarray:
+    return _png(page.locator("#stage").screenshot())
+
+
+def screen(page, u, v):
+    """Page coordinates of image pixel (u, v) through the page's view transform."""
+    box = page.locator("#stage").bounding_box()
+    x, y = page.evaluate(f"window.pixgraphView.toScreen({u}, {v})")
+    return box["x"] + x, box["y"] + y
+
+
+def centre(page, selector):
+    b = page.locator(selector).bounding_box()
+    return b["x"] + b["width"] / 2, b["y"] + b["height"] / 2
+
+
+def last_seq(page) -> int:
+    return page.evaluate("(window.pixgraphShown.at(-1) || {seq: 0}).seq")
+
+
+def wait_final(page, after_seq, timeout=180000):
+    page.wait_for_function(
+        f"() => {{ const l = window.pixgraphShown.at(-1);"
+        f" return l && l.mode === 'final' && l.seq > {after_seq} && document.body.dataset.synced == l.seq; }}",
+        timeout=timeout)
+
+
+def drag(page, start, end, steps=8, hold_for_preview=False):
+    seq = last_seq(page)
+    page.mouse.move(*start)
+    page.mouse.down()
+    page.mouse.move(*end, steps=steps)
+    if hold_for_preview:
+        page.wait_for_function(f"window.pixgraphShown.some(s => s.mode === 'preview' && s.seq > {seq})",
+                               timeout=180000)
+    page.mouse.up()
+    wait_final(page, seq)
+
+
+def graph_params(url) -> dict:
+    return {n["id"]: n["values"] for n in httpx.get(url + "/api/graph", timeout=60).json()["nodes"]}
+
+
+def open_page(browser, url):
+    page = browser.new_page(viewport=VIEWPORT)
+    errors = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(url + "/")
+    page.wait_for_selector("body[data-ready='1']", state="attached", timeout=180000)
+    wait_final(page, 0)
+    return page, errors
+
+
+def check_handles_visible(page, inside=True):
+    """Every handle is 12-20 screen pixels across and (``inside``) on the stage."""
+    stage = page.locator("#stage").bounding_box()
+    sizes = {}
+    for sel in ("#light-handle", "#horizon-handle", "#junction-0", "#junction-1", "#foot-handle", "#scale-handle"):
+        b = page.locator(sel).bounding_box()
+        assert b is not None, sel
+        sizes[sel] = b["width"]
+        assert 12 <= b["width"] <= 20 and 12 <= b["height"] <= 20, (sel, b)
+        if inside:
+            assert stage["x"] <= b["x"] and b["x"] + b["width"] <= stage["x"] + stage["width"] + 1, (sel, b, stage)
+            assert stage["y"] <= b["y"] and b["y"] + b["height"] <= stage["y"] + stage["height"] + 1, (sel, b, stage)
+    return sizes
+
+
+def test_own_photo_graph_camera_from_the_photo(browser, tmp_path):
+    """graphs/own_photo.yaml (Camera width/height 0) is drawn, not blank, with its handles."""
+    graph = own_photo_copy(str(tmp_path))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        scene = httpx.get(url + "/api/scene", timeout=60).json()
+        assert (scene["camera"]["width"], scene["camera"]["height"]) == (640, 480)
+        img = shown(page)
+        assert img.shape == (480, 640, 3)
+        photo = _png(httpx.get(url + "/api/outputs/photo.image.png", timeout=60).content)
+        # the composite is the photo except the figure and its shadow
+        assert np.abs(img - photo).mean() < 0.05 and img.std() > 0.1
+        shot = stage_shot(page)
+        x0, y0 = (round(c) for c in page.evaluate("window.pixgraphView.toScreen(0, 0)"))
+        assert np.abs(shot[y0 + 5:y0 + 475, x0 + 5:x0 + 635] - img[5:475, 5:635]).mean() < 0.03
+        check_handles_visible(page)
+        # the wall-floor line's ends are the graph's junction_points [0, 262, 640, 292]
+        for i, (u, v) in enumerate([(0, 262), (640, 292)]):
+            x, y = centre(page, f"#junction-{i}")
+            sx, sy = screen(page, u, v)
+            assert abs(x - sx) < 1.5 and abs(y - sy) < 1.5
+        drag(page, centre(page, "#junction-1"), screen(page, 600, 320))
+        assert graph_params(url)["bg_h"]["junction_points"] == pytest.approx([0, 262, 600, 320], abs=1.0)
+        assert not errors, errors
+        page.close()
+
+
+def run_photo(browser, tmp_path, width, height, *server_args):
+    files = photo_files(str(tmp_path / "mine"), width, height, mask=True)
+    graph = own_photo_copy(str(tmp_path / "served"))
+    with running_server(graph, *server_args) as (url, _):
+        page, errors = open_page(browser, url)
+        page.click("#open")
+        page.set_input_files("#open-photo", files["photo"])
+        page.set_input_files("#open-cutout", files["cutout"])
+        page.set_input_files("#open-mask", files["mask"])
+        seq = last_seq(page)
+        page.click("#open-go")
+        page.wait_for_selector("body[data-ready='2']", state="attached", timeout=300000)
+        wait_final(page, seq, timeout=300000)
+        scene = httpx.get(url + "/api/scene", timeout=120).json()
+        assert (scene["camera"]["width"], scene["camera"]["height"]) == (width, height)
+        view = page.evaluate("window.pixgraphView.state")
+        stage = page.locator("#stage").bounding_box()
+        # fitted: the whole photo on the stage, the image came at about the screen's size
+        assert width * view["k"] <= stage["width"] + 1 and height * view["k"] <= stage["height"] + 1
+        scale = page.evaluate("window.pixgraphShown.at(-1).scale")
+        assert scale == int(1 / view["k"])
+        # not blank: the screenshot of the stage shows the photo's light wall and dark floor
+        shot = stage_shot(page)
+        x0, y0 = (round(c) for c in page.evaluate("window.pixgraphView.toScreen(0, 0)"))
+        x1, y1 = (round(c) for c in page.evaluate(f"window.pixgraphView.toScreen({width}, {height})"))
+        area = shot[y0 + 2:y1 - 2, x0 + 2:x1 - 2]
+        assert area.std() > 0.08 and 0.25 < area.mean() < 0.8, (area.mean(), area.std())
+        assert area[: area.shape[0] // 3].mean() > area[-area.shape[0] // 4:].mean() + 0.1   # wall over floor
+        sizes = check_handles_visible(page)
+
+        # the light: its shadow moves (pixels darker than the plate, outside the cutout)
+        photo = _png(httpx.get(url + f"/api/outputs/photo.image.png?scale={scale}", timeout=120).content)
+        alpha = _png(httpx.get(url + f"/api/outputs/place.alpha.png?scale={scale}", timeout=120).content)[:, :, 0]
+
+        def shadow(img):
+            return ((photo - img).mean(axis=2) > 0.05) & (alpha < 0.02)
+
+        before = shadow(shown(page))
+        assert before.sum() > 200
+        foot = scene["place"]["foot"]
+        tip = [foot[0] - 0.25 * width, foot[1] + 0.05 * height]   # the floor, left of the figure
+        drag(page, centre(page, "#light-handle"), screen(page, *tip), hold_for_preview=True)
+        after = shadow(shown(page))
+        moved = httpx.get(url + "/api/scene", timeout=120).json()["light"]["tip_uv"]
+        assert abs(moved[0] - tip[0]) < 2 / view["k"] + 2 and abs(moved[1] - tip[1]) < 2 / view["k"] + 2
+        ys, xs = np.nonzero(before)
+        ys2, xs2 = np.nonzero(after)
+        assert after.sum() > 200
+        assert xs2.mean() * scale < xs.mean() * scale - 0.05 * width, (xs.mean(), xs2.mean())
+        r = max(3, int(0.01 * width / scale))
+        tu, tv = int(tip[0] / scale), int(tip[1] / scale)
+        assert after[tv - r:tv + r, tu - r:tu + r].mean() > 0.3 > before[tv - r:tv + r, tu - r:tu + r].mean()
+
+        # the horizon: a drag of 40 screen px moves it 40 / k photo px
+        h0 = graph_params(url)["cam"]["horizon"]
+        x, y = centre(page, "#horizon-handle")
+        drag(page, (x, y), (x, y + 40))
+        assert graph_params(url)["cam"]["horizon"] == pytest.approx(h0 + 40 / view["k"], abs=1 / view["k"] + 1)
+        # the cutout: its box moves the foot, its top corner scales it
+        f0, s0 = graph_params(url)["place"]["foot"], graph_params(url)["place"]["scale"]
+        bx, by = centre(page, "#cutout-box")
+        drag(page, (bx, by), (bx + 30, by - 20))
+        f1 = graph_params(url)["place"]["foot"]
+        assert f1 == pytest.approx([f0[0] + 30 / view["k"], f0[1] - 20 / view["k"]], abs=1 / view["k"] + 1)
+        x, y = centre(page, "#scale-handle")
+        fx, fy = screen(page, *f1)
+        drag(page, (x, y), (x, fy - (fy - y) * 1.2))
+        assert graph_params(url)["place"]["scale"] == pytest.approx(s0 * 1.2, rel=0.03)
+        seq = last_seq(page)
+        page.click("#flip")
+        wait_final(page, seq)
+        assert graph_params(url)["place"]["flip"] is True
+
+        # zoomed in, the handles keep their screen size and sit where the view maps them
+        seq = last_seq(page)
+        page.click("#zoom-in")
+        page.click("#zoom-in")
+        wait_final(page, seq)   # a finer image for the closer view
+        zoomed = page.evaluate("window.pixgraphView.state")
+        assert zoomed["k"] == pytest.approx(view["k"] * 2.25, rel=0.01)
+        assert page.evaluate("window.pixgraphShown.at(-1).scale") == max(1, int(1 / zoomed["k"]))
+        assert check_handles_visible(page, inside=False) == sizes
+        u, v = httpx.get(url + "/api/scene", timeout=120).json()["light"]["tip_uv"]
+        x, y = screen(page, u, v)
+        cx, cy = centre(page, "#light-handle")
+        assert abs(cx - x) < 1.5 and abs(cy - y) < 1.5
+
+        # save: the graph and the three files beside it; the saved graph validates
+        page.fill("#save-name", "mine/scene.yaml")
+        page.click("#save")
+        page.wait_for_function("window.pixgraphShown && document.getElementById('status').textContent"
+                               ".startsWith('saved')", timeout=60000)
+        saved = tmp_path / "served" / "mine" / "scene.yaml"
+        names = sorted(os.listdir(saved.parent))
+        assert names == sorted(["scene.yaml", os.path.basename(files["photo"]), "figure_rgb.png",
+                                "figure_mask.png"]), names
+        text = saved.read_text()
+        assert f"path: {os.path.basename(files['photo'])}" in text and "path: figure_mask.png" in text
+        env = dict(os.environ, OMP_NUM_THREADS="1")
+        res = subprocess.run([sys.executable, "-m", "pixgraph", "validate", str(saved)], capture_output=True,
+                             text=True, env=env, timeout=300)
+        assert res.returncode == 0, res.stdout + res.stderr
+        assert not errors, errors
+        page.close()
+
+
+def test_open_a_photo_of_3mp_in_the_page(browser, tmp_path):
+    run_photo(browser, tmp_path, 2048, 1536)
+
+
+@pytest.mark.slow
+def test_open_a_photo_of_20mp_in_the_page(browser, tmp_path):
+    run_photo(browser, tmp_path, 5120, 3840, "--max-pixels", "25000000", "--max-body", str(256 << 20))
+
+
+def test_drop_photo_and_rgba_cutout_on_the_image(browser, tmp_path):
+    """Two files dropped on the image together: the larger is the photo, the RGBA one the cutout."""
+    files = photo_files(str(tmp_path / "mine"), 960, 720, mask=False)
+    graph = own_photo_copy(str(tmp_path / "served"))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        payload = [{"name": os.path.basename(p), "type": "image/png" if p.endswith(".png") else "image/jpeg",
+                    "b64": base64.b64encode(open(p, "rb").read()).decode()} for p in (files["cutout"], files["photo"])]
+        seq = last_seq(page)
+        page.evaluate("""(files) => {
+            const dt = new DataTransfer();
+            for (const f of files) {
+              const bytes = Uint8Array.from(atob(f.b64), (c) => c.charCodeAt(0));
+              dt.items.add(new File([bytes], f.name, {type: f.type}));
+            }
+            document.getElementById('stage').dispatchEvent(new DragEvent('drop', {dataTransfer: dt, bubbles: true}));
+        }""", payload)
+        page.wait_for_selector("body[data-ready='2']", state="attached", timeout=180000)
+        wait_final(page, seq)
+        nodes = graph_params(url)
+        assert nodes["photo"]["path"].endswith("photo_960x720.jpg")
+        assert nodes["cutout"]["path"].endswith("figure_rgba.png")
+        assert "mask" not in nodes   # an RGBA cutout: the template without a mask file
+        img = shown(page)
+        assert img.shape[:2] == (720, 960) and img.std() > 0.08
+        assert not errors, errors
+        page.close()
