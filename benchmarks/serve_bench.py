@@ -54,9 +54,10 @@ def photo_files(dest: str, width: int = 5120, height: int = 3840, mask: bool = T
     photo = Image.open(os.path.join(assets, "own_photo.jpg")).convert("RGB").resize((width, height), Image.LANCZOS)
     rng = np.random.default_rng(22)
     grain = np.zeros((height, width), np.float32)
-    for cell, amp in ((1, 3.0), (4, 3.0), (16, 4.0)):       # px per random value, grey levels
+    for cell, amp in ((1, 2.5), (4, 2.5), (24, 4.0)):       # px per random value, grey levels
         small = rng.normal(0.0, amp, (height // cell + 1, width // cell + 1)).astype(np.float32)
-        grain += np.repeat(np.repeat(small, cell, 0), cell, 1)[:height, :width]
+        smooth = Image.fromarray(small, "F").resize((small.shape[1] * cell, small.shape[0] * cell), Image.BICUBIC)
+        grain += np.asarray(smooth, np.float32)[:height, :width]
     arr = np.asarray(photo, np.float32) + grain[:, :, None]
     out = {"photo": os.path.join(dest, f"photo_{width}x{height}.jpg")}
     Image.fromarray(np.clip(arr, 0, 255).astype(np.uint8)).save(out["photo"], quality=90)

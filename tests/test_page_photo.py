@@ -24,6 +24,14 @@ sys.path.insert(0, os.path.join(REPO, "benchmarks"))
 from serve_bench import photo_files  # noqa: E402
 
 VIEWPORT = {"width": 1280, "height": 800}
+#: a folder to keep the page's screenshots in (to look at them), or unset
+SHOTS = os.environ.get("PIXGRAPH_PAGE_SHOTS")
+
+
+def keep(page, name):
+    if SHOTS:
+        os.makedirs(SHOTS, exist_ok=True)
+        page.screenshot(path=os.path.join(SHOTS, name))
 
 
 @pytest.fixture(scope="module")
@@ -191,6 +199,7 @@ def run_photo(browser, tmp_path, width, height, *server_args):
         def shadow(img):
             return ((photo - img).mean(axis=2) > 0.05) & (alpha < 0.02)
 
+        keep(page, f"opened_{width}x{height}.png")
         before = shadow(shown(page))
         assert before.sum() > 200
         foot = scene["place"]["foot"]
@@ -206,6 +215,13 @@ def run_photo(browser, tmp_path, width, height, *server_args):
         r = max(3, int(0.01 * width / scale))
         tu, tv = int(tip[0] / scale), int(tip[1] / scale)
         assert after[tv - r:tv + r, tu - r:tu + r].mean() > 0.3 > before[tv - r:tv + r, tu - r:tu + r].mean()
+        keep(page, f"light_dragged_{width}x{height}.png")
+        if os.environ.get("PIXGRAPH_UPDATE_DOCS") and width * height < 5e6:
+            page.screenshot(path=os.path.join(REPO, "docs", "img", "serve_own_photo.png"))
+        # the other handles with the hard shadow (the final of each drag is then quick)
+        seq = last_seq(page)
+        page.check("input[name=method][value='pixgraph.HardShadow']")
+        wait_final(page, seq)
 
         # the horizon: a drag of 40 screen px moves it 40 / k photo px
         h0 = graph_params(url)["cam"]["horizon"]
@@ -236,6 +252,7 @@ def run_photo(browser, tmp_path, width, height, *server_args):
         assert zoomed["k"] == pytest.approx(view["k"] * 2.25, rel=0.01)
         assert page.evaluate("window.pixgraphShown.at(-1).scale") == max(1, int(1 / zoomed["k"]))
         assert check_handles_visible(page, inside=False) == sizes
+        keep(page, f"zoomed_{width}x{height}.png")
         u, v = httpx.get(url + "/api/scene", timeout=120).json()["light"]["tip_uv"]
         x, y = screen(page, u, v)
         cx, cy = centre(page, "#light-handle")

@@ -1,7 +1,7 @@
 // The image in the window. The canvas and the handle layer both cover the stage
 // (the part of the window left of the panel); the image is drawn at
 // screen = offset + image * k. "fit" shows all of it (never enlarged past 1:1);
-// the wheel, a trackpad pinch or two fingers zoom about the pointer, a drag on
+// with a margin for the handles on its edges; the wheel, a trackpad pinch or two fingers zoom about the pointer, a drag on
 // the image (not on a handle) pans, and the toolbar's buttons fit, show 1:1 and zoom.
 "use strict";
 
@@ -37,9 +37,11 @@ export function setImageSize(W, H) {
   if (changed || view.fitted) fit();
 }
 
+export const MARGIN = 16;   // [screen px] around the fitted image: room for the handles on its edges
+
 export function fit() {
   const [sw, sh] = stageSize();
-  view.k = Math.min(1, sw / view.W, sh / view.H);
+  view.k = Math.min(1, (sw - 2 * MARGIN) / view.W, (sh - 2 * MARGIN) / view.H);
   view.ox = (sw - view.W * view.k) / 2;
   view.oy = (sh - view.H * view.k) / 2;
   view.fitted = true;
