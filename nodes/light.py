@@ -10,6 +10,9 @@ from pixgraph.node import InputError, node, param, port
 
 from .ops import lights
 
+#: a placed cutout taller than this many camera heights is noted by the check
+TALL = 5.0
+
 
 @node("pixgraph.Light", version=1)
 class Light:
@@ -53,6 +56,28 @@ class Light:
         light: T.Light = port(doc="the light (pixgraph_nodes.ops.lights.Light)")
 
     impl_version = "1"
+
+    def infer(self, ctx, inputs, params):
+        """Sizes as every node checks them, and a note when the camera's horizon does
+        not fit the cutout's placement: a foot on the ground lies below the horizon,
+        and an object standing far taller than the camera's height is likely a
+        horizon set too close above its foot."""
+        cam, mask = inputs.camera, inputs.mask
+        if cam is not None and mask is not None and (cam.height, cam.width) != (mask.height, mask.width):
+            raise InputError(f"inputs differ in size: camera {cam.described()}, mask {mask.described()}")
+        horizon, foot = getattr(cam, "horizon", None), getattr(mask, "foot", None)
+        if horizon is None or foot is None:
+            return {}
+        v = float(foot[1])
+        if v <= horizon:
+            ctx.log(f"the cutout's foot (row {v:g}) is at or above the camera's horizon (row {horizon:g}): a "
+                    "point on the ground lies below the horizon, so its shadow cannot fall on the floor; "
+                    "move the horizon above the foot (see docs/own-photo.md, 'The horizon')")
+        elif getattr(mask, "placed_height", None) and mask.placed_height / (v - horizon) > TALL:
+            ctx.log(f"the cutout ({mask.placed_height:g} px tall) stands {v - horizon:g} px below the horizon: "
+                    f"it would be {mask.placed_height / (v - horizon):.0f} times as tall as the camera is high; "
+                    "check the horizon (see docs/own-photo.md, 'The horizon')")
+        return {}
 
     def compute(self, ctx, inputs, params):
         cam = inputs.camera

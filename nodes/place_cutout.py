@@ -1,6 +1,8 @@
 """pixgraph.PlaceCutout: put a cutout of any size onto the background's canvas."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from pixgraph import types as T
@@ -9,6 +11,15 @@ from pixgraph.types import Shape
 
 from .ops.heightmaps import contact_line_height
 from .ops.placement import place_cutout, resize_map
+
+
+@dataclasses.dataclass(frozen=True)
+class PlacedShape(Shape):
+    """What a check before running knows of a placed cutout's coverage: its canvas
+    size, the foot (u, v) and the cutout's height on the canvas [px]."""
+
+    foot: tuple[float, float] | None = None
+    placed_height: float | None = None
 
 
 @node("pixgraph.PlaceCutout", version=1)
@@ -78,7 +89,10 @@ class PlaceCutout:
             raise InputError(f"foot {[u, v]} at scale {params.scale} puts {what} outside the canvas "
                              f"{bg.described()}")
         source = f"{cut.source} placed on {bg.source}" if cut is not None else bg.source
-        return {o: Shape(bg.height, bg.width, c, source) for o, c in (("image", 4), ("alpha", 1), ("height", 1))}
+        out = {o: Shape(bg.height, bg.width, c, source) for o, c in (("image", 4), ("height", 1))}
+        out["alpha"] = PlacedShape(bg.height, bg.width, 1, source, (u, v),
+                                   cut.height * params.scale if cut is not None else None)
+        return out
 
     def compute(self, ctx, inputs, params):
         img = np.asarray(inputs.cutout, dtype=np.float32)

@@ -297,8 +297,11 @@ def _cmd_validate(args, registry) -> int:
     g = s.graph(args.graph, sets)
     _allow_typed_paths(s, g, sets)
     s.check_paths(g)
+    notes: list[str] = []
     if g.outputs:
-        s.check(g)  # file headers: sizes, alpha, placements (reads no pixels)
+        s.check(g, notes=notes)  # file headers: sizes, alpha, placements (reads no pixels)
+    for note in notes:
+        print(f"warning: {note}", file=sys.stderr)
     if not args.quiet:
         print(f"{args.graph}: ok ({len(g.nodes)} nodes, outputs: {', '.join(g.outputs) or 'none'})")
     return EXIT_OK

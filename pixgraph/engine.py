@@ -230,7 +230,7 @@ class Engine:
 
     # -- check before running -----------------------------------------------------
 
-    def check(self, graph: Graph, outputs=None) -> dict[str, dict[str, Any]]:
+    def check(self, graph: Graph, outputs=None, notes: list[str] | None = None) -> dict[str, dict[str, Any]]:
         """Check what the needed nodes will get, from file headers only, before anything
         runs: returns ``{node: {output: info}}`` (a ``types.Shape`` where known).
 
@@ -239,6 +239,8 @@ class Engine:
         names the node) and raises ``InputError`` for inputs that cannot work. Any
         other node needs inputs of one size: its sized outputs get that size. The
         first problem is a ``GraphError`` naming the node, its line, and the files.
+        What an infer hook logs (``ctx.log``: something plausible-looking that is
+        probably wrong) is appended to ``notes``, named like an error, when given.
         """
         requested = self._requested(graph, outputs)
         order = self._ancestors(graph, [r.node for r in requested.values()], {})
@@ -257,7 +259,10 @@ class Engine:
             infer = getattr(spec.cls, "infer", None)
             try:
                 if infer is not None:
-                    ctx = NodeContext(nid, graph.base_dir, _no_device, None, _ignore)
+                    note = _ignore if notes is None else (
+                        lambda ev, nid=nid: notes.append(str(graph.error(ev.message, node=nid)))
+                        if isinstance(ev, E.NodeLog) else None)
+                    ctx = NodeContext(nid, graph.base_dir, _no_device, None, note)
                     infos[nid] = dict(spec.cls().infer(ctx, Namespace(ins), Namespace(params)) or {})
                 else:
                     infos[nid] = _same_size(spec, ins)

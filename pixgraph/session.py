@@ -146,11 +146,12 @@ class Session:
     def plan(self, graph_or_path, outputs=None, params=None, bind=None) -> Plan:
         return self.engine.plan(self.graph(graph_or_path, params), outputs, bind)
 
-    def check(self, graph_or_path, outputs=None, params=None) -> dict:
+    def check(self, graph_or_path, outputs=None, params=None, notes: list[str] | None = None) -> dict:
         """Check before running, from file headers only (``Engine.check``): sizes that
         do not fit, cutouts without alpha, placements off the canvas... Raises the
-        first problem as a ``GraphError`` naming the node and the files."""
-        return self.engine.check(self.graph(graph_or_path, params), outputs)
+        first problem as a ``GraphError`` naming the node and the files; warnings
+        (e.g. a horizon that does not fit the placement) are appended to ``notes``."""
+        return self.engine.check(self.graph(graph_or_path, params), outputs, notes=notes)
 
     def explain(self, graph_or_path, outputs=None, params=None, bind=None) -> str:
         return self.plan(graph_or_path, outputs, params, bind).table()
