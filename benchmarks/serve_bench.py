@@ -18,6 +18,20 @@ Rows (medians; the served graph is 512x512):
 
 Each drag step moves the shadow tip to a new point, so nothing is served from the
 cache. Goals from issue 13: preview <= 100 ms, final soft shadow <= 1 s.
+
+    python benchmarks/serve_bench.py --photo 5120x3840 [--photo-steps 6] [--browser]
+
+A photo of that size (photo_files: made from the repo's own assets in a temporary
+folder, never kept) opened as the page opens it: uploaded with an RGB cutout and
+a mask file, the own-photo graph built from the template (POST /api/open), then:
+  open -> first final      POST /api/open until the first final PNG has arrived
+  drag -> preview (1/s)    one light-drag step as the page sends it, the PNG
+                           downscaled by s (--scales, default 2: the server's old
+                           preview default, and 5: what the page asks for with the
+                           photo fitted in a 1280x800 window)
+  --browser                the same drag in headless Chromium on the page: from
+                           sending each preview to drawing it
+Goal from issue 22: light drag -> preview image in the page <= 150 ms at 20 MP.
 """
 from __future__ import annotations
 
@@ -172,6 +186,88 @@ def browser_drag(url: str, steps: int) -> tuple[list[float], list[float]]:
         return prev, finals
 
 
+def start_photo(width: int, height: int, folder: str):
+    """A server on a copy of graphs/own_photo.yaml with the limits a photo this size
+    needs; then the generated photo, cutout and mask opened as the page opens them."""
+    import shutil
+
+    os.makedirs(os.path.join(folder, "served", "assets"), exist_ok=True)
+    for name in ("own_photo.jpg", "own_cutout.png"):
+        shutil.copy(os.path.join(REPO, "graphs", "assets", name), os.path.join(folder, "served", "assets", name))
+    graph = os.path.join(folder, "served", "own_photo.yaml")
+    shutil.copy(os.path.join(REPO, "graphs", "own_photo.yaml"), graph)
+    files = photo_files(os.path.join(folder, "mine"), width, height, mask=True)
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen([sys.executable, "-m", "pixgraph", "serve", graph, "--port", "0",
+                             "--max-pixels", str(max(16777216, 2 * width * height)), "--max-body", str(512 << 20)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    line = proc.stdout.readline()
+    if "http://" not in line:
+        proc.kill()
+        raise SystemExit(f"pixgraph serve did not start: {line!r} {proc.stderr.read()[-2000:]}")
+    return proc, line.split(" at ", 1)[1].strip().rstrip("/"), files
+
+
+def photo_drags(url: str, files: dict, width: int, height: int, steps: int, scales) -> list:
+    """Rows for the opened photo: open -> first final, and drag -> preview per scale."""
+    nodelay = httpx.HTTPTransport(socket_options=[(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)])
+    rows = []
+    with httpx.Client(base_url=url, timeout=900, transport=nodelay) as c:
+        paths = {}
+        for role, path in files.items():
+            with open(path, "rb") as f:
+                r = c.put(f"/api/uploads/{os.path.basename(path)}", content=f.read())
+            r.raise_for_status()
+            paths[role] = r.json()["path"]
+        t0 = time.perf_counter()
+        c.post("/api/open", json=paths).raise_for_status()
+        c.post("/api/render", json={"mode": "final", "scale": max(scales)}).raise_for_status()
+        rows.append(("open -> first final", [time.perf_counter() - t0], "1 open"))
+        foot = c.get("/api/scene").json()["place"]["foot"]
+        seq = 0
+        for k, s in enumerate(scales):
+            times, inside = [], []
+            for i in range(steps):   # a new tip each step and each scale: nothing from the cache
+                a = math.pi * (0.1 + 0.8 * i / max(1, steps - 1) + 0.03 * k)
+                tip = [round(foot[0] + 0.3 * width * math.cos(a), 1), round(foot[1] + 0.04 * height * math.sin(a), 1)]
+                seq += 1
+                t0 = time.perf_counter()
+                r = c.post("/api/render", json={"light_tip": tip, "mode": "preview", "scale": s,
+                                                "client": "bench-photo", "seq": seq})
+                r.raise_for_status()
+                times.append(time.perf_counter() - t0)
+                inside.append(float(r.headers["x-pixgraph-seconds"]))
+            rows.append((f"{width}x{height}: drag -> preview (1/{s})", times, f"{steps} steps"))
+            rows.append(("  of which inside the server's handler", inside, f"{steps} steps"))
+    return rows
+
+
+def photo_browser(url: str, steps: int) -> list[float]:
+    """Preview latencies drawn by the page (the photo is already open on the server)."""
+    from playwright.sync_api import sync_playwright
+
+    args = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+            "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path="/usr/bin/chromium", args=args)
+        page = b.new_page(viewport={"width": 1280, "height": 800})
+        page.goto(url + "/")
+        page.wait_for_selector("body[data-ready='1']", state="attached", timeout=900000)
+        n0 = page.evaluate("window.pixgraphShown.length")
+        box = page.locator("#light-handle").bounding_box()
+        stage = page.locator("#stage").bounding_box()
+        x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+        page.mouse.move(x, y)
+        page.mouse.down()
+        for i in range(steps):
+            page.mouse.move(x - 15 * (i + 1), min(stage["y"] + stage["height"] - 20, y + 4 * (i + 1)))
+            page.wait_for_function(f"window.pixgraphShown.length > {n0 + i}", timeout=900000)
+        page.mouse.up()
+        shown = page.evaluate(f"window.pixgraphShown.slice({n0})")
+        b.close()
+        return [s["ms"] / 1000 for s in shown if s["mode"] == "preview"]
+
+
 def ms(xs) -> str:
     return f"{1000 * statistics.median(xs):8.1f} ms" if xs else "       -"
 
@@ -183,7 +279,30 @@ def main() -> None:
     ap.add_argument("--drags", type=int, default=5, help="drags per shadow method")
     ap.add_argument("--starts", type=int, default=3, help="cold starts")
     ap.add_argument("--browser", action="store_true", help="also drag in headless Chromium")
+    ap.add_argument("--photo", metavar="WxH", help="instead: open a generated photo of this size (e.g. 5120x3840)")
+    ap.add_argument("--photo-steps", type=int, default=6, help="drag steps per scale on the photo")
+    ap.add_argument("--scales", default="2,5", help="preview downscales to measure on the photo")
     args = ap.parse_args()
+
+    if args.photo:
+        import tempfile
+
+        width, height = (int(x) for x in args.photo.lower().split("x"))
+        print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f}; photo {width}x{height} "
+              f"({width * height / 1e6:.1f} MP), own-photo template, RGB cutout + mask")
+        with tempfile.TemporaryDirectory(prefix="pixgraph-bench-") as d:
+            proc, url, files = start_photo(width, height, d)
+            try:
+                rows = photo_drags(url, files, width, height, args.photo_steps,
+                                   [int(x) for x in args.scales.split(",")])
+                if args.browser:
+                    prev = photo_browser(url, args.photo_steps)
+                    rows.append((f"browser: drag -> preview drawn ({width}x{height})", prev, f"{len(prev)} images"))
+            finally:
+                stop(proc)
+        for name, xs, n in rows:
+            print(f"{name.ljust(52)}  {ms(xs)}  (median of {n})")
+        return
 
     print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f}; graph {os.path.relpath(args.graph)}")
     listening, first = cold_starts(args.graph, args.starts)
