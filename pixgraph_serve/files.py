@@ -139,8 +139,29 @@ def open_files(state: ServeState, data: dict) -> dict:
     w, h = _size(resolved["cutout"])
     name = "own_photo_mask" if "mask" in resolved else "own_photo"
     text = fill(template_text(name), resolved, {"W": W, "H": H, "w": w, "h": h})
+    previous = state.graph
     state.load_text(text)
-    return {"template": name, "yaml": state.yaml()}
+    try:
+        found = notes(state)   # the nodes' own checks from the files' headers: an RGB cutout without a mask...
+    except ServeError:
+        state.graph = previous
+        raise
+    return {"template": name, "yaml": state.yaml(), "notes": found}
+
+
+def notes(state: ServeState) -> list[str]:
+    """The graph's check before running (file headers only): its warnings, e.g. a
+    horizon that does not fit the cutout's placement; a problem is a ServeError."""
+    from pixgraph.graph import GraphError
+
+    found: list[str] = []
+    if not state.graph.outputs:
+        return found
+    try:
+        state.session.check(state.graph, notes=found)
+    except GraphError as e:
+        raise ServeError.from_graph_error(e) from None
+    return [n.replace(state.root + os.sep, "") for n in found]
 
 
 def _beside(src: str, folder: str) -> str:
@@ -200,7 +221,8 @@ def save_with_files(state: ServeState, path: str | None) -> dict:
 
 
 def routes(state: ServeState, locked, json_body):
-    """Starlette routes of this module: ``POST /api/open`` and ``POST /api/save_files``."""
+    """Starlette routes of this module: ``POST /api/open``, ``POST /api/save_files``
+    and ``GET /api/notes`` (the check's warnings)."""
     from starlette.responses import JSONResponse
     from starlette.routing import Route
 
@@ -215,5 +237,9 @@ def routes(state: ServeState, locked, json_body):
             raise ServeError(400, "path must be a string", field="path")
         return JSONResponse(await locked(save_with_files, state, p))
 
+    async def notes_route(request):
+        return JSONResponse({"notes": await locked(notes, state)})
+
     return [Route("/api/open", open_route, methods=["POST"]),
-            Route("/api/save_files", save_route, methods=["POST"])]
+            Route("/api/save_files", save_route, methods=["POST"]),
+            Route("/api/notes", notes_route, methods=["GET"])]

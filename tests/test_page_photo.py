@@ -158,6 +158,12 @@ def test_own_photo_graph_camera_from_the_photo(browser, tmp_path):
             assert abs(x - sx) < 1.5 and abs(y - sy) < 1.5
         drag(page, centre(page, "#junction-1"), screen(page, 600, 320))
         assert graph_params(url)["bg_h"]["junction_points"] == pytest.approx([0, 262, 600, 320], abs=1.0)
+        # the horizon dragged to just above the cutout's foot (row 345): the page shows the check's warning
+        assert page.locator("#notes").is_hidden()
+        drag(page, centre(page, "#horizon-handle"), screen(page, 10, 335))
+        assert graph_params(url)["cam"]["horizon"] == pytest.approx(335, abs=1.5)
+        assert page.locator("#notes").is_visible()
+        assert "times as tall as the camera is high" in page.inner_text("#notes")
         assert not errors, errors
         page.close()
 

@@ -1,11 +1,11 @@
 // pixgraph serve: the page's start-up (see app.js for the map of the modules).
 "use strict";
 
-import {$, api, showError} from "./app.js";
+import {$, showError} from "./app.js";
 import {wireFiles} from "./files.js";
 import {cutoutWheel, drawHandles} from "./handles.js";
 import {buildPanel, syncControls, wireToolbar} from "./panel.js";
-import {finalize, render, ui} from "./render.js";
+import {finalize, refresh, render, ui} from "./render.js";
 import {setImageSize, view, wireView} from "./view.js";
 
 let reRender = null;
@@ -21,7 +21,7 @@ function onViewChange() {
 // The graph, its handles and a first final image: at start and after opening files.
 async function load() {
   try {
-    [ui.info, ui.scene] = await Promise.all([api("GET", "/api/graph"), api("GET", "/api/scene")]);
+    await refresh();
   } catch (err) {
     showError(err.message);
     return;

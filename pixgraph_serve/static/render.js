@@ -40,7 +40,7 @@ export async function render(edits, mode) {
     showError(`server unreachable: ${err.message}`);
     return false;
   }
-  if (r.status === 409) return false;          // superseded by a newer render: dropped
+  if (r.status === 409) return "stale";        // superseded by a newer render: dropped
   if (!r.ok) {
     const data = await r.json().catch(() => ({error: r.statusText}));
     showError(data.error);
@@ -79,15 +79,25 @@ export function preview(edits) {
 export async function finalize(edits) {
   ui.pending = null;
   const ok = await render(edits, "final");
-  if (ok) await refresh();
-  return ok;
+  if (ok !== "stale") await refresh();   // refused edits too: the handles go back where the graph has them
+  return ok === true;
 }
 
 // Graph and handles from the server, after an edit has been applied.
 export async function refresh() {
-  [ui.info, ui.scene] = await Promise.all([api("GET", "/api/graph"), api("GET", "/api/scene")]);
+  let notes;
+  [ui.info, ui.scene, notes] = await Promise.all([api("GET", "/api/graph"), api("GET", "/api/scene"),
+                                                  api("GET", "/api/notes").catch(() => ({notes: []}))]);
+  showNotes(notes.notes);
   for (const f of ui.onScene) f();
   document.body.dataset.synced = ui.shownSeq;
+}
+
+// The graph check's warnings (e.g. a horizon above the cutout's foot), under the image.
+export function showNotes(notes) {
+  const el = $("notes");
+  el.replaceChildren(...(notes || []).map((n) => Object.assign(document.createElement("div"), {textContent: n})));
+  el.hidden = !(notes && notes.length);
 }
 
 export function markBad(data) {
