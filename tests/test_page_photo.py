@@ -151,6 +151,17 @@ def test_own_photo_graph_camera_from_the_photo(browser, tmp_path):
         x0, y0 = (round(c) for c in page.evaluate("window.pixgraphView.toScreen(0, 0)"))
         assert np.abs(shot[y0 + 5:y0 + 475, x0 + 5:x0 + 635] - img[5:475, 5:635]).mean() < 0.03
         check_handles_visible(page)
+        # the wheel zooms about the pointer: the photo pixel under it stays under it
+        k0 = page.evaluate("window.pixgraphView.state.k")
+        x, y = screen(page, 400, 300)
+        page.mouse.move(x, y)
+        page.mouse.wheel(0, -300)
+        page.wait_for_function(f"window.pixgraphView.state.k > {k0 * 1.3}")
+        assert screen(page, 400, 300) == pytest.approx((x, y), abs=0.5)
+        size = page.locator("#light-handle").bounding_box()["width"]
+        page.click("#zoom-fit")
+        assert page.evaluate("window.pixgraphView.state.k") == pytest.approx(k0)
+        assert page.locator("#light-handle").bounding_box()["width"] == pytest.approx(size)
         # the wall-floor line's ends are the graph's junction_points [0, 262, 640, 292]
         for i, (u, v) in enumerate([(0, 262), (640, 292)]):
             x, y = centre(page, f"#junction-{i}")
@@ -223,7 +234,7 @@ def run_photo(browser, tmp_path, width, height, *server_args):
         assert after[tv - r:tv + r, tu - r:tu + r].mean() > 0.3 > before[tv - r:tv + r, tu - r:tu + r].mean()
         keep(page, f"light_dragged_{width}x{height}.png")
         if os.environ.get("PIXGRAPH_UPDATE_DOCS") and width * height < 5e6:
-            page.screenshot(path=os.path.join(REPO, "docs", "img", "serve_own_photo.png"))
+            page.screenshot(path=os.path.join(REPO, "docs", "img", "serve_own_photo.jpg"), type="jpeg", quality=85)
         # the other handles with the hard shadow (the final of each drag is then quick)
         seq = last_seq(page)
         page.check("input[name=method][value='pixgraph.HardShadow']")

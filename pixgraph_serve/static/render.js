@@ -2,7 +2,8 @@
 // client, seq}: while a handle or slider moves, "preview" renders (hard shadow)
 // go out one at a time, the newest edit waiting in `pending`; when the pointer
 // stops a "final" render follows at once. Both come back at about the screen's
-// size (`scale`: the server box-filters the image by that integer factor). The
+// size (`scale`: the server box-filters the image by that integer factor;
+// previews at half resolution or less). The
 // server drops or cancels renders superseded by a newer seq (409), and the page
 // never shows an image older than the one shown.
 "use strict";
@@ -30,7 +31,8 @@ function merge(a, b) {
 
 export async function render(edits, mode) {
   const seq = ++ui.seq;
-  const scale = screenScale();
+  // previews at least at half resolution: a quick look while the pointer moves
+  const scale = mode === "preview" ? Math.max(2, screenScale()) : screenScale();
   const t0 = performance.now();
   let r;
   try {
