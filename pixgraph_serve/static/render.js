@@ -81,7 +81,8 @@ export function preview(edits) {
 export async function finalize(edits) {
   ui.pending = null;
   const ok = await render(edits, "final");
-  if (ok !== "stale") await refresh();   // refused edits too: the handles go back where the graph has them
+  // refused edits too: the handles go back where the graph has them
+  if (ok !== "stale") await refresh().catch((err) => showError(err.message));
   return ok === true;
 }
 
