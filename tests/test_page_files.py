@@ -2,6 +2,7 @@
 in process through Starlette's test client: the own-photo template filled in with
 uploaded files, the path rules on them, save with the files beside the graph, and
 the page's module files served (and nothing else)."""
+import io
 import os
 import shutil
 
@@ -84,6 +85,12 @@ def test_open_photo_cutout_and_mask(served, tmp_path):
     assert v1 == pytest.approx(204, abs=1.5) and v1 - v0 == pytest.approx(53 * 1.8, abs=3)
     final = client.post("/api/render", json={"mode": "final"})
     assert final.status_code == 200 and final.headers["content-type"] == "image/png"
+    # the page asks for images at the screen's size: box-filtered by `scale`
+    small = client.post("/api/render", json={"mode": "final", "scale": 3})
+    assert Image.open(io.BytesIO(small.content)).size == (320 // 3, 240 // 3)
+    for bad in (0, 17, 2.5, True, "2"):
+        r = client.post("/api/render", json={"mode": "final", "scale": bad})
+        assert r.status_code == 400 and r.json()["field"] == "scale", bad
     # a horizon dragged below the foot: the check's warning, for the page to show
     client.post("/api/params", json={"params": {"cam.horizon": 230}}).raise_for_status()
     found = client.get("/api/notes").json()["notes"]
