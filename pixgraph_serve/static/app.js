@@ -12,9 +12,12 @@
 
 export const $ = (id) => document.getElementById(id);
 
+// The server's per-launch token, when it wrote one into the page, goes with every request.
+const TOKEN = document.querySelector("meta[name=pixgraph-token]")?.content;
+
 // The one fetch of the page.
 export function request(path, init = {}) {
-  return fetch(path, init);
+  return fetch(path, TOKEN ? {...init, headers: {...(init.headers || {}), "X-Pixgraph-Token": TOKEN}} : init);
 }
 
 export async function api(method, path, body) {
