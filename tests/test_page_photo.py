@@ -330,3 +330,33 @@ def test_drop_photo_and_rgba_cutout_on_the_image(browser, tmp_path):
         assert img.shape[:2] == (720, 960) and img.std() > 0.08
         assert not errors, errors
         page.close()
+
+
+def test_corner_and_back_wall_templates(browser, tmp_path):
+    """two_corners: its second corner drags; a back_wall given by row and slope shows its
+    two ends, and a drag of one makes them junction_points."""
+    from serve_helpers import copy_scene
+
+    graph = copy_scene(str(tmp_path))
+    with running_server(graph) as (url, _):
+        httpx.post(url + "/api/params", timeout=60, json={"params": {
+            "bg_h.kind": "two_corners", "bg_h.corner": [200, 300], "bg_h.corner2": [330, 300]}}).raise_for_status()
+        page, errors = open_page(browser, url)
+        assert page.evaluate("window.pixgraphView.state.k") == 1
+        drag(page, centre(page, "#corner2-handle"), screen(page, 350, 290))
+        assert graph_params(url)["bg_h"]["corner2"] == pytest.approx([350, 290], abs=1.0)
+        seq = last_seq(page)
+        page.click("details.node:has([data-param='bg_h.kind']) > summary")   # open the node's params
+        page.select_option('[data-param="bg_h.kind"]', "back_wall")
+        wait_final(page, seq)
+        bg = graph_params(url)["bg_h"]
+        assert bg["junction_points"] == []
+        row, slope = bg["junction_row"], bg["junction_slope"]
+        for i, u in enumerate((0, 512)):
+            x, y = centre(page, f"#junction-{i}")
+            assert (x, y) == pytest.approx(screen(page, u, row + slope * (u - 256)), abs=1.5)
+        drag(page, centre(page, "#junction-1"), screen(page, 512, 330))
+        assert graph_params(url)["bg_h"]["junction_points"] == pytest.approx(
+            [0, row - slope * 256, 512, 330], abs=1.0)
+        assert not errors, errors
+        page.close()
