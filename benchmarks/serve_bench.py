@@ -169,10 +169,13 @@ def browser_drag(url: str, steps: int) -> tuple[list[float], list[float]]:
             n0 = page.evaluate("window.pixgraphShown.length")
             box = page.locator("#light-handle").bounding_box()
             view = page.locator("#view").bounding_box()
+            # image pixels -> page: through the page's view transform (fit and zoom) when it has one
+            to_page = page.evaluate("window.pixgraphView ? [window.pixgraphView.state.k,"
+                                    " window.pixgraphView.state.ox, window.pixgraphView.state.oy] : [1, 0, 0]")
             page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
             page.mouse.down()
             for tip in tips(steps, 0.05 * k):
-                page.mouse.move(view["x"] + tip[0], view["y"] + tip[1])
+                page.mouse.move(view["x"] + to_page[1] + to_page[0] * tip[0], view["y"] + to_page[2] + to_page[0] * tip[1])
                 page.wait_for_timeout(30)   # pointer events about as fast as a hand moves
             page.mouse.up()
             page.wait_for_function(f"window.pixgraphShown.length > {n0} && "
