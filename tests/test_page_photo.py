@@ -175,6 +175,24 @@ def test_own_photo_graph_camera_from_the_photo(browser, tmp_path):
         assert graph_params(url)["cam"]["horizon"] == pytest.approx(335, abs=1.5)
         assert page.locator("#notes").is_visible()
         assert "times as tall as the camera is high" in page.inner_text("#notes")
+        # "find horizon": two lines laid along parallel floor lines meet on the horizon, here
+        # (100, 460)-(200, 300) and (540, 460)-(440, 300): at u = 320, v = 460 - 1.6 * 220 = 108
+        page.click("#find-horizon")
+        for (i, j), (u, v) in {(0, 0): (100, 460), (0, 1): (200, 300), (1, 0): (540, 460), (1, 1): (440, 300)}.items():
+            box = page.locator(f"#finder-{i}-{j}").bounding_box()
+            assert box["width"] == pytest.approx(11.5)   # 10 px and the stroke: screen pixels
+            drag_only = (box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+            page.mouse.move(*drag_only)
+            page.mouse.down()
+            page.mouse.move(*screen(page, u, v), steps=4)
+            page.mouse.up()
+        assert page.inner_text("#horizon-apply") == "set horizon (row 108)"
+        keep(page, "find_horizon.png")
+        seq = last_seq(page)
+        page.click("#horizon-apply")
+        wait_final(page, seq)
+        assert graph_params(url)["cam"]["horizon"] == pytest.approx(108, abs=1.0)
+        assert page.locator("#notes").is_hidden()
         assert not errors, errors
         page.close()
 

@@ -10,6 +10,7 @@
 
 import {$} from "./app.js";
 import {finalize, preview, ui} from "./render.js";
+import {drawFinder} from "./horizon.js";
 import {eventToImage, toScreen, view} from "./view.js";
 
 const SVG = "http://www.w3.org/2000/svg";
@@ -104,6 +105,7 @@ export function drawHandles() {
     if (light.top_uvh) line("light", light.top_uvh.slice(0, 2), light.tip_uv);
     handle("light", "light-handle", light.tip_uv, (p) => ({edits: {light_tip: p.map((x) => round(x))}, at: p}));
   }
+  drawFinder();
 }
 
 function drawWall(bg, id, line) {

@@ -4,6 +4,7 @@
 
 import {$, upload, showError} from "./app.js";
 import {flipCutout} from "./handles.js";
+import {applyFinder, toggleFinder} from "./horizon.js";
 import {finalize, preview, ui} from "./render.js";
 
 export function syncControls() {
@@ -22,6 +23,7 @@ export function syncControls() {
     r.disabled = !shadowType;
   }
   $("flip").disabled = !s.place;
+  $("find-horizon").disabled = !s.camera;
   for (const node of ui.info.nodes) {
     for (const [name, value] of Object.entries(node.values)) {
       const el = document.querySelector(`[data-param="${node.id}.${name}"]`);
@@ -126,4 +128,6 @@ export function wireToolbar() {
     r.addEventListener("change", () => finalize({types: {[ui.scene.roles.shadow]: r.value}}));
   }
   $("flip").addEventListener("click", flipCutout);
+  $("find-horizon").addEventListener("click", toggleFinder);
+  $("horizon-apply").addEventListener("click", applyFinder);
 }
