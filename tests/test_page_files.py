@@ -149,7 +149,8 @@ def test_page_modules_are_served_and_nothing_else(served):
     state, client = served
     page = client.get("/").text
     assert '<script type="module" src="/static/main.js">' in page
-    for name in ("main.js", "app.js", "render.js", "view.js", "handles.js", "panel.js", "files.js", "style.css"):
+    for name in ("main.js", "app.js", "render.js", "view.js", "handles.js", "horizon.js", "panel.js", "files.js",
+                 "style.css"):
         r = client.get(f"/static/{name}")
         assert r.status_code == 200 and r.headers["content-type"].startswith(
             "text/javascript" if name.endswith(".js") else "text/css"), name
