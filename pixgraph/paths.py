@@ -13,11 +13,15 @@ leads out of a root. NUL and other control characters are refused everywhere.
     policy.check_write("/etc/passwd", node="save", param="path")       # PathError
 
 ``strict=True`` (the HTTP server) ignores ``PIXGRAPH_ALLOW_PATHS``: only the
-graph's folder and the roots given in code count. What this does and does not
-guard is in ``docs/security.md``.
+graph's folder and the roots given in code count. A path a node writes is
+handed to it as a ``WritePath`` that remembers the folder checked, and the image
+writers open that folder with ``open_write_folder`` (no symlink followed), so a
+folder swapped for a symlink after the check cannot redirect the write. What this
+does and does not guard is in ``docs/security.md``.
 """
 from __future__ import annotations
 
+import errno
 import os
 import pathlib
 import stat
@@ -147,3 +151,76 @@ class PathPolicy:
 
     def __repr__(self) -> str:
         return f"PathPolicy({list(self.roots)!r}, strict={self.strict})"
+
+
+# -- writing without following symlinks ------------------------------------------------
+
+_DIR_FLAGS = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0)
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+
+
+class WritePath(str):
+    """A path a node writes, as the graph names it (made absolute: messages name
+    the user's path), carrying ``real``: the symlink-free path the policy allowed
+    when the run was planned. ``open_write_folder`` writes there and nowhere else,
+    even if a folder on the way has been swapped for a symlink since."""
+
+    def __new__(cls, named: str, real: str):
+        obj = str.__new__(cls, named)
+        obj.real = os.fspath(real)
+        return obj
+
+    def __reduce__(self):
+        return (WritePath, (str(self), self.real))
+
+
+def open_write_folder(path: PathLike) -> tuple[int, str]:
+    """``(folder descriptor, file name)`` for writing ``path``, the folder opened one
+    component at a time from ``/`` with ``O_NOFOLLOW`` (missing folders are created),
+    so no symlink on the way is followed. The folder is the one the path policy
+    checked (``WritePath.real``), or for any other path its real folder now (the
+    user's own ``-o`` paths). Raises ``PathError`` (nothing written) when a
+    component is now a symlink or not a folder; the caller closes the descriptor."""
+    named = os.fspath(path)
+    real = getattr(path, "real", None) or os.path.realpath(os.path.abspath(named))
+    folder, name = os.path.split(real)
+    if not name or name in (os.curdir, os.pardir):
+        raise PathError(f"cannot write {quote(named)}: not a file name")
+    fd = os.open(os.sep, _DIR_FLAGS)
+    walked = ""
+    try:
+        for part in folder.split(os.sep):
+            if not part:
+                continue
+            walked += os.sep + part
+            try:
+                nfd = os.open(part, _DIR_FLAGS | _NOFOLLOW, dir_fd=fd)
+            except FileNotFoundError:
+                try:
+                    os.mkdir(part, 0o777, dir_fd=fd)
+                except FileExistsError:
+                    pass
+                nfd = _open_component(part, fd, named, walked)
+            except OSError as e:
+                raise _swapped(named, walked, e) from None
+            os.close(fd)
+            fd = nfd
+        return fd, name
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def _open_component(part: str, fd: int, named: str, walked: str) -> int:
+    try:
+        return os.open(part, _DIR_FLAGS | _NOFOLLOW, dir_fd=fd)
+    except OSError as e:
+        raise _swapped(named, walked, e) from None
+
+
+def _swapped(named: str, walked: str, e: OSError) -> PathError:
+    if e.errno in (errno.ELOOP, errno.ENOTDIR, errno.EMLINK):
+        why = "is now a symlink or not a folder (changed since the path was checked)"
+    else:
+        why = f"cannot be opened ({e.strerror})"
+    return PathError(f"cannot write {quote(named)}: {quote(walked)} {why}; nothing was written")
