@@ -164,3 +164,97 @@ def test_policy_api_and_strict_mode(world, monkeypatch):
         s.run(b.build())
     s = Session(strict_paths=True, allow_paths=[outside])
     assert s.run(b.build())["img"].shape == (2, 3, 4)
+
+
+# -- a folder swapped for a symlink between the check and the write ----------------------
+
+import shutil
+
+from pixgraph import events as E
+from pixgraph.engine import NodeInputError
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _tree(root):
+    return sorted((os.path.relpath(os.path.join(d, n), root), os.path.getsize(os.path.join(d, n)))
+                  for d, _, files in os.walk(root) for n in files)
+
+
+@pytest.mark.parametrize("swapped", ["out", "out/sub"])
+@pytest.mark.parametrize("ext", ["png", "npy", "exr"])
+def test_a_folder_swapped_for_a_symlink_after_the_check_is_not_written_through(world, swapped, ext):
+    job, outside = world
+    (job / "out" / "sub").mkdir(parents=True)
+    before = _tree(outside)
+    s = Session(disk_cache=None)
+    b = s.builder(base_dir=str(job))
+    b.add("pixgraph.Constant", "c", width=3, height=2)
+    b.add("pixgraph.SaveImage", "save", path=f"out/sub/x.{ext}")
+    b.connect("c.image", "save.image")
+    b.output("file", "save.path")
+    g = b.build()
+    target = outside if swapped == "out" else outside / "sub"
+
+    def swap(ev):  # the plan checked out/sub; now the attacker's symlink takes its place
+        if isinstance(ev, E.NodeStarted) and ev.node_id == "save":
+            shutil.rmtree(job / swapped)
+            os.symlink(target, job / swapped)
+
+    with pytest.raises(NodeInputError) as e:
+        s.run(g, on_event=swap)
+    msg = str(e.value)
+    assert "node 'save'" in msg and "now a symlink or not a folder" in msg and "nothing was written" in msg
+    assert _tree(outside) == before  # 0 files written outside, no temporary left
+    # the same graph, unswapped, writes where it was checked to
+    os.unlink(job / swapped)
+    (job / "out" / "sub").mkdir(parents=True, exist_ok=True)
+    assert s.run(g)["file"] == str(job / "out" / "sub" / f"x.{ext}")
+    assert (job / "out" / "sub" / f"x.{ext}").is_file() and _tree(outside) == before
+
+
+def test_a_symlinked_folder_inside_the_graph_folder_is_written_through_as_checked(world):
+    job, outside = world
+    (job / "real").mkdir()
+    os.symlink(job / "real", job / "alias")
+    s = Session(disk_cache=None)
+    b = s.builder(base_dir=str(job))
+    b.add("pixgraph.Constant", "c", width=3, height=2)
+    b.add("pixgraph.SaveImage", "save", path="alias/new/y.png")
+    b.connect("c.image", "save.image")
+    b.output("file", "save.path")
+    out = s.run(b.build())["file"]
+    assert out == str(job / "alias" / "new" / "y.png")  # the path as the graph names it
+    assert read_image(job / "real" / "new" / "y.png")[0].shape == (2, 3, 4)
+    assert sorted(os.listdir(job / "real" / "new")) == ["y.png"]  # no temporary left
+
+
+# -- a cutout without alpha: refused wherever its alpha is used ----------------------------
+
+def test_a_jpeg_as_the_cutout_of_the_example_graph_is_refused(capsys, tmp_path):
+    graph = os.path.join(REPO, "graphs", "wall_corner_shadow.yaml")
+    before = _tree(os.path.join(REPO, "graphs"))
+    messages = []
+    for argv in (["run", graph, "-q", "--no-disk-cache", "--set", "cutout.path=assets/room_ground.jpg",
+                  "-o", f"final={tmp_path / 'final.png'}"],
+                 ["validate", graph, "-q", "--set", "cutout.path=assets/room_ground.jpg"]):
+        code = main(argv)
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and len(err[0]) <= 300, err
+        assert err[0].startswith(graph + ":") and "node 'fg_h'" in err[0] and "input 'mask'" in err[0]
+        assert "'assets/room_ground.jpg' (node 'cutout')" in err[0] or "room_ground.jpg' (node 'cutout')" in err[0]
+        messages.append(err[0])
+    assert not (tmp_path / "final.png").exists() and _tree(os.path.join(REPO, "graphs")) == before
+    # PlaceCutout's own refusal of the same file, word for word
+    (tmp_path / "g.yaml").write_text(f"""pixgraph: 1
+nodes:
+  cutout: {{type: pixgraph.LoadImage, params: {{path: {os.path.join(REPO, 'graphs', 'assets', 'room_ground.jpg')}}}}}
+  place: {{type: pixgraph.PlaceCutout, inputs: {{cutout: cutout.image, background: cutout.image}}}}
+outputs: {{img: place.image}}
+""")
+    assert main(["validate", str(tmp_path / "g.yaml"), "-q", "--allow-path", REPO]) == 2
+    placed = capsys.readouterr().err.strip()
+    tail = placed[placed.index("has no alpha channel"):]
+    assert all(m.endswith(tail) for m in messages) and "(3 channels)" in tail
+    # the JPEG as the photo (its image, not its alpha) is fine
+    assert main(["validate", graph, "-q", "--set", "photo.path=assets/room_ground.jpg"]) == 0
