@@ -29,7 +29,7 @@ class LoadImage:
 
     class Outputs:
         image: T.Image = port(doc="(H, W, C) linear light, premultiplied")
-        alpha: T.Mask = port(doc="coverage; a file without alpha has none: a node that uses it is refused")
+        alpha: T.Mask = port(doc="coverage; ones when the file has no alpha")
 
     impl_version = "1"
 
