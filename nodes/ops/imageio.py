@@ -372,12 +372,12 @@ def read_data(path: str | os.PathLike, white: float = 1.0) -> np.ndarray:
 
 
 def _write_atomic(oiio, path, spec, pixels: np.ndarray) -> None:
-    def fill(f, tmp):
-        out = oiio.ImageOutput.create(tmp)
+    def fill(f, via):
+        out = oiio.ImageOutput.create("x" + os.path.splitext(str(path))[1])  # the format, by extension
         if out is None:
             raise OSError(f"cannot write image {path}: {oiio.geterror()}")
         try:
-            if not out.open(tmp, spec):
+            if not out.open(via, spec):
                 raise OSError(f"cannot write image {path}: {out.geterror()}")
             if not out.write_image(pixels):
                 raise OSError(f"cannot write image {path}: {out.geterror()}")
@@ -390,13 +390,14 @@ def _write_atomic(oiio, path, spec, pixels: np.ndarray) -> None:
 def _write_via_temp(path, suffix: str, fill) -> None:
     """Write the file ``path`` through a temporary next to it, renamed into place (a
     reader never sees half a file), without following any symlink: the folder is
-    opened by ``pixgraph.paths.open_write_folder`` (the folder the path policy
-    checked, for a node's ``WritePath``; missing folders are created), the temporary
-    is created there with ``O_EXCL | O_NOFOLLOW`` under a random name, and
-    ``fill(file, tmp_path)`` writes it, to the open file or by the path (OpenImageIO;
-    the path goes through ``/proc/self/fd``, i.e. through the open folder). A
-    temporary replaced while it was written is refused. A folder on the way that
-    became a symlink is an ``ImageFileError`` (bad input); nothing is written."""
+    opened by ``pixgraph.paths.open_write_folder`` (for a node's ``WritePath``, the
+    folder the path policy checked; missing folders are created), the temporary is
+    created there with ``O_EXCL | O_NOFOLLOW`` under a random name, and
+    ``fill(file, via)`` writes it: to the open file, or (OpenImageIO) by the path
+    ``via``, which is ``/proc/self/fd/N`` of that very file, so the bytes go to the
+    file created whatever happens to names in the folder meanwhile. The rename is
+    refused if the temporary's name no longer holds that file. A folder on the way
+    that became a symlink is an ``ImageFileError`` (bad input): nothing is written."""
     import stat
     import uuid
 
@@ -407,10 +408,6 @@ def _write_via_temp(path, suffix: str, fill) -> None:
     except PathError as e:
         raise ImageFileError(e.message) from None
     tmp = f".{os.path.splitext(name)[0]}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}{suffix}"
-    if os.path.isdir(f"/proc/self/fd/{folder}"):
-        via = f"/proc/self/fd/{folder}/{tmp}"
-    else:  # no /proc (not Linux): the folder's path, checked just now
-        via = os.path.join(os.path.dirname(getattr(path, "real", None) or os.path.realpath(os.fspath(path))), tmp)
     created = False
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o666,
@@ -418,11 +415,14 @@ def _write_via_temp(path, suffix: str, fill) -> None:
         created = True
         with os.fdopen(fd, "wb") as f:
             inode = os.fstat(f.fileno()).st_ino
+            via = f"/proc/self/fd/{f.fileno()}"
+            if not os.path.exists(via):  # no /proc (not Linux): the temporary's path in the checked folder
+                via = os.path.join(os.path.dirname(getattr(path, "real", None)
+                                                   or os.path.realpath(os.fspath(path))), tmp)
             fill(f, via)
         st = os.stat(tmp, dir_fd=folder, follow_symlinks=False)
         if not stat.S_ISREG(st.st_mode) or st.st_ino != inode:
-            raise ImageFileError(f"cannot write {path}: its temporary file was replaced while it was written; "
-                                 "nothing was written")
+            raise ImageFileError(f"cannot write {path}: its temporary file was replaced while it was written")
         os.replace(tmp, name, src_dir_fd=folder, dst_dir_fd=folder)
         created = False
     finally:
