@@ -460,11 +460,11 @@ class DiskCache:
             self._check_marker(marker, st)
             return True
         try:
-            foreign = foreign_items(self.root)
+            foreign = foreign_items(self.root, limit=4)
         except OSError as e:
             raise CacheFolderError(f"disk cache {shown} cannot be listed: {e.strerror}") from None
         if foreign:
-            listing = ", ".join(foreign) + (", ..." if len(foreign) >= 3 else "")
+            listing = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
             raise CacheFolderError(
                 f"disk cache folder {shown} is not pixgraph's: it holds {listing} and no {MARKER}; "
                 f"nothing in it was changed (use a new or empty folder with --disk-cache or "
