@@ -13,6 +13,7 @@ always run when requested and are never cached.
 """
 from __future__ import annotations
 
+import collections.abc
 import dataclasses
 import logging
 import os
@@ -132,8 +133,15 @@ class Plan:
 
 
 @dataclasses.dataclass(frozen=True)
-class RunResult:
-    values: dict[str, Any]
+class RunResult(collections.abc.Mapping):
+    """What a run returns: its outputs, and what ran and what came from a cache.
+
+    It is a read-only mapping of output name -> value (``result["final"]``,
+    ``dict(result)``, ``result.items()``); ``outputs`` is the same as a plain dict.
+    """
+
+    #: ``{output name: value}``
+    outputs: dict[str, Any]
     #: compute seconds of each node that ran
     timings: dict[str, float]
     ran: tuple[str, ...]
@@ -141,6 +149,20 @@ class RunResult:
     plan: Plan
     #: messages each node that ran logged (``ctx.log``), by node id
     logs: dict[str, list[str]] = dataclasses.field(default_factory=dict)
+
+    @property
+    def seconds(self) -> float:
+        """Compute seconds of the nodes that ran, summed (cache hits count 0)."""
+        return float(sum(self.timings.values()))
+
+    def __getitem__(self, name: str) -> Any:
+        return self.outputs[name]
+
+    def __iter__(self):
+        return iter(self.outputs)
+
+    def __len__(self) -> int:
+        return len(self.outputs)
 
 
 class Engine:
