@@ -606,10 +606,11 @@ class DiskCache:
                 fd = os.open(key + DISK_SUFFIX, os.O_RDONLY | _NOFOLLOW, dir_fd=d)
             except FileNotFoundError:
                 return MISS
+            if not stat.S_ISREG(os.fstat(fd).st_mode):  # a folder in the entry's place: not ours, left alone
+                os.close(fd)
+                return MISS
             with os.fdopen(fd, "rb") as f:
                 st = os.fstat(f.fileno())
-                if not stat.S_ISREG(st.st_mode):
-                    raise ValueError("not a regular file")
                 if st.st_size > max(self.limit_bytes, 1 << 20):
                     raise ValueError(f"entry of {st.st_size} bytes exceeds the cache limit")
                 data = f.read()

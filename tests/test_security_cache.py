@@ -469,6 +469,7 @@ def test_a_directory_in_an_entrys_place_means_not_cached(tmp_path, capsys):
         events = []
         np.testing.assert_array_equal(s.run(g, on_event=events.append)["o"], 2.0)
         assert all("not on disk: something that is not a cache entry" in x for x in _stored(events))
+        assert not any(isinstance(e, E.NodeLog) and "discarded" in e.message for e in events)
         s.memory.clear()
     for key in keys.values():
         assert (tmp_path / "disk" / key[:2] / (key + ".pxc") / "keep.txt").read_text() == "keep"
@@ -477,6 +478,8 @@ def test_a_directory_in_an_entrys_place_means_not_cached(tmp_path, capsys):
     y.write_text("pixgraph: 1\nnodes:\n  src: {type: t.Source, params: {value: 1.0, size: 8}}\n"
                  "  sc: {type: t.Scale, params: {factor: 2.0}, inputs: {x: src.out}}\noutputs: {o: sc.out}\n")
     assert main(["run", str(y), "-q", "--disk-cache", str(root)], registry=make_registry()) == 0
+    warned = [line for line in capsys.readouterr().err.splitlines() if "pixgraph" in line or "disk" in line]
+    assert len(warned) <= 1  # one warning for the run, not one per entry
 
 
 def test_a_result_too_large_for_memory_is_not_cached(tmp_path, monkeypatch):
