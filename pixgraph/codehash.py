@@ -80,11 +80,7 @@ def code_hash(module: str) -> str:
     else:
         h = hashlib.sha256()
         for label, path in sorted(files.items()):
-            h.update(label.encode("utf-8") + b"\0")
-            with open(path, "rb") as f:
-                for chunk in iter(lambda: f.read(1 << 20), b""):
-                    h.update(chunk)
-            h.update(b"\0")
+            h.update(label.encode("utf-8") + b"\0" + _file_digest(path) + b"\0")
         digest = h.hexdigest()[:16]
     with _lock:
         _by_module[module] = digest
@@ -114,31 +110,68 @@ def code_files(module: str) -> dict[str, str]:
         files[mod] = path
         if not path.endswith(".py"):
             continue
-        try:
-            with open(path, "rb") as f:
-                tree = ast.parse(f.read(), filename=path)
-        except (OSError, SyntaxError, ValueError):
-            continue
         is_pkg = _is_package(mod, path)
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Import):
-                for alias in node.names:
-                    if alias.name.split(".")[0] == top:
-                        queue.append(alias.name)
-            elif isinstance(node, ast.ImportFrom):
-                base = _absolute(mod, is_pkg, node.level, node.module)
-                if base is None or base.split(".")[0] != top:
-                    continue
-                for alias in node.names:
-                    sub = f"{base}.{alias.name}"
-                    if alias.name != "*" and _origin(sub) is not None:
-                        queue.append(sub)  # a submodule: not the package it sits in
-                    else:
-                        queue.append(base)  # a name defined in ``base``
-            elif isinstance(node, ast.Constant) and isinstance(node.value, str):
-                for data in _data_files(node.value, os.path.dirname(path), by_name):
-                    _add_data(files, data, package_dir or os.path.dirname(origin))
+        imports, strings = _scan(path)
+        for level, name, aliases in imports:
+            base = _absolute(mod, is_pkg, level, name) if level else name
+            if base is None or base.split(".")[0] != top:
+                continue
+            if aliases is None:  # import a.b.c
+                queue.append(base)
+                continue
+            for alias in aliases:
+                sub = f"{base}.{alias}"
+                if alias != "*" and _origin(sub) is not None:
+                    queue.append(sub)  # a submodule: not the package it sits in
+                else:
+                    queue.append(base)  # a name defined in ``base``
+        for text in strings:
+            for data in _data_files(text, os.path.dirname(path), by_name):
+                _add_data(files, data, package_dir or os.path.dirname(origin))
     return files
+
+
+_scans: dict[tuple[str, int, int], tuple[list, list]] = {}
+_digests: dict[tuple[str, int, int], bytes] = {}
+
+
+def _file_digest(path: str) -> bytes:
+    """sha256 of a file's bytes, once per process per file version."""
+    st = os.stat(path)
+    sig = (path, st.st_mtime_ns, st.st_size)
+    hit = _digests.get(sig)
+    if hit is None:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        hit = _digests[sig] = h.digest()
+    return hit
+
+
+def _scan(path: str) -> tuple[list, list]:
+    """The imports ``(level, module, names or None)`` and string literals of a
+    source file, parsed once per process per file version."""
+    st = os.stat(path)
+    sig = (path, st.st_mtime_ns, st.st_size)
+    hit = _scans.get(sig)
+    if hit is not None:
+        return hit
+    imports, strings = [], []
+    try:
+        with open(path, "rb") as f:
+            tree = ast.parse(f.read(), filename=path)
+    except (OSError, SyntaxError, ValueError):
+        tree = None
+    for node in ast.walk(tree) if tree is not None else ():
+        if isinstance(node, ast.Import):
+            imports += [(0, alias.name, None) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            imports.append((node.level, node.module, [alias.name for alias in node.names]))
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            strings.append(node.value)
+    _scans[sig] = (imports, strings)
+    return imports, strings
 
 
 def _absolute(mod: str, is_pkg: bool, level: int, name: str | None) -> str | None:
@@ -151,8 +184,19 @@ def _absolute(mod: str, is_pkg: bool, level: int, name: str | None) -> str | Non
     return ".".join(parts + ([name] if name else []))
 
 
+_origins: dict[str, str | None] = {}
+
+
 def _origin(module: str) -> str | None:
-    """The file of a module, without importing it (its parent packages may be)."""
+    """The file of a module, without importing it (its parent packages may be);
+    looked up once per process per name."""
+    if module in _origins:
+        return _origins[module]
+    _origins[module] = found = _find_origin(module)
+    return found
+
+
+def _find_origin(module: str) -> str | None:
     loaded = sys.modules.get(module)
     f = getattr(loaded, "__file__", None) if loaded is not None else None
     if f is None:
@@ -231,3 +275,4 @@ def clear() -> None:
     with _lock:
         _by_module.clear()
         _by_class.clear()
+        _origins.clear()

@@ -258,3 +258,26 @@ outputs: {{img: place.image}}
     assert all(m.endswith(tail) for m in messages) and "(3 channels)" in tail
     # the JPEG as the photo (its image, not its alpha) is fine
     assert main(["validate", graph, "-q", "--set", "photo.path=assets/room_ground.jpg"]) == 0
+
+
+@pytest.mark.parametrize("writer", ["image", "data", "exr_channels"])
+def test_every_writer_keeps_to_the_folder_that_was_checked(world, writer):
+    from pixgraph.paths import WritePath
+    from pixgraph_nodes.ops.imageio import ImageFileError, write_data, write_exr_channels
+
+    job, outside = world
+    (job / "out").mkdir()
+    named = str(job / "out" / "new" / "m.exr")
+    checked = WritePath(named, os.path.realpath(named))  # as the engine hands it to a node
+    os.rmdir(job / "out")
+    os.symlink(outside, job / "out")  # swapped after the check
+    before = _tree(outside)
+    a = np.full((2, 3), 0.25, np.float32)
+    write = {"image": lambda p: write_image(p, a), "data": lambda p: write_data(p, a),
+             "exr_channels": lambda p: write_exr_channels(p, {"x": a, "y": a})}[writer]
+    with pytest.raises(ImageFileError, match="now a symlink or not a folder"):
+        write(checked)
+    assert _tree(outside) == before and not (outside / "new").exists()
+    # a plain path (the user's own -o) goes where it points at the time of the write
+    write(named)
+    assert (outside / "new" / "m.exr").is_file()
