@@ -38,6 +38,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from .paths import Folder
 from .types import nbytes
 
 MISS = object()
@@ -318,7 +319,6 @@ _RECORD_NAME = re.compile(r"^[a-z][a-z0-9_-]{0,63}-[0-9a-f]{64}$")
 _RECORD = re.compile(r"^[a-z][a-z0-9_-]{0,63}-[0-9a-f]{64}\.json$")
 _RECORD_TMP = re.compile(r"^\.tmp-[a-z][a-z0-9_-]{0,63}-[0-9a-f]{64}-[0-9a-f]{32}\.json$")
 _MAX_MARKER = 64 << 10
-_DIR = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0)
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 
 
@@ -520,18 +520,10 @@ class DiskCache:
             self._warn(why)
         return False
 
-    def _subdir(self, name: str, create: bool = False) -> int:
-        """A descriptor of ``<root>/<name>``, never through a symlink there."""
-        root = os.open(self.root, _DIR)
-        try:
-            if create:
-                try:
-                    os.mkdir(name, 0o777, dir_fd=root)
-                except FileExistsError:
-                    pass
-            return os.open(name, _DIR | _NOFOLLOW, dir_fd=root)
-        finally:
-            os.close(root)
+    def _subdir(self, name: str, create: bool = False) -> Folder:
+        """``<root>/<name>`` held open, never through a symlink there."""
+        with Folder.at(self.root) as root:
+            return root.sub(name, create)
 
     def _unlink(self, folder: str, name: str) -> bool:
         """Delete ``<root>/<folder>/<name>`` if pixgraph owns that name (never a folder,
@@ -543,12 +535,12 @@ class DiskCache:
         except OSError:
             return False
         try:
-            os.unlink(name, dir_fd=d)
+            d.unlink(name)
             return True
         except OSError:
             return False
         finally:
-            os.close(d)
+            d.close()
 
     def _files(self, want: Callable[[str, str], bool]) -> list[tuple[str, str, os.stat_result]]:
         """(folder, name, lstat) of regular files in pixgraph's subfolders for which ``want``."""
@@ -603,7 +595,7 @@ class DiskCache:
             return MISS
         try:
             try:
-                fd = os.open(key + DISK_SUFFIX, os.O_RDONLY | _NOFOLLOW, dir_fd=d)
+                fd = d.open(key + DISK_SUFFIX, os.O_RDONLY)
             except FileNotFoundError:
                 return MISS
             if not stat.S_ISREG(os.fstat(fd).st_mode):  # a folder in the entry's place: not ours, left alone
@@ -624,7 +616,7 @@ class DiskCache:
             self._discard(key, None, f"{type(e).__name__}: {e}"[:200])
             return MISS
         finally:
-            os.close(d)
+            d.close()
 
     def _note(self, key: str, why: str) -> None:
         self.discarded.pop(key, None)
@@ -663,7 +655,7 @@ class DiskCache:
         pending = False
         try:
             d = self._subdir(key[:2], create=True)
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o644, dir_fd=d)
+            fd = d.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL)
             pending = True
             with os.fdopen(fd, "wb") as f:
                 h = hashlib.sha256()
@@ -676,7 +668,7 @@ class DiskCache:
             if self.before_commit is not None:
                 self.before_commit(os.path.join(self.root, key[:2], tmp), self.path(key))
             with self._lock():
-                os.replace(tmp, name, src_dir_fd=d, dst_dir_fd=d)
+                d.replace(tmp, name)
                 pending = False
                 self._evict_locked()
         except OSError as e:
@@ -684,11 +676,11 @@ class DiskCache:
         finally:
             if pending:
                 try:
-                    os.unlink(tmp, dir_fd=d)
+                    d.unlink(tmp)
                 except OSError:
                     pass
             if d is not None:
-                os.close(d)
+                d.close()
         self.last_skip = ""
         self.discarded.pop(key, None)
         return True
@@ -709,22 +701,22 @@ class DiskCache:
         try:
             text = json.dumps(data, sort_keys=True).encode("utf-8")
             d = self._subdir(RECORDS, create=True)
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o644, dir_fd=d)
+            fd = d.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL)
             pending = True
             with os.fdopen(fd, "wb") as f:
                 f.write(text)
-            os.replace(tmp, name + ".json", src_dir_fd=d, dst_dir_fd=d)
+            d.replace(tmp, name + ".json")
             pending = False
         except (OSError, ValueError, TypeError):
             pass  # records only serve explanations: never fail a run for one
         finally:
             if pending:
                 try:
-                    os.unlink(tmp, dir_fd=d)
+                    d.unlink(tmp)
                 except OSError:
                     pass
             if d is not None:
-                os.close(d)
+                d.close()
 
     def load_record(self, name: str) -> dict | None:
         if not _RECORD_NAME.match(name) or not self.owned:
@@ -734,7 +726,7 @@ class DiskCache:
         except OSError:
             return None
         try:
-            fd = os.open(name + ".json", os.O_RDONLY | _NOFOLLOW, dir_fd=d)
+            fd = d.open(name + ".json", os.O_RDONLY)
             with os.fdopen(fd, "rb") as f:
                 if os.fstat(f.fileno()).st_size > 64 << 20:
                     return None
@@ -742,7 +734,7 @@ class DiskCache:
         except (OSError, ValueError, RecursionError):
             return None
         finally:
-            os.close(d)
+            d.close()
         return data if isinstance(data, dict) else None
 
     def entries(self) -> list[tuple[str, int, float]]:
@@ -790,18 +782,16 @@ class DiskCache:
                 if self._unlink(folder, name) and _ENTRY.match(name):
                     n += 1
             try:
-                root = os.open(self.root, _DIR)
+                root = Folder.at(self.root)
             except OSError:
                 return n
-            try:
-                for folder in os.listdir(root):
+            with root:
+                for folder in root.listdir():
                     if _HH.match(folder) or folder == RECORDS:
                         try:
-                            os.rmdir(folder, dir_fd=root)  # only when empty
+                            root.rmdir(folder)  # only when empty (and never a symlink's target)
                         except OSError:
                             pass
-            finally:
-                os.close(root)
         return n
 
     def _sweep_temporaries(self, older_than_s: float = 600.0) -> int:

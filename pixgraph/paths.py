@@ -157,6 +157,83 @@ class PathPolicy:
 
 _DIR_FLAGS = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0)
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+#: the platform opens files relative to a folder descriptor (POSIX ``*at`` calls)
+AT_CALLS = hasattr(os, "O_DIRECTORY") and all(
+    f in os.supports_dir_fd for f in (os.open, os.unlink, os.mkdir, os.rmdir, os.replace, os.stat))
+
+
+class Folder:
+    """A folder held open: a descriptor where the platform has ``*at`` calls
+    (Linux, macOS), so names are looked up in *this* folder whatever happens to its
+    path meanwhile, and no symlink is followed (``O_NOFOLLOW``); elsewhere (Windows)
+    its path, with each step checked to be a folder and not a link just before use.
+    Use as a context manager, or ``close()``."""
+
+    def __init__(self, path: str, fd: int | None):
+        self.path, self.fd = path, fd
+
+    @classmethod
+    def at(cls, path: str) -> "Folder":
+        """Open a folder by its path (symlinks in ``path`` itself are followed)."""
+        return cls(path, os.open(path, _DIR_FLAGS) if AT_CALLS else None)
+
+    def sub(self, name: str, create: bool = False) -> "Folder":
+        """The child folder ``name`` (created when missing and ``create``); an
+        ``OSError`` (``ELOOP``/``ENOTDIR``) when it is a symlink or not a folder."""
+        if create:
+            try:
+                self.mkdir(name)
+            except FileExistsError:
+                pass
+        path = os.path.join(self.path, name)
+        if self.fd is not None:
+            return Folder(path, os.open(name, _DIR_FLAGS | _NOFOLLOW, dir_fd=self.fd))
+        if os.path.islink(path) or not os.path.isdir(path):
+            raise NotADirectoryError(errno.ENOTDIR, "a symlink or not a folder", path)
+        return Folder(path, None)
+
+    def _name(self, name: str) -> str:
+        return name if self.fd is not None else os.path.join(self.path, name)
+
+    def _at(self) -> dict:
+        return {"dir_fd": self.fd} if self.fd is not None else {}
+
+    def open(self, name: str, flags: int, mode: int = 0o644) -> int:
+        """``os.open`` of a file in this folder, never through a symlink."""
+        return os.open(self._name(name), flags | _NOFOLLOW, mode, **self._at())
+
+    def mkdir(self, name: str, mode: int = 0o777) -> None:
+        os.mkdir(self._name(name), mode, **self._at())
+
+    def unlink(self, name: str) -> None:
+        os.unlink(self._name(name), **self._at())
+
+    def rmdir(self, name: str) -> None:
+        os.rmdir(self._name(name), **self._at())
+
+    def lstat(self, name: str) -> os.stat_result:
+        return os.stat(self._name(name), follow_symlinks=False, **self._at())
+
+    def replace(self, src: str, dst: str) -> None:
+        """Rename ``src`` over ``dst``, both in this folder."""
+        if self.fd is not None:
+            os.replace(src, dst, src_dir_fd=self.fd, dst_dir_fd=self.fd)
+        else:
+            os.replace(self._name(src), self._name(dst))
+
+    def listdir(self) -> list[str]:
+        return os.listdir(self.fd if self.fd is not None else self.path)
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def __enter__(self) -> "Folder":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 class WritePath(str):
@@ -174,48 +251,36 @@ class WritePath(str):
         return (WritePath, (str(self), self.real))
 
 
-def open_write_folder(path: PathLike) -> tuple[int, str]:
-    """``(folder descriptor, file name)`` for writing ``path``, the folder opened one
-    component at a time from ``/`` with ``O_NOFOLLOW`` (missing folders are created),
-    so no symlink on the way is followed. The folder is the one the path policy
-    checked (``WritePath.real``), or for any other path its real folder now (the
-    user's own ``-o`` paths). Raises ``PathError`` (nothing written) when a
-    component is now a symlink or not a folder; the caller closes the descriptor."""
+def open_write_folder(path: PathLike) -> tuple[Folder, str]:
+    """``(folder, file name)`` for writing ``path``: the folder opened one component
+    at a time from the root without following any symlink (missing folders are
+    created). The folder is the one the path policy checked (``WritePath.real``),
+    or for any other path its real folder now (the user's own ``-o`` paths).
+    Raises ``PathError`` (nothing written) when a component is now a symlink or not
+    a folder; the caller closes the folder."""
     named = os.fspath(path)
     real = getattr(path, "real", None) or os.path.realpath(os.path.abspath(named))
     folder, name = os.path.split(real)
     if not name or name in (os.curdir, os.pardir):
         raise PathError(f"cannot write {quote(named)}: not a file name")
-    fd = os.open(os.sep, _DIR_FLAGS)
-    walked = ""
+    drive, rest = os.path.splitdrive(folder)
+    walked = drive + os.sep
+    current = Folder.at(walked)
     try:
-        for part in folder.split(os.sep):
+        for part in rest.split(os.sep):
             if not part:
                 continue
-            walked += os.sep + part
+            walked = os.path.join(walked, part)
             try:
-                nfd = os.open(part, _DIR_FLAGS | _NOFOLLOW, dir_fd=fd)
-            except FileNotFoundError:
-                try:
-                    os.mkdir(part, 0o777, dir_fd=fd)
-                except FileExistsError:
-                    pass
-                nfd = _open_component(part, fd, named, walked)
+                child = current.sub(part, create=True)
             except OSError as e:
                 raise _swapped(named, walked, e) from None
-            os.close(fd)
-            fd = nfd
-        return fd, name
+            current.close()
+            current = child
+        return current, name
     except BaseException:
-        os.close(fd)
+        current.close()
         raise
-
-
-def _open_component(part: str, fd: int, named: str, walked: str) -> int:
-    try:
-        return os.open(part, _DIR_FLAGS | _NOFOLLOW, dir_fd=fd)
-    except OSError as e:
-        raise _swapped(named, walked, e) from None
 
 
 def _swapped(named: str, walked: str, e: OSError) -> PathError:

@@ -493,3 +493,21 @@ def test_a_result_too_large_for_memory_is_not_cached(tmp_path, monkeypatch):
     events = []
     np.testing.assert_array_equal(s.run(_graph(s, 1.0), on_event=events.append)["o"], 2.0)
     assert all("too large for memory" in x for x in _stored(events))
+
+
+def test_without_descriptor_calls_the_store_still_works(tmp_path, monkeypatch):
+    """Platforms without ``*at`` calls (Windows) use paths, each step checked."""
+    import pixgraph.paths as P
+
+    monkeypatch.setattr(P, "AT_CALLS", False)
+    disk, ga, gb, ka, kb = _two_entries(tmp_path)
+    assert disk.get(ka)["out"][0, 0] == 2.0
+    (tmp_path / "disk" / "zz").mkdir()
+    (tmp_path / "disk" / "zz" / "keep.txt").write_text("x")
+    os.symlink(tmp_path, tmp_path / "disk" / "ee")
+    assert DiskCache(tmp_path / "disk", 1 << 30, tmp_max_age_s=0).clear() == 4
+    assert (tmp_path / "disk" / "zz" / "keep.txt").read_text() == "x" and os.path.islink(tmp_path / "disk" / "ee")
+    from pixgraph_nodes.ops.imageio import write_image
+    p = P.WritePath(str(tmp_path / "w" / "a.png"), str(tmp_path / "w" / "a.png"))
+    write_image(p, np.zeros((2, 2, 4), np.float32))
+    assert sorted(os.listdir(tmp_path / "w")) == ["a.png"]

@@ -410,28 +410,26 @@ def _write_via_temp(path, suffix: str, fill) -> None:
     tmp = f".{os.path.splitext(name)[0]}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}{suffix}"
     created = False
     try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o666,
-                     dir_fd=folder)
+        fd = folder.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
         created = True
         with os.fdopen(fd, "wb") as f:
             inode = os.fstat(f.fileno()).st_ino
             via = f"/proc/self/fd/{f.fileno()}"
             if not os.path.exists(via):  # no /proc (not Linux): the temporary's path in the checked folder
-                via = os.path.join(os.path.dirname(getattr(path, "real", None)
-                                                   or os.path.realpath(os.fspath(path))), tmp)
+                via = os.path.join(folder.path, tmp)
             fill(f, via)
-        st = os.stat(tmp, dir_fd=folder, follow_symlinks=False)
-        if not stat.S_ISREG(st.st_mode) or st.st_ino != inode:
+        st = folder.lstat(tmp)
+        if not stat.S_ISREG(st.st_mode) or (st.st_ino and st.st_ino != inode):
             raise ImageFileError(f"cannot write {path}: its temporary file was replaced while it was written")
-        os.replace(tmp, name, src_dir_fd=folder, dst_dir_fd=folder)
+        folder.replace(tmp, name)
         created = False
     finally:
         if created:
             try:
-                os.unlink(tmp, dir_fd=folder)
+                folder.unlink(tmp)
             except OSError:
                 pass
-        os.close(folder)
+        folder.close()
 
 
 def write_exr_channels(path: str | os.PathLike, channels: dict[str, np.ndarray], bit_depth: int = 32) -> str:
