@@ -764,9 +764,11 @@ class DiskCache:
 
     def stats(self) -> dict:
         entries = self.entries()
-        return {"root": self.root, "entries": len(entries), "bytes": sum(e[1] for e in entries),
-                "limit_bytes": self.limit_bytes, "temporaries": len(self.temporaries()),
-                "unwritable": self.unwritable}
+        out = {"root": self.root, "entries": len(entries), "bytes": sum(e[1] for e in entries),
+               "limit_bytes": self.limit_bytes, "temporaries": len(self.temporaries())}
+        if self.unwritable:
+            out["unwritable"] = self.unwritable
+        return out
 
     def temporaries(self) -> list[str]:
         return [os.path.join(self.root, folder, n) for folder, n, _ in self._files(_is_temporary)]

@@ -159,7 +159,7 @@ _DIR_FLAGS = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0)
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 #: the platform opens files relative to a folder descriptor (POSIX ``*at`` calls)
 AT_CALLS = hasattr(os, "O_DIRECTORY") and all(
-    f in os.supports_dir_fd for f in (os.open, os.unlink, os.mkdir, os.rmdir, os.replace, os.stat))
+    f in os.supports_dir_fd for f in (os.open, os.unlink, os.mkdir, os.rmdir, os.rename, os.stat))
 
 
 class Folder:
@@ -188,6 +188,8 @@ class Folder:
         path = os.path.join(self.path, name)
         if self.fd is not None:
             return Folder(path, os.open(name, _DIR_FLAGS | _NOFOLLOW, dir_fd=self.fd))
+        if not os.path.lexists(path):
+            raise FileNotFoundError(errno.ENOENT, "no such folder", path)
         if os.path.islink(path) or not os.path.isdir(path):
             raise NotADirectoryError(errno.ENOTDIR, "a symlink or not a folder", path)
         return Folder(path, None)

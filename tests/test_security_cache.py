@@ -511,3 +511,16 @@ def test_without_descriptor_calls_the_store_still_works(tmp_path, monkeypatch):
     p = P.WritePath(str(tmp_path / "w" / "a.png"), str(tmp_path / "w" / "a.png"))
     write_image(p, np.zeros((2, 2, 4), np.float32))
     assert sorted(os.listdir(tmp_path / "w")) == ["a.png"]
+
+
+def test_a_first_run_is_quiet_and_uses_descriptors_on_linux(tmp_path, caplog):
+    import pixgraph.paths as P
+
+    if sys.platform.startswith("linux"):
+        assert P.AT_CALLS  # the descriptor-relative code is the one these tests exercise here
+    caplog.set_level(logging.WARNING, logger="pixgraph.cache")
+    s = Session(registry=make_registry(), disk_cache=tmp_path / "disk")
+    events = []
+    s.run(_graph(s, 1.0), on_event=events.append)
+    assert not [e for e in events if isinstance(e, E.NodeLog)] and not caplog.records
+    assert s.disk.stats()["entries"] == 2 and "memory+disk" in _stored(events)[0]
