@@ -56,7 +56,8 @@ class MemoryCache:
 
     def __init__(self, limit_bytes: int):
         if limit_bytes < 0:
-            raise CacheError(f"memory cache limit must be >= 0 bytes, got {limit_bytes}")
+            raise CacheError(f"memory cache limit must be >= 0 bytes (--cache-bytes, PIXGRAPH_CACHE_BYTES), "
+                             f"got {limit_bytes}")
         self.limit_bytes = int(limit_bytes)
         self._entries: collections.OrderedDict[str, tuple[Any, int]] = collections.OrderedDict()
         self.bytes = 0
@@ -423,7 +424,7 @@ class DiskCache:
                  before_commit: Callable[[str, str], None] | None = None, tmp_max_age_s: float = 600.0):
         self.root = os.path.abspath(os.fspath(root))
         if int(limit_bytes) < 0:
-            raise CacheError(f"disk cache limit must be >= 0 bytes, got {limit_bytes}")
+            raise CacheError(f"disk cache limit must be >= 0 bytes (PIXGRAPH_DISK_CACHE_BYTES), got {limit_bytes}")
         self.limit_bytes = int(limit_bytes)
         self.before_commit = before_commit
         #: key -> why its entry was discarded (damaged, swapped), newest last

@@ -216,7 +216,7 @@ import contextlib
 import logging
 import shutil
 
-from pixgraph.cache import MARKER, CacheFolderError
+from pixgraph.cache import MARKER, CacheError, CacheFolderError
 from pixgraph.cli import main
 from pixgraph.hashing import sha256_text
 
@@ -524,3 +524,12 @@ def test_a_first_run_is_quiet_and_uses_descriptors_on_linux(tmp_path, caplog):
     s.run(_graph(s, 1.0), on_event=events.append)
     assert not [e for e in events if isinstance(e, E.NodeLog)] and not caplog.records
     assert s.disk.stats()["entries"] == 2 and "memory+disk" in _stored(events)[0]
+
+
+def test_a_negative_cache_limit_is_bad_input(capsys):
+    good = os.path.join(FIXTURES, "good", "format1.yaml")
+    assert main(["run", good, "-q", "--no-disk-cache", "--cache-bytes", "-1"], registry=make_registry()) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--cache-bytes" in err[0] and "got -1" in err[0]
+    with pytest.raises(CacheError, match="PIXGRAPH_DISK_CACHE_BYTES"):
+        DiskCache("/nonexistent-never-made", -5)
