@@ -313,6 +313,15 @@ def test_a_cache_from_before_the_marker_is_adopted_when_it_holds_only_pixgraphs_
     s2 = Session(registry=make_registry(calls), disk_cache=root)
     np.testing.assert_array_equal(s2.run(g)["o"], 2.0)
     assert calls == [] and (root / MARKER).is_file()
+    # a cache of the .npz format (before .pxc): entries, a killed writer's temporary, records
+    legacy = tmp_path / "legacy"
+    (legacy / "ab").mkdir(parents=True)
+    np.savez(legacy / "ab" / ("ab" * 32 + ".npz"), a=np.zeros(2))
+    (legacy / "ab" / (".tmp-" + "ab" * 32 + "-" + "0" * 32 + ".npz")).write_bytes(b"half")
+    (legacy / "records").mkdir()
+    (legacy / "records" / ("last-run-" + "1" * 64 + ".json")).write_text("{}")
+    d = DiskCache(legacy, 1 << 30, tmp_max_age_s=0.0)
+    assert d.owned and (legacy / MARKER).is_file() and os.listdir(legacy / "ab") == []
     (root / MARKER).write_text(json.dumps({"pixgraph_cache": 99}))
     with pytest.raises(CacheFolderError, match="version 99"):
         Session(registry=make_registry(), disk_cache=root)
