@@ -269,6 +269,16 @@ def _port_arrays(port_type, name: str, value) -> list[tuple[str, np.ndarray]]:
     return []
 
 
+def _non_finite(a: np.ndarray, chunk: int = 1 << 22) -> int:
+    """How many NaN or infinite values ``a`` holds, counted in slices of ``chunk``
+    values (no temporary the size of the array)."""
+    if a.dtype.kind not in "fc" or a.size == 0:
+        return 0
+    flat = a.reshape(-1)
+    return int(sum(int(flat[i:i + chunk].size - np.count_nonzero(np.isfinite(flat[i:i + chunk])))
+                   for i in range(0, flat.size, chunk)))
+
+
 def misfit(outputs, value: Any, expected: Mapping[str, Any] | None = None) -> str | None:
     """Why ``value`` is not a valid output dict for ``outputs`` (``(name, port
     type)`` pairs), or None. Checked: the output names; each port type's
@@ -291,10 +301,9 @@ def misfit(outputs, value: Any, expected: Mapping[str, Any] | None = None) -> st
             return f"output {name!r} is not a valid {port_type.type_name()}: {e}"[:200]
         arrays = _port_arrays(port_type, name, v)
         for label, a in arrays:
-            if a.dtype.kind in "fc":
-                bad = int(a.size - np.count_nonzero(np.isfinite(a)))
-                if bad:
-                    return f"output {label} holds {bad} NaN or infinite value(s)"
+            bad = _non_finite(a)
+            if bad:
+                return f"output {label} holds {bad} NaN or infinite value(s)"
         want = (expected or {}).get(name)
         if isinstance(want, T.Shape):
             for label, a in arrays:

@@ -542,3 +542,30 @@ def test_a_negative_cache_limit_is_bad_input(capsys):
     assert len(err) == 1 and "--cache-bytes" in err[0] and "got -1" in err[0]
     with pytest.raises(CacheError, match="PIXGRAPH_DISK_CACHE_BYTES"):
         DiskCache("/nonexistent-never-made", -5)
+
+
+BIG_RUN = textwrap.dedent("""
+    import resource, sys
+    from pixgraph.cli import main
+    import pixgraph_nodes.constant  # noqa: F401 - imported before the limit
+    side = 3000                      # a 3000 x 3000 RGBA float32 result: 144 MB
+    vm = next(int(l.split()[1]) * 1024 for l in open("/proc/self/status") if l.startswith("VmSize"))
+    resource.setrlimit(resource.RLIMIT_AS, (vm + side * side * 16 + (150 << 20),) * 2)
+    g = {root!r} + "/g.yaml"
+    open(g, "w").write("pixgraph: 1\\nnodes:\\n  c: {{type: pixgraph.Constant, params: {{width: 3000, height: 3000}}}}\\n"
+                       "outputs: {{img: c.image}}\\n")
+    sys.exit(main(["run", g, "-q", "--disk-cache", {root!r} + "/cache"]))
+""")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/status")
+def test_a_large_result_is_cached_without_a_copy_of_it_in_memory(tmp_path):
+    """The issue's 20000^2 Constant with a disk cache, scaled down: with room for the
+    result plus 150 MB, the run succeeds and the entry is streamed to disk (packing it
+    in memory needed two more copies and ended in an empty MemoryError, exit 1)."""
+    p = subprocess.run([sys.executable, "-c", BIG_RUN.format(root=str(tmp_path))], capture_output=True, text=True,
+                       timeout=300)
+    assert p.returncode == 0, p.stderr
+    d = DiskCache(tmp_path / "cache", 1 << 40)
+    assert d.stats()["entries"] == 1 and d.stats()["bytes"] > 3000 * 3000 * 16
