@@ -157,6 +157,9 @@ class PathPolicy:
 
 _DIR_FLAGS = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0)
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+#: a folder opened only to look names up in it (Linux ``O_PATH``: needs search
+#: permission only, like a path walk; a folder one may enter but not list works)
+_SEARCH_FLAGS = (os.O_PATH | getattr(os, "O_DIRECTORY", 0)) if hasattr(os, "O_PATH") else _DIR_FLAGS
 #: the platform opens files relative to a folder descriptor (POSIX ``*at`` calls)
 AT_CALLS = hasattr(os, "O_DIRECTORY") and all(
     f in os.supports_dir_fd for f in (os.open, os.unlink, os.mkdir, os.rmdir, os.rename, os.stat))
@@ -187,7 +190,11 @@ class Folder:
                 pass
         path = os.path.join(self.path, name)
         if self.fd is not None:
-            return Folder(path, os.open(name, _DIR_FLAGS | _NOFOLLOW, dir_fd=self.fd))
+            fd = os.open(name, _SEARCH_FLAGS | _NOFOLLOW, dir_fd=self.fd)
+            if not stat.S_ISDIR(os.fstat(fd).st_mode):  # O_PATH may hand out a link itself
+                os.close(fd)
+                raise NotADirectoryError(errno.ENOTDIR, "a symlink or not a folder", path)
+            return Folder(path, fd)
         if not os.path.lexists(path):
             raise FileNotFoundError(errno.ENOENT, "no such folder", path)
         if os.path.islink(path) or not os.path.isdir(path):
@@ -224,7 +231,13 @@ class Folder:
             os.replace(self._name(src), self._name(dst))
 
     def listdir(self) -> list[str]:
-        return os.listdir(self.fd if self.fd is not None else self.path)
+        if self.fd is None:
+            return os.listdir(self.path)
+        fd = os.open(".", _DIR_FLAGS, dir_fd=self.fd)  # readable, whatever ``self.fd`` was opened for
+        try:
+            return os.listdir(fd)
+        finally:
+            os.close(fd)
 
     def close(self) -> None:
         if self.fd is not None:

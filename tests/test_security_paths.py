@@ -281,3 +281,42 @@ def test_every_writer_keeps_to_the_folder_that_was_checked(world, writer):
     # a plain path (the user's own -o) goes where it points at the time of the write
     write(named)
     assert (outside / "new" / "m.exr").is_file()
+
+
+ENTER_ONLY = """
+import os, sys, tempfile
+import numpy as np
+from pixgraph.paths import WritePath
+from pixgraph_nodes.ops.imageio import write_image
+with tempfile.TemporaryDirectory() as warm:  # load the PNG plugin while the installation is readable
+    write_image(os.path.join(warm, "w.png"), np.zeros((2, 2, 4), np.float32))
+if os.geteuid() == 0:
+    os.setgid(65534)
+    os.setuid(65534)  # nobody: the folder above may be entered, not listed
+p = sys.argv[1]
+write_image(WritePath(p, p), np.zeros((2, 2, 4), np.float32))
+print("written")
+"""
+
+
+def test_a_folder_that_may_be_entered_but_not_listed_is_written_through():
+    """Like a path walk, the writer needs only search permission on the folders above
+    (``O_PATH``): a home folder of mode 0711 must not stop a write below it."""
+    import subprocess
+    import sys
+    import tempfile
+
+    top = tempfile.mkdtemp(prefix="pixgraph-enter-only-", dir="/tmp")
+    try:
+        os.chmod(top, 0o711)
+        outer, inner = os.path.join(top, "outer"), os.path.join(top, "outer", "inner")
+        os.makedirs(inner)
+        os.chmod(inner, 0o777)
+        os.chmod(outer, 0o311 if os.geteuid() else 0o711)  # search, no read: for the user who writes
+        target = os.path.join(inner, "a.png")
+        p = subprocess.run([sys.executable, "-c", ENTER_ONLY, target], capture_output=True, text=True, timeout=120)
+        assert p.returncode == 0 and "written" in p.stdout, p.stderr[-500:]
+        assert os.path.getsize(target) > 0
+    finally:
+        os.chmod(os.path.join(top, "outer"), 0o755)
+        shutil.rmtree(top)
