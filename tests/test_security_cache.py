@@ -1,10 +1,16 @@
-"""Self-verifying caches: a swapped, bit-flipped, truncated or forged disk entry is
-discarded and recomputed (never served), a killed writer's temporaries are swept,
-two processes writing at once keep the byte bound, and a source file edited
-during a run never leaves a wrong result in the cache."""
+"""Self-verifying caches: a swapped, bit-flipped, truncated or forged disk entry
+(NaN pixels, another size) is discarded and recomputed (never served), a killed
+writer's temporaries are swept, two processes writing at once keep the byte bound,
+and a source file edited during a run never leaves a wrong result in the cache.
+Whose folder: a folder without pixgraph's marker is refused and left untouched, and
+pixgraph deletes only files it wrote. A full disk, a read-only folder or a folder in
+an entry's place means "not cached", never a failed run."""
+import contextlib
 import hashlib
 import json
+import logging
 import os
+import shutil
 import struct
 import subprocess
 import sys
@@ -16,7 +22,9 @@ import pytest
 
 from engine_testnodes import make_registry
 from pixgraph import events as E
-from pixgraph.cache import MISS, DiskCache, pack_entry
+from pixgraph.cache import MARKER, MISS, CacheError, CacheFolderError, DiskCache, pack_entry
+from pixgraph.cli import main
+from pixgraph.hashing import sha256_text
 from pixgraph.session import Session
 
 TESTS = os.path.dirname(__file__)
@@ -211,14 +219,6 @@ def test_source_file_edited_during_the_run_is_not_cached(tmp_path):
 
 
 # -- whose folder: the marker, and deleting only what pixgraph wrote ----------------------
-
-import contextlib
-import logging
-import shutil
-
-from pixgraph.cache import MARKER, CacheError, CacheFolderError
-from pixgraph.cli import main
-from pixgraph.hashing import sha256_text
 
 FIXTURES = os.path.join(TESTS, "fixtures")
 

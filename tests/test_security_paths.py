@@ -1,13 +1,18 @@
 """The path policy: every way a graph file could read or write outside its
 folder is refused with exit 2 and one line naming file, node and param, and
-allowed once the user allows that folder (``--allow-path``)."""
+allowed once the user allows that folder (``--allow-path``). Writes keep to the
+folder that was checked even when a folder on the way is swapped for a symlink
+before the write, and a cutout without alpha is refused wherever its alpha is used."""
 import os
 import pathlib
+import shutil
 
 import numpy as np
 import pytest
 
+from pixgraph import events as E
 from pixgraph.cli import main
+from pixgraph.engine import NodeInputError
 from pixgraph.paths import PathError, PathPolicy
 from pixgraph.session import Session
 from pixgraph_nodes.ops.imageio import read_image, write_image
@@ -167,11 +172,6 @@ def test_policy_api_and_strict_mode(world, monkeypatch):
 
 
 # -- a folder swapped for a symlink between the check and the write ----------------------
-
-import shutil
-
-from pixgraph import events as E
-from pixgraph.engine import NodeInputError
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

@@ -6,12 +6,12 @@ from a reference run). Run as root for the full-disk row (it mounts a 1 MiB tmpf
 
 Work folder: /tmp/files-probe/w (deleted first). The asserted versions of these cases are
 in tests/test_security_cache.py and tests/test_security_paths.py."""
-import hashlib, json, os, shutil, subprocess, sys, time
+import hashlib, os, shutil, subprocess, sys, time
 import numpy as np
 REPO = sys.argv[1]
 PIX = os.path.join(os.path.dirname(sys.executable), "pixgraph")
 G = os.path.join(REPO, "graphs", "wall_corner_shadow.yaml")
-W = "/tmp/files-probe/w"  # noqa: N816
+W = "/tmp/files-probe/w"
 shutil.rmtree(W, ignore_errors=True); os.makedirs(W)
 
 def tree(root):
