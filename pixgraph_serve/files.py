@@ -25,6 +25,8 @@ from typing import Any
 
 import yaml
 
+from pixgraph.paths import PathError
+
 from .state import ServeError, ServeState
 
 ENTRY_POINT_GROUP = "pixgraph.nodes"
@@ -112,7 +114,8 @@ def _size(path: str) -> tuple[int, int]:
 def open_files(state: ServeState, data: dict) -> dict:
     """``{"photo": path, "cutout": path, "mask": path?}`` (paths from the upload API,
     or relative to the served graph's folder) -> the served graph becomes the
-    template filled in with them. Returns ``{"template", "yaml"}``."""
+    template filled in with them, unless the nodes' checks from the files' headers
+    refuse it (then the served graph stays). Returns ``{"template", "yaml", "notes"}``."""
     files = {}
     for role in FILE_ROLES:
         v = data.get(role)
@@ -129,8 +132,8 @@ def open_files(state: ServeState, data: dict) -> dict:
     for role, v in files.items():
         path = os.path.normpath(os.path.join(state.root, os.path.expanduser(v)))
         try:
-            policy.check_read(path, node=role, param="path")
-        except Exception as e:  # a PathError: the same rule as any graph path
+            policy.check_read(path, node=role, param="path")   # the same rule as any graph path
+        except PathError as e:
             raise ServeError(403, str(e), field=role) from None
         if not os.path.isfile(path):
             raise ServeError(404, f"{role}: no file {os.path.basename(path)}", field=role)
@@ -191,7 +194,7 @@ def save_with_files(state: ServeState, path: str | None) -> dict:
         raise ServeError(400, f"save: {path!r} must end in .yaml or .yml", field="path")
     try:
         state.session.policy_for(state.graph).check_write(target)
-    except Exception as e:
+    except PathError as e:
         raise ServeError(403, str(e), field="path") from None
     folder = os.path.dirname(target)
     os.makedirs(folder, exist_ok=True)
