@@ -223,25 +223,50 @@ def save_with_files(state: ServeState, path: str | None) -> dict:
         return {"path": target, "copied": copied, "yaml": f.read()}
 
 
-def routes(state: ServeState, locked, json_body):
+def routes(state: ServeState | None = None, locked=None, json_body=None):
     """Starlette routes of this module: ``POST /api/open``, ``POST /api/save_files``
-    and ``GET /api/notes`` (the check's warnings)."""
+    and ``GET /api/notes`` (the check's warnings). Given ``state``, ``locked(fn,
+    *args)`` and ``json_body(request)``: handlers over that state. Without them:
+    handlers that find the state, the run lock and the body as module-level
+    handlers of ``app.py`` do (``request.app.state.serve``, ``app.locked(request,
+    fn, *args)``, ``app.json_body(request)``)."""
     from starlette.responses import JSONResponse
     from starlette.routing import Route
 
+    if state is not None:
+        def serve(request):
+            return state
+
+        async def run(request, fn, *args):
+            return await locked(fn, *args)
+
+        async def body(request):
+            return await json_body(request)
+    else:
+        from . import app
+
+        def serve(request):
+            return request.app.state.serve
+
+        async def run(request, fn, *args):
+            return await app.locked(request, fn, *args)
+
+        async def body(request):
+            return await app.json_body(request)
+
     async def open_route(request):
-        data = await json_body(request)
-        return JSONResponse(await locked(open_files, state, data))
+        data = await body(request)
+        return JSONResponse(await run(request, open_files, serve(request), data))
 
     async def save_route(request):
-        data = await json_body(request)
+        data = await body(request)
         p = data.get("path")
         if p is not None and not isinstance(p, str):
             raise ServeError(400, "path must be a string", field="path")
-        return JSONResponse(await locked(save_with_files, state, p))
+        return JSONResponse(await run(request, save_with_files, serve(request), p))
 
     async def notes_route(request):
-        return JSONResponse({"notes": await locked(notes, state)})
+        return JSONResponse({"notes": await run(request, notes, serve(request))})
 
     return [Route("/api/open", open_route, methods=["POST"]),
             Route("/api/save_files", save_route, methods=["POST"]),
