@@ -51,6 +51,10 @@ class BackgroundHeight:
         height: T.PixelHeight = port(doc="background pixel height [px]")
 
     impl_version = "1"
+    #: what a shell's page draws (read by pixgraph_serve): the template's handles, i.e. these
+    #: params by ``kind`` (points ``corner``/``corner2``, slopes, the junction row)
+    handles = {"kind": "background", "params": ("kind", "corner", "corner2", "left_slope", "right_slope",
+                                                "junction_row", "junction_slope")}
 
     def compute(self, ctx, inputs, params):
         cam = inputs.camera

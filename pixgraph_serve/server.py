@@ -1,0 +1,62 @@
+"""Bind, serve, and stop promptly: ``serve(state, host, port, on_ready)``.
+
+SIGTERM and SIGINT (Ctrl-C) stop the server at once, even mid-render: the runs in
+progress are cancelled (their nodes stop at the next band or node), no new run
+starts, open connections are not waited for, and if a node is still busy after
+``STOP_GRACE`` seconds the process ends anyway (``os._exit``). Graph saves and
+uploads are written to a temporary name and renamed, so a stop never leaves half
+a file under the real name.
+"""
+from __future__ import annotations
+
+import os
+import secrets
+import socket
+import threading
+
+from .app import create_app
+from .state import ServeState
+
+#: seconds between a stop signal and the hard exit when a node does not stop by itself
+STOP_GRACE = 0.5
+
+
+def new_token() -> str:
+    """A per-launch token: 32 random bytes, URL-safe."""
+    return secrets.token_urlsafe(32)
+
+
+def serve(state: ServeState, host: str = "127.0.0.1", port: int = 8765, on_ready=None,
+          token: str | None = None) -> None:
+    """Bind ``host:port`` (port 0 picks a free one), call ``on_ready(url)`` with the URL
+    to open (carrying ``?token=`` unless ``token`` is None), serve until SIGTERM/SIGINT."""
+    import uvicorn
+
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    # proto IPPROTO_TCP, not 0: asyncio sets TCP_NODELAY only on sockets that say they
+    # are TCP, and without it every keep-alive response waits ~40 ms (Nagle + delayed ACK)
+    sock = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.bind((host, port))
+    sock.listen(64)
+    bound = sock.getsockname()[1]
+    shown = f"[{host}]" if family == socket.AF_INET6 else host
+    app = create_app(state, token=token, port=bound, names=(host,))
+
+    class Server(uvicorn.Server):
+        def handle_exit(self, sig, frame):  # runs in the main thread, on the signal
+            self.should_exit = self.force_exit = True
+            state.cancel_all()
+            threading.Thread(target=_exit_after, args=(STOP_GRACE,), daemon=True).start()
+
+    config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off",
+                            limit_concurrency=64, timeout_keep_alive=30, timeout_graceful_shutdown=0)
+    server = Server(config)
+    if on_ready is not None:
+        on_ready(f"http://{shown}:{bound}/" + (f"?token={token}" if token else ""))
+    server.run(sockets=[sock])
+
+
+def _exit_after(seconds: float) -> None:
+    threading.Event().wait(seconds)
+    os._exit(0)
