@@ -324,6 +324,14 @@ async def upload(request: Request):
     return JSONResponse({"path": path, "pixels": n})
 
 
+async def status(request: Request):
+    """What the server is doing: runs in progress, graph runs so far, requests the guard
+    refused, output files encoded (a client can wait on these instead of sleeping)."""
+    app = request.app.state
+    return JSONResponse({"running": app.serve.running(), "runs": app.serve.runs,
+                         "refused": app.guard.refused, "encoded": app.encoded.encodes})
+
+
 def _stale(renders: Renders, seq) -> JSONResponse:
     renders.dropped += 1
     return JSONResponse({"error": "stale: a newer render of this client superseded it", "seq": seq},
@@ -338,6 +346,7 @@ ROUTES = [
     Route("/api/graph.yaml", graph_yaml),
     Route("/api/nodes", nodes),
     Route("/api/scene", scene_info),
+    Route("/api/status", status),
     Route("/api/params", post_params, methods=["POST"]),
     Route("/api/run", post_run, methods=["POST"]),
     Route("/api/outputs/{name}", get_output),
@@ -371,4 +380,5 @@ def create_app(state: ServeState, *, token: str | None = None, port: int | None 
     app.state.encoded = Encoded()
     app.state.current = {}
     app.state.token = token
-    return Guard(app, port=port, names=names, token=token)
+    app.state.guard = Guard(app, port=port, names=names, token=token)
+    return app.state.guard

@@ -96,7 +96,7 @@ class Guard:
             if not self._has_token(headers, scope, allow_cookie=method in ("GET", "HEAD")):
                 return 403, ("refused: no valid token; open the URL that pixgraph serve printed "
                              "(it ends in ?token=...), or send the X-Pixgraph-Token header")
-        if method in ("POST", "PUT", "PATCH", "DELETE"):
+        if method in ("POST", "PUT", "PATCH"):
             if media_type(headers.get("content-type", "")) in SIMPLE_TYPES:
                 return 415, ("refused: a request body needs its content type (application/json; "
                              "a graph may be application/yaml), not text/plain or a form")

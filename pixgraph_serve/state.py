@@ -263,13 +263,11 @@ class ServeState:
         """Replace the served graph by posted YAML; its paths resolve in the graph's folder."""
         import yaml
 
-        _refuse_aliases(text)
+        _precheck_yaml(text)
         try:
-            doc = yaml.safe_load(text)
+            doc = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
         except yaml.YAMLError:
             doc = None  # the loader below reports it with its line
-        except RecursionError:
-            raise ServeError(400, "<posted graph>: nested too deeply") from None
         if isinstance(doc, dict) and isinstance(doc.get("nodes"), dict):
             self._paths_first(self.root, [(nid, n.get("type"), n.get("params")) for nid, n in doc["nodes"].items()
                                           if isinstance(n, dict) and isinstance(n.get("params"), dict)])
@@ -366,6 +364,11 @@ class ServeState:
             with self._active_lock:
                 self._active.discard(token)
 
+    def running(self) -> int:
+        """How many runs are in progress."""
+        with self._active_lock:
+            return len(self._active)
+
     def cancel_all(self) -> int:
         """Cancel every run in progress and refuse new ones (the server is stopping);
         returns how many were running."""
@@ -393,19 +396,39 @@ def check_depth(value: Any, limit: int = MAX_DEPTH) -> None:
         stack.extend((c, d + 1) for c in children)
 
 
-def _refuse_aliases(text: str) -> None:
-    """Posted YAML may not use anchors or aliases: a few hundred bytes of nested
-    aliases expand to gigabytes (the "billion laughs"), and graphs never need them."""
+def _precheck_yaml(text: str) -> None:
+    """Refuse, in linear time and before the (pure-Python, line-recording) graph loader
+    sees it, posted YAML that uses anchors or aliases (a few hundred bytes of nested
+    aliases expand to gigabytes, the "billion laughs"; graphs never need them) or
+    nests deeper than ``MAX_DEPTH`` (``[`` x 100000 would take that loader minutes).
+    Uses libyaml when PyYAML has it; a YAML syntax error is left to the loader."""
     import yaml
 
+    fast = getattr(yaml, "CSafeLoader", None)
+    loader = fast(text) if fast is not None else yaml.SafeLoader(text)
+    depth = 0
     try:
-        for token in yaml.scan(text):
+        while loader.check_token():
+            token = loader.get_token()
             if isinstance(token, (yaml.AliasToken, yaml.AnchorToken)):
                 line = token.start_mark.line + 1
                 raise ServeError(400, f"<posted graph>:{line}: YAML anchors and aliases are not accepted "
                                       "by the server", line=line)
-    except yaml.YAMLError:
-        pass  # the loader reports the syntax error with its line
+            if isinstance(token, (yaml.FlowSequenceStartToken, yaml.FlowMappingStartToken,
+                                  yaml.BlockSequenceStartToken, yaml.BlockMappingStartToken)):
+                depth += 1
+            elif isinstance(token, (yaml.FlowSequenceEndToken, yaml.FlowMappingEndToken, yaml.BlockEndToken)):
+                depth -= 1
+            if depth > MAX_DEPTH:
+                line = token.start_mark.line + 1
+                raise ServeError(400, f"<posted graph>:{line}: nested deeper than {MAX_DEPTH} levels", line=line)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        line = mark.line + 1 if mark is not None else None
+        raise ServeError(400, f"<posted graph>{f':{line}' if line else ''}: not valid YAML: "
+                              f"{getattr(e, 'problem', None) or e}", line=line) from None
+    finally:
+        loader.dispose()
 
 
 def _jsonable(v: Any) -> Any:
