@@ -34,7 +34,7 @@ from starlette.routing import Route
 from pixgraph.events import Cancelled, CancelToken
 from . import scene
 from .encode import encode_exr, encode_png
-from .errors import ServeError, Stale, serve_error
+from .errors import STATUS, ServeError, serve_error
 from .guard import COOKIE, Guard, media_type
 from .runs import Encoded, Renders, Runs
 from .state import ServeState, check_depth
@@ -371,8 +371,11 @@ def create_app(state: ServeState, *, token: str | None = None, port: int | None 
                names=()) -> Guard:
     """The application behind ``Guard``. token: the per-launch token (None: no token);
     port, names: the bound port and host name a request's Host must name."""
-    app = Starlette(routes=ROUTES, exception_handlers={HTTPException: on_error, Exception: on_error,
-                                                       ServeError: on_error, Stale: on_error})
+    # every class of the table answers through the same handler; Exception (a 500) too,
+    # after which Starlette re-raises it for the server's log
+    handlers = {cls: on_error for cls, _ in STATUS}
+    handlers.update({HTTPException: on_error, ServeError: on_error, Exception: on_error})
+    app = Starlette(routes=ROUTES, exception_handlers=handlers)
     app.state.serve = state
     app.state.lock = asyncio.Lock()
     app.state.renders = Renders()

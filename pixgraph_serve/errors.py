@@ -33,17 +33,12 @@ class RunTimeout(Exception):
     """A run stopped by the server's wall-clock limit (``--run-timeout``)."""
 
 
-class Stale(Exception):
-    """A render superseded by a newer one of the same client (dropped or cancelled)."""
-
-
 #: exception class -> HTTP status; the first matching row (in order) wins
 STATUS = (
     (PathError, 403),         # a path outside the allowed folders (a GraphError: before it)
     (GraphError, 400),        # bad graph, param, output name
     (NodeInputError, 400),    # a node refused inputs that do not fit together
     (NodeError, 422),         # a node failed on the edited graph
-    (Stale, 409),             # superseded by a newer render
     (RunTimeout, 503),        # over the server's time limit per run
     (Cancelled, 503),         # stopped: the server is shutting down
     (RecursionError, 400),    # input nested too deeply to parse
@@ -71,7 +66,7 @@ def serve_error(exc: BaseException) -> ServeError:
         where = {"node": exc.node_id}
     if isinstance(exc, RecursionError):
         msg = "request nested too deeply"
-    elif isinstance(exc, RunTimeout | Stale) or isinstance(exc, Cancelled):
+    elif isinstance(exc, (RunTimeout, Cancelled)):
         msg = str(exc) or type(exc).__name__
     elif status == 500:
         msg = f"internal error: {type(exc).__name__}: {exc}"
