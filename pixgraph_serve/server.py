@@ -2,8 +2,9 @@
 
 SIGTERM and SIGINT (Ctrl-C) stop the server at once, even mid-render: the runs in
 progress are cancelled (their nodes stop at the next band or node), no new run
-starts, open connections are not waited for, and if a node is still busy after
-``STOP_GRACE`` seconds the process ends anyway (``os._exit``). Graph saves and
+starts, open connections are not waited for; if a run is still going when the
+server has closed its sockets, or ``STOP_GRACE`` seconds after the signal, the
+process ends there (``os._exit(0)``) instead of waiting for the node's thread. Graph saves and
 uploads are written to a temporary name and renamed, so a stop never leaves half
 a file under the real name.
 """
@@ -12,6 +13,7 @@ from __future__ import annotations
 import os
 import secrets
 import socket
+import sys
 import threading
 
 from .app import create_app
@@ -49,8 +51,14 @@ def serve(state: ServeState, host: str = "127.0.0.1", port: int = 8765, on_ready
             state.cancel_all()
             threading.Thread(target=_exit_after, args=(STOP_GRACE,), daemon=True).start()
 
+        async def shutdown(self, sockets=None):
+            await super().shutdown(sockets)
+            if self.force_exit and state.running():
+                # a node still busy: asyncio.run would wait for its thread before returning
+                _exit_now()
+
     config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off",
-                            limit_concurrency=64, timeout_keep_alive=30, timeout_graceful_shutdown=0)
+                            limit_concurrency=64, timeout_keep_alive=30)
     server = Server(config)
     if on_ready is not None:
         on_ready(f"http://{shown}:{bound}/" + (f"?token={token}" if token else ""))
@@ -59,4 +67,13 @@ def serve(state: ServeState, host: str = "127.0.0.1", port: int = 8765, on_ready
 
 def _exit_after(seconds: float) -> None:
     threading.Event().wait(seconds)
+    _exit_now()
+
+
+def _exit_now() -> None:
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
     os._exit(0)
