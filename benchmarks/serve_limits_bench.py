@@ -92,7 +92,7 @@ def stop(n: int) -> None:
               f"  max {max(times) * 1000:7.1f} ms  (of {n}; goal <= 1000 ms)")
 
 
-def drag_trace() -> None:
+def drag_trace(steps: int = 30) -> None:
     import inspect
     import threading
 
@@ -128,6 +128,12 @@ def drag_trace() -> None:
     with client:
         for i in range(3):
             step(i)                                       # warm: caches, kernels
+        times = []
+        for i in range(20, 20 + steps):
+            t0 = time.perf_counter()
+            step(i)
+            times.append(time.perf_counter() - t0)
+    print(f"drag step in-process (preview, 512^2): median {statistics.median(times) * 1000:.1f} ms of {steps}")
     files, crossings = set(), [0]
     if True:
 
@@ -149,7 +155,7 @@ def drag_trace() -> None:
         sys.setprofile(prof)
         try:
             with client:
-                step(10)
+                step(100)
         finally:
             sys.setprofile(None)
             threading.setprofile(None)

@@ -275,11 +275,18 @@ def test_a_signal_stops_the_server_mid_render(tmp_path, sig):
 
 def test_bad_serve_options_exit_2_with_one_line(tmp_path):
     graph = copy_scene(str(tmp_path / "scene"))
+    import socket
+
+    busy = socket.socket()
+    busy.bind(("127.0.0.1", 0))
+    busy.listen(1)
     cases = [["--run-timeout", "-1"], ["--run-timeout", "nan"], ["--run-timeout", "inf"], ["--max-pixels", "0"],
-             ["--max-body", "-5"], ["--allow-path", str(tmp_path / "nope")], ["--device", "no-such-device:9"]]
+             ["--max-body", "-5"], ["--allow-path", str(tmp_path / "nope")], ["--device", "no-such-device:9"],
+             ["--port", str(busy.getsockname()[1])], ["--host", "no-such-host.invalid"]]
     for extra in cases + [None]:
         args = [graph, *extra] if extra is not None else [str(tmp_path / "missing.yaml")]
         r = subprocess.run([sys.executable, "-m", "pixgraph", "serve", "--port", "0", *args],
                            capture_output=True, text=True, timeout=120)
         assert r.returncode == 2, (extra, r.stderr)
         assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr, (extra, r.stderr)
+    busy.close()
