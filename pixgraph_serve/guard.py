@@ -17,9 +17,10 @@ read the answers. The guard refuses, before any route runs:
    written into the page it serves) and in a cookie (``HttpOnly``,
    ``SameSite=Strict``) that counts for GET requests only (the page's download
    links); scripts send the header or ``?token=``: 403;
-5. a POST or PUT whose ``Content-Type`` is missing or one a page may send without
-   asking the server first (``text/plain``, a form): 415. JSON routes need
-   ``application/json`` (``app.py``).
+5. a POST whose ``Content-Type`` is missing or one a page may send without asking
+   the server first (``text/plain``, a form): 415. JSON routes need
+   ``application/json`` (``app.py``). (A PUT, like any method but GET, HEAD and
+   POST, is never sent cross-site without the server's consent, which it never gives.)
 
 ``/static/*`` (the page's own JS and CSS, no data) needs no token. Every answer
 says ``X-Frame-Options: DENY`` and ``Referrer-Policy: no-referrer``.
@@ -96,7 +97,7 @@ class Guard:
             if not self._has_token(headers, scope, allow_cookie=method in ("GET", "HEAD")):
                 return 403, ("refused: no valid token; open the URL that pixgraph serve printed "
                              "(it ends in ?token=...), or send the X-Pixgraph-Token header")
-        if method in ("POST", "PUT", "PATCH"):
+        if method == "POST":    # the only method with a body a page can send unasked (PUT needs a preflight)
             if media_type(headers.get("content-type", "")) in SIMPLE_TYPES:
                 return 415, ("refused: a request body needs its content type (application/json; "
                              "a graph may be application/yaml), not text/plain or a form")
