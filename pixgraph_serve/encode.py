@@ -35,11 +35,12 @@ def srgb(x: np.ndarray) -> np.ndarray:
                     1.055 * np.power(np.maximum(x, 0.0031308), 1.0 / 2.4) - 0.055).astype(np.float32)
 
 
-def encode_png(value: Any, name: str = "image", scale: int = 1, compress: int = 1) -> bytes:
-    """An 8-bit sRGB PNG (straight alpha) of a linear, premultiplied image or mask."""
-    from PIL import Image
+#: values of the float image converted at a time by ``encode_png`` (bounds its temporaries)
+BAND_VALUES = 1 << 20
 
-    img = downscale(image(value, name), scale)
+
+def _to_u8(img: np.ndarray) -> np.ndarray:
+    """8-bit sRGB, straight alpha, of linear premultiplied rows (H x W or H x W x C)."""
     if img.ndim == 3 and img.shape[2] == 1:
         img = img[:, :, 0]
     if img.ndim == 3 and img.shape[2] in (2, 4):
@@ -48,14 +49,28 @@ def encode_png(value: Any, name: str = "image", scale: int = 1, compress: int = 
         img = np.concatenate([srgb(np.clip(colour, 0.0, 1.0)), a], axis=2)
     else:
         img = srgb(np.clip(img, 0.0, 1.0))
-    u8 = (img * 255.0 + 0.5).astype(np.uint8)
-    del img
-    if u8.ndim == 2:
-        mode = "L"
-    else:
-        mode = {2: "LA", 3: "RGB", 4: "RGBA"}[u8.shape[2]]
+    return (img * 255.0 + 0.5).astype(np.uint8)
+
+
+def encode_png(value: Any, name: str = "image", scale: int = 1, compress: int = 1) -> bytes:
+    """An 8-bit sRGB PNG (straight alpha) of a linear, premultiplied image or mask,
+    box-downscaled by ``scale``. Converted in bands of rows, so the float temporaries
+    stay near ``BAND_VALUES`` values whatever the image's size."""
+    from PIL import Image
+
+    img = image(value, name)
+    s = max(1, int(scale))
+    h, w = img.shape[0] // s, img.shape[1] // s
+    channels = 1 if img.ndim == 2 else img.shape[2]
+    u8 = np.empty((h, w) if channels == 1 else (h, w, channels), np.uint8)
+    rows = max(1, BAND_VALUES // max(1, img.shape[1] * channels * s))
+    for r0 in range(0, h, rows):
+        r1 = min(h, r0 + rows)
+        u8[r0:r1] = _to_u8(downscale(img[r0 * s:r1 * s], s))
+    mode = "L" if u8.ndim == 2 else {2: "LA", 3: "RGB", 4: "RGBA"}[u8.shape[2]]
     buf = io.BytesIO()
     Image.fromarray(u8, mode).save(buf, format="PNG", compress_level=compress)
+    del u8
     return buf.getvalue()
 
 
