@@ -362,7 +362,7 @@ async def on_error(request: Request, exc: Exception):
     if isinstance(exc, HTTPException):
         return JSONResponse({"error": exc.detail or "error"}, status_code=exc.status_code)
     err = serve_error(exc)
-    if err.status >= 500 and not isinstance(exc, ServeError) and err.status == 500:
+    if err.status == 500 and not isinstance(exc, ServeError):
         log.error("internal error on %s %s: %s: %s", request.method, request.url.path, type(exc).__name__, exc)
     return JSONResponse(err.to_json(), status_code=err.status)
 
