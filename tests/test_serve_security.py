@@ -8,8 +8,6 @@ import http.server
 import os
 import shutil
 import signal
-import subprocess
-import sys
 import threading
 import time
 
@@ -273,7 +271,7 @@ def test_a_signal_stops_the_server_mid_render(tmp_path, sig):
     print(f"{signal.Signals(sig).name}: exited in {seconds:.3f} s")
 
 
-def test_bad_serve_options_exit_2_with_one_line(tmp_path):
+def test_bad_serve_options_exit_2_with_one_line(tmp_path, capsys):
     graph = copy_scene(str(tmp_path / "scene"))
     import socket
 
@@ -283,10 +281,12 @@ def test_bad_serve_options_exit_2_with_one_line(tmp_path):
     cases = [["--run-timeout", "-1"], ["--run-timeout", "nan"], ["--run-timeout", "inf"], ["--max-pixels", "0"],
              ["--max-body", "-5"], ["--allow-path", str(tmp_path / "nope")], ["--device", "no-such-device:9"],
              ["--port", str(busy.getsockname()[1])], ["--host", "no-such-host.invalid"]]
+    from pixgraph.cli import main
+
     for extra in cases + [None]:
         args = [graph, *extra] if extra is not None else [str(tmp_path / "missing.yaml")]
-        r = subprocess.run([sys.executable, "-m", "pixgraph", "serve", "--port", "0", *args],
-                           capture_output=True, text=True, timeout=120)
-        assert r.returncode == 2, (extra, r.stderr)
-        assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr, (extra, r.stderr)
+        code = main(["serve", "--port", "0", *args])           # in-process: each fails before serving
+        err = capsys.readouterr().err
+        assert code == 2, (extra, err)
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, (extra, err)
     busy.close()
