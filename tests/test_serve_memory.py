@@ -7,7 +7,6 @@ phase through ``/proc/PID/clear_refs``; glibc is told to give large blocks back
 (``MALLOC_MMAP_THRESHOLD_``) so that one phase's freed memory cannot hide the next
 one's. ``benchmarks/serve_bench.py --memory`` measures the 4096 x 4096 case."""
 import asyncio
-import os
 import sys
 
 import httpx
