@@ -47,6 +47,9 @@ class PlaceCutout:
         height: T.PixelHeight = port(doc="cutout pixel height on the canvas [canvas px], 0 outside")
 
     impl_version = "2"   # 2: jumps found by second differences (steep faces blended)
+    #: what a shell's page draws (read by pixgraph_serve): the placed cutout, by the
+    #: box its ``coverage`` output covers, moved by the ``foot`` and ``scale`` params
+    handles = {"kind": "place", "coverage": "alpha", "params": ("foot", "scale")}
 
     def infer(self, ctx, inputs, params):
         """Checks from file headers: alpha or mask, sizes, and a foot that keeps the

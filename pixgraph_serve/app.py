@@ -263,6 +263,10 @@ async def render(request: Request):
     name = data.get("output", "final")
     if not isinstance(name, str):
         raise ServeError(400, "output must be an output name", field="output")
+    state = _serve(request)
+    scale = data.get("scale", state.limits.preview_scale if mode == "preview" else 1)
+    if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 16:
+        raise ServeError(400, f"scale must be an integer 1..16, got {scale!r}", field="scale")
     client, seq = data.get("client"), data.get("seq")
     tracked = client is not None
     renders: Renders = request.app.state.renders
@@ -271,8 +275,6 @@ async def render(request: Request):
             raise ServeError(400, "client must be a string and seq an integer", field="seq")
         if not renders.claim(client, seq):
             return _stale(renders, seq)
-    state = _serve(request)
-    scale = state.limits.preview_scale if mode == "preview" else 1
     async with request.app.state.lock:
         if tracked and not renders.current(client, seq):
             return _stale(renders, seq)  # superseded while it waited: never run it

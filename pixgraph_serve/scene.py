@@ -54,8 +54,11 @@ def roles(state: ServeState) -> dict[str, str | None]:
         shadow = next((nid for nid, inst in g.nodes.items()
                        if any(r.node == light for r in inst.inputs.values())
                        and all(k in inst.inputs for k in obj)), None)
-    return {"camera": first.get("camera"), "light": light, "background": first.get("background"),
-            "shadow": shadow}
+    out = {"camera": first.get("camera"), "light": light, "background": first.get("background"),
+           "shadow": shadow}
+    if first.get("place") is not None:     # a cutout placed on the photo (own-photo graphs)
+        out["place"] = first["place"]
+    return out
 
 
 # -- anchors: the camera and the object's top, kept across requests ----------------------
@@ -136,6 +139,18 @@ def anchors(state: ServeState, r: dict) -> Anchors:
 
 # -- what the page draws -------------------------------------------------------------------
 
+def _bbox(coverage) -> list[float] | None:
+    """[u0, v0, u1, v1] [px], pixel edges, of the pixels a coverage covers (> 0.5)."""
+    import numpy as np
+
+    m = np.asarray(coverage)
+    m = (m[:, :, 0] if m.ndim == 3 else m) > 0.5
+    rows, cols = np.nonzero(m.any(axis=1))[0], np.nonzero(m.any(axis=0))[0]
+    if not len(rows):
+        return None
+    return [float(cols[0]), float(rows[0]), float(cols[-1] + 1), float(rows[-1] + 1)]
+
+
 def _values(state: ServeState, nid: str) -> dict:
     inst = state.graph.nodes[nid]
     v = state.registry.get(inst.type).coerce_params(inst.params)
@@ -150,7 +165,17 @@ def describe(state: ServeState) -> dict:
     if r["camera"]:
         h, v = state.handles(g.nodes[r["camera"]].type), _values(state, r["camera"])
         w_name, h_name = h.get("size", ("width", "height"))
-        out["camera"] = {"width": v.get(w_name), "height": v.get(h_name), "horizon": v.get(h.get("row"))}
+        w, hh = v.get(w_name), v.get(h_name)
+        if not (w and hh):     # a camera that takes its size from its image: ask the camera value
+            spec = state.registry.get(g.nodes[r["camera"]].type)
+            cam = state.run([f"{r['camera']}.{spec.outputs[0].name}"])
+            cam = next(iter(cam.values()))
+            w, hh = getattr(cam, "width", w), getattr(cam, "height", hh)
+        out["camera"] = {"width": w, "height": hh, "horizon": v.get(h.get("row"))}
+    if r.get("place"):
+        h = state.handles(g.nodes[r["place"]].type)
+        ref = f"{r['place']}.{h.get('coverage', 'alpha')}"
+        out["place"] = {**_values(state, r["place"]), "bbox": _bbox(state.run([ref])[ref])}
     if r["background"]:
         h, v = state.handles(g.nodes[r["background"]].type), _values(state, r["background"])
         names = h.get("params")

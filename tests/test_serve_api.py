@@ -105,6 +105,8 @@ def test_preview_is_a_hard_shadow_at_half_resolution(api):
     assert ((soft > 10) & (soft < 245)).sum() > 1000          # the final one has a penumbra
     png = api.post("/api/render", json={"mode": "preview"})
     assert Image.open(io.BytesIO(png.content)).size == (256, 256)
+    assert Image.open(io.BytesIO(api.post("/api/render", json={"mode": "preview", "scale": 4}).content)).size \
+        == (128, 128)
     assert png.headers["x-pixgraph-mode"] == "preview"
 
 
@@ -297,7 +299,7 @@ def test_every_bad_edit_is_a_4xx_json_error(api, server, data):
 
 def test_bad_render_requests_and_posted_graphs(api):
     for data in ({"client": 5, "seq": 1}, {"client": "c", "seq": "1"}, {"output": ["final"]},
-                 {"output": "light.light"}, {"mode": "draft"}):
+                 {"output": "light.light"}, {"mode": "draft"}, {"scale": 0}, {"scale": True}, {"scale": 1.5}):
         _error(api.post("/api/render", json=data), 400)
     laughs = "pixgraph: 1\na: &a [1, 1, 1, 1, 1, 1, 1, 1, 1]\nb: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a]\n"
     assert "anchors" in _error(api.post("/api/graph", content=laughs.encode(), headers=YAML), 400)["error"]

@@ -158,3 +158,26 @@ def test_a_refused_edit_changes_nothing(state):
     with pytest.raises(ServeError):
         serve_app.apply_edits(state, {"light_tip": [150, 420], "params": {"light.kind": "laser"}})
     assert state.yaml() == before
+
+
+def test_own_photo_graph_camera_size_from_its_image_and_the_placed_cutout(tmp_path):
+    import shutil
+
+    from serve_helpers import GRAPHS
+
+    os.makedirs(tmp_path / "assets")
+    for name in ("own_cutout.png", "own_photo.jpg"):
+        shutil.copy(os.path.join(GRAPHS, "assets", name), tmp_path / "assets" / name)
+    shutil.copy(os.path.join(GRAPHS, "own_photo.yaml"), tmp_path / "own_photo.yaml")
+    st = ServeState(str(tmp_path / "own_photo.yaml"))
+    r = scene.roles(st)
+    assert r == {"camera": "cam", "light": "light", "background": "bg_h", "shadow": "shadow", "place": "place"}
+    d = scene.describe(st)
+    photo = st.run(["photo.image"])["photo.image"]
+    assert [d["camera"]["width"], d["camera"]["height"]] == [photo.shape[1], photo.shape[0]]
+    alpha = st.run(["place.alpha"])["place.alpha"]
+    rows, cols = np.nonzero(alpha > 0.5)
+    assert d["place"]["bbox"] == [cols.min(), rows.min(), cols.max() + 1, rows.max() + 1]
+    assert d["place"]["foot"] == [270, 345] and d["place"]["scale"] == 0.8
+    u0, _, u1, v1 = d["place"]["bbox"]
+    assert u0 < 270 < u1 and abs(v1 - 345) < 3            # the foot is on the box's bottom edge
