@@ -372,7 +372,8 @@ async def on_error(request: Request, exc: Exception):
 def create_app(state: ServeState, *, token: str | None = None, port: int | None = None,
                names=()) -> Guard:
     """The application behind ``Guard``. token: the per-launch token (None: no token);
-    port, names: the bound port and host name a request's Host must name."""
+    port, names: the bound port and host name a request's Host must name (``serve``
+    always gives them; without ``port``, for an in-process app, the Host is not checked)."""
     # every class of the table answers through the same handler; Exception (a 500) too,
     # after which Starlette re-raises it for the server's log
     handlers = {cls: on_error for cls, _ in STATUS}

@@ -55,8 +55,10 @@ def _is_ip(name: str) -> bool:
 class Guard:
     """ASGI middleware: ``Guard(app, port=..., names=..., token=...)``.
 
-    port: the bound port (a Host must carry it). names: host names accepted besides
-    IP addresses and ``localhost``. token: the per-launch token, or None (``--no-token``).
+    port: the bound port (a Host must carry it); None for an app this package does not
+    bind (in-process, e.g. Starlette's test client): then the Host is not checked.
+    names: host names accepted besides IP addresses and ``localhost``. token: the
+    per-launch token, or None (``--no-token``).
     """
 
     def __init__(self, app, *, port: int | None = None, names=(), token: str | None = None):
@@ -76,7 +78,7 @@ class Guard:
             name, sep, port = host.rpartition(":")
             if not sep or ":" in name:
                 return False
-        if not port.isdigit() or (self.port is not None and int(port) != self.port):
+        if not port.isdigit() or int(port) != self.port:
             return False
         name = name.lower()
         return name in self.names or _is_ip(name)
@@ -84,7 +86,7 @@ class Guard:
     def why_refused(self, scope) -> tuple[int, str] | None:
         headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
         host = headers.get("host", "")
-        if not self.host_ok(host):
+        if self.port is not None and not self.host_ok(host):
             return 403, f"refused: Host {host!r} is not this server (DNS rebinding?)"
         origin = headers.get("origin")
         if origin is not None and origin.lower() != f"http://{host}".lower():

@@ -140,3 +140,21 @@ def test_concurrent_gets_of_one_run_encode_once_and_get_the_same_bytes(state):
     png_a = np.asarray(Image.open(io.BytesIO(groups[0][0].content)))
     png_b = np.asarray(Image.open(io.BytesIO(groups[2][0].content)))
     assert png_a.shape == (48, 64, 3) and png_a[0, 0, 0] == 137 and png_b[0, 0, 0] == 225   # sRGB of 0.25, 0.75
+
+
+def test_in_process_app_without_a_port_skips_only_the_host_check(state):
+    async def main():
+        transport = httpx.ASGITransport(app=create_app(state))
+        async with httpx.AsyncClient(transport=transport, base_url="http://testserver") as c:
+            ok = await c.post("/api/params", json={"params": {"gate.value": 0.3}})
+            foreign = await c.post("/api/params", json={}, headers={"Origin": "http://evil.example"})
+            plain = await c.post("/api/params", content=b"{}", headers={"Content-Type": "text/plain"})
+        async with client(state) as c:                      # with the port: the Host must name it
+            wrong = await c.get("/api/graph", headers={"Host": "testserver"})
+            other_port = await c.get("/api/graph", headers={"Host": f"127.0.0.1:{PORT + 1}"})
+            right = await c.get("/api/graph", headers={"Host": f"localhost:{PORT}"})
+        return ok, foreign, plain, wrong, other_port, right
+
+    ok, foreign, plain, wrong, other_port, right = run(main())
+    assert ok.status_code == 200 and foreign.status_code == 403 and plain.status_code == 415
+    assert wrong.status_code == 403 and other_port.status_code == 403 and right.status_code == 200
