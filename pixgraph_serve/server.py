@@ -1,12 +1,13 @@
 """Bind, serve, and stop promptly: ``serve(state, host, port, on_ready)``.
 
-SIGTERM and SIGINT (Ctrl-C) stop the server at once, even mid-render: the runs in
-progress are cancelled (their nodes stop at the next band or node), no new run
-starts, open connections are not waited for; if a run is still going when the
-server has closed its sockets, or ``STOP_GRACE`` seconds after the signal, the
-process ends there (``os._exit(0)``) instead of waiting for the node's thread. Graph saves and
-uploads are written to a temporary name and renamed, so a stop never leaves half
-a file under the real name.
+SIGTERM and SIGINT (Ctrl-C) stop the server at once, even mid-render: when a run
+is going, it is cancelled and the process ends right there (``os._exit(0)``):
+waiting for a node to notice the cancellation, or for asyncio to wait for the
+node's thread, took up to a second or more. Without a run, uvicorn closes its
+sockets and returns as usual; ``STOP_GRACE`` seconds after the signal the process
+ends in any case. Graph saves, uploads and written outputs go to a temporary name
+and are renamed, so a stop leaves at most a temporary file, never half a file
+under the real name.
 """
 from __future__ import annotations
 
@@ -48,7 +49,8 @@ def serve(state: ServeState, host: str = "127.0.0.1", port: int = 8765, on_ready
     class Server(uvicorn.Server):
         def handle_exit(self, sig, frame):  # runs in the main thread, on the signal
             self.should_exit = self.force_exit = True
-            state.cancel_all()
+            if state.cancel_all():
+                _exit_now()     # a run is going: nothing to wait for (saves and uploads are renamed into place)
             threading.Thread(target=_exit_after, args=(STOP_GRACE,), daemon=True).start()
 
         async def shutdown(self, sockets=None):
