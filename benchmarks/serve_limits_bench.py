@@ -7,7 +7,8 @@
               RGBA noise image (a PNG that does not compress); goal: 50 <= 2 x 1.
 --stop N      N times: start a render of the wall-corner graph with 65536 light
               samples (minutes of work), wait until it runs, send SIGTERM (then
-              SIGINT), time until the process has exited; goal <= 1 s.
+              SIGINT), time until the process has exited; goal <= 1 s. Then the
+              same with no render going (after one run).
 --drag-trace  one light-drag step (POST /api/render {light_tip}) in-process, traced:
               graph runs, first-party files it enters and file-to-file calls. Run it
               also with BEFORE=path to an older checkout's package folder (holding
@@ -90,6 +91,17 @@ def stop(n: int) -> None:
                     times.append(seconds)
         print(f"{signal.Signals(sig).name} mid-render -> exited     median {statistics.median(times) * 1000:7.1f} ms"
               f"  max {max(times) * 1000:7.1f} ms  (of {n}; goal <= 1000 ms)")
+    idle = []
+    for _ in range(n):
+        with tempfile.TemporaryDirectory() as d:
+            with start_server(copy_scene(os.path.join(d, "scene")), "--no-token") as (url, _, proc):
+                httpx.post(url + "/api/run", json={}, timeout=300).raise_for_status()
+                t0 = time.perf_counter()
+                proc.send_signal(signal.SIGTERM)
+                assert proc.wait(30) == 0
+                idle.append(time.perf_counter() - t0)
+    print(f"SIGTERM idle -> exited           median {statistics.median(idle) * 1000:7.1f} ms"
+          f"  max {max(idle) * 1000:7.1f} ms  (of {n})")
 
 
 def drag_trace(steps: int = 30) -> None:

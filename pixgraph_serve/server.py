@@ -4,8 +4,9 @@ SIGTERM and SIGINT (Ctrl-C) stop the server at once, even mid-render: when a run
 is going, it is cancelled and the process ends right there (``os._exit(0)``):
 waiting for a node to notice the cancellation, or for asyncio to wait for the
 node's thread, took up to a second or more. Without a run, uvicorn closes its
-sockets and returns as usual; ``STOP_GRACE`` seconds after the signal the process
-ends in any case. Graph saves, uploads and written outputs go to a temporary name
+sockets, and the process ends without the interpreter's teardown (half a second
+with torch and OpenCL loaded); ``STOP_GRACE`` seconds after the signal it ends in
+any case. Graph saves, uploads and written outputs go to a temporary name
 and are renamed, so a stop leaves at most a temporary file, never half a file
 under the real name.
 """
@@ -65,6 +66,8 @@ def serve(state: ServeState, host: str = "127.0.0.1", port: int = 8765, on_ready
     if on_ready is not None:
         on_ready(f"http://{shown}:{bound}/" + (f"?token={token}" if token else ""))
     server.run(sockets=[sock])
+    if server.force_exit:       # stopped by a signal: skip the interpreter's teardown (0.5 s with torch loaded)
+        _exit_now()
 
 
 def _exit_after(seconds: float) -> None:

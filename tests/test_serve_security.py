@@ -271,6 +271,13 @@ def test_a_signal_stops_the_server_mid_render(tmp_path, sig):
     print(f"{signal.Signals(sig).name}: exited in {seconds:.3f} s")
 
 
+def test_a_signal_stops_an_idle_server(tmp_path):
+    with start_server(copy_scene(str(tmp_path / "scene")), "--no-token") as (url, _, proc):
+        httpx.post(url + "/api/run", json={}, timeout=120).raise_for_status()
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=5) == 0
+
+
 def test_bad_serve_options_exit_2_with_one_line(tmp_path, capsys):
     graph = copy_scene(str(tmp_path / "scene"))
     import socket
