@@ -20,6 +20,7 @@ import dataclasses
 import os
 import tempfile
 import threading
+import time
 from typing import Any, Mapping
 
 from pixgraph import fileio
@@ -48,6 +49,43 @@ class Limits:
     preview_scale: int = 2
     #: wall-clock limit of one run; a run still going is cancelled (503) [s]
     run_timeout: float = 120.0
+
+
+class Deadlines:
+    """Cancel runs that pass their deadline, from one watchdog thread (started on first
+    use) rather than a timer thread per run."""
+
+    def __init__(self):
+        self._cv = threading.Condition()
+        self._items: dict[CancelToken, tuple[float, threading.Event]] = {}
+        self._thread: threading.Thread | None = None
+
+    def add(self, token: CancelToken, seconds: float) -> threading.Event:
+        """Cancel ``token`` after ``seconds``; the returned event is set when it did."""
+        expired = threading.Event()
+        with self._cv:
+            self._items[token] = (time.monotonic() + seconds, expired)
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._watch, name="pixgraph-run-deadlines", daemon=True)
+                self._thread.start()
+            self._cv.notify()
+        return expired
+
+    def remove(self, token: CancelToken) -> None:
+        with self._cv:
+            self._items.pop(token, None)
+
+    def _watch(self) -> None:
+        with self._cv:
+            while True:
+                now = time.monotonic()
+                for token, (deadline, expired) in list(self._items.items()):
+                    if deadline <= now:
+                        expired.set()
+                        token.cancel()
+                        del self._items[token]
+                nearest = min((d for d, _ in self._items.values()), default=None)
+                self._cv.wait(None if nearest is None else max(0.0, nearest - now))
 
 
 def _graph_errors(fn):
@@ -84,6 +122,7 @@ class ServeState:
         self._active: set[CancelToken] = set()
         self._active_lock = threading.Lock()
         self._closing = False
+        self._deadlines = Deadlines()
         #: scene.py's cache of what the handles are anchored to (see scene.Anchors)
         self.anchors = None
         self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
@@ -331,19 +370,11 @@ class ServeState:
         raises ``Cancelled``, one over the time limit ``RunTimeout``."""
         graph = self.graph_for(mode, graph)
         token = cancel or CancelToken()
-        timed_out = threading.Event()
-
-        def expire():
-            timed_out.set()
-            token.cancel()
-
-        timer = threading.Timer(self.limits.run_timeout, expire)
-        timer.daemon = True
         with self._active_lock:
             if self._closing:
                 raise Cancelled("the server is shutting down")
             self._active.add(token)
-        timer.start()
+        timed_out = self._deadlines.add(token, self.limits.run_timeout)
         try:
             self.runs += 1
             return self.session.run(graph, outputs=outputs, cancel=token)
@@ -360,7 +391,7 @@ class ServeState:
                 raise
             raise se from None
         finally:
-            timer.cancel()
+            self._deadlines.remove(token)
             with self._active_lock:
                 self._active.discard(token)
 

@@ -158,3 +158,18 @@ def test_in_process_app_without_a_port_skips_only_the_host_check(state):
     ok, foreign, plain, wrong, other_port, right = run(main())
     assert ok.status_code == 200 and foreign.status_code == 403 and plain.status_code == 415
     assert wrong.status_code == 403 and other_port.status_code == 403 and right.status_code == 200
+
+
+def test_deadlines_cancel_only_runs_past_theirs():
+    from pixgraph.events import CancelToken
+    from pixgraph_serve.state import Deadlines
+
+    d = Deadlines()
+    first, removed, last, never = CancelToken(), CancelToken(), CancelToken(), CancelToken()
+    e_first = d.add(first, 0.05)
+    d.add(never, 3600)
+    d.add(removed, 0.06)
+    d.remove(removed)
+    e_last = d.add(last, 0.1)
+    assert e_last.wait(30) and e_first.is_set()
+    assert first.cancelled and last.cancelled and not removed.cancelled and not never.cancelled
