@@ -1,0 +1,220 @@
+"""Photo-size benchmark (issue 22): the own-photo soft shadow and the glossy
+reflection on a 20-megapixel photo (5120x3840) and on the same photo at 512x384.
+
+    python benchmarks/photo_bench.py                      # both graphs, both sizes, 3 runs each
+    python benchmarks/photo_bench.py --case soft --size 20mp --repeat 1
+    python benchmarks/photo_bench.py --case soft --size 20mp --profile   # where the time goes (cProfile)
+
+The photo is made here, from the repository's own asset (graphs/assets/own_photo.jpg,
+rendered by graphs/assets/make_own_photo.py): enlarged 8x and given a deterministic
+film grain and a fine plaster/wood texture, so that it encodes like a photo (no
+third-party picture). Its cutout is graphs/assets/own_cutout.png (159x285), placed
+at 6.4x its size on the 20 MP photo (0.64x at 512). Both are written under
+out/bench/photo/ (gitignored), once.
+
+Cases (the graphs are written next to the photo):
+
+* ``soft``: graphs/own_photo.yaml at the photo's size: LoadImage x2, Camera from
+  the photo, CutoutHeight, PlaceCutout, BackgroundHeight (back wall), Light,
+  SoftShadow (48 samples), Composite; the final is written as PNG and as JPEG.
+* ``glossy``: the same scene with the floor glossy (Reflection: roughness 0.2,
+  dielectric, receivers ground) and ReflectionComposite, as graphs/glossy_floor.yaml.
+
+Each run is a fresh process (``pixgraph run`` as a user runs it) with an empty
+memory cache and a disk cache folder of its own: ``s`` is the wall-clock of
+``Session.run`` plus writing the file, ``peak_mib`` the process's peak resident
+memory (VmHWM, Linux), ``disk_mib`` how much the disk cache grew. The medians are
+printed with the machine and its load. Nothing here is asserted by the tests.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from _machine import cpu_model
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+OUT = ROOT / "out" / "bench" / "photo"
+ASSETS = ROOT / "graphs" / "assets"
+#: (width, height) of each size; the own photo is 640x480 (4:3)
+SIZES = {"20mp": (5120, 3840), "512": (512, 384)}
+
+GRAPH = """pixgraph: 1
+nodes:
+  cutout: {{type: pixgraph.LoadImage, params: {{path: {cutout}}}}}
+  photo:  {{type: pixgraph.LoadImage, params: {{path: {photo}}}}}
+  cam:    {{type: pixgraph.Camera, inputs: {{image: photo.image}}, params: {{horizon: {horizon}}}}}
+  fg_h:   {{type: pixgraph.CutoutHeight, inputs: {{mask: cutout.alpha}}}}
+  place:
+    type: pixgraph.PlaceCutout
+    inputs: {{cutout: cutout.image, background: photo.image, height: fg_h.height}}
+    params: {{foot: [{foot_u}, {foot_v}], scale: {scale}}}
+  bg_h:
+    type: pixgraph.BackgroundHeight
+    inputs: {{camera: cam.camera}}
+    params: {{kind: back_wall, junction_points: [0, {j0}, {width}, {j1}]}}
+  light:
+    type: pixgraph.Light
+    inputs: {{camera: cam.camera, mask: place.alpha}}
+    params: {{azimuth: -30, elevation: 28, radius: 0.3}}
+  shadow:
+    type: pixgraph.SoftShadow
+    inputs: {{mask: place.alpha, fg_height: place.height, bg_height: bg_h.height, light: light.light, camera: cam.camera}}
+    params: {{samples: 48, thickness: {thickness}}}
+{extra}outputs: {{final: comp.image}}
+"""
+SOFT = """  comp:
+    type: pixgraph.Composite
+    inputs: {background: photo.image, cutout: place.image, alpha: place.alpha, shadow: shadow.darkness}
+"""
+GLOSSY = """  refl:
+    type: pixgraph.Reflection
+    inputs: {camera: cam.camera, cutout: place.image, fg_height: place.height, bg_height: bg_h.height}
+    params: {roughness: 0.2, material: dielectric, eta: 1.5, thickness: %s, receivers: ground,
+             noise: 0.005, min_spp: 16, max_spp: 128}
+  comp:
+    type: pixgraph.ReflectionComposite
+    inputs: {background: photo.image, cutout: place.image, alpha: place.alpha,
+             reflection: refl.layer, shadow: shadow.darkness}
+"""
+
+
+def make_photo(size: str) -> pathlib.Path:
+    """The photo of ``size`` (cached under out/bench/photo/): own_photo.jpg enlarged
+    (bilinear), with a fine texture and film grain in sRGB, written as JPEG q 95."""
+    from pixgraph_nodes.ops.imageio import read_image, write_image
+    from pixgraph_nodes.ops.resample import resize
+    W, H = SIZES[size]
+    path = OUT / f"photo_{W}x{H}.jpg"
+    if path.exists():
+        return path
+    OUT.mkdir(parents=True, exist_ok=True)
+    img, _ = read_image(ASSETS / "own_photo.jpg")
+    big = np.stack([resize(img[:, :, c], (H, W)) for c in range(3)], axis=2)
+    rng = np.random.default_rng(22)
+    k = W / 640.0
+    if k > 1:   # detail the 640-px original does not have: a 2-8 px mottle and grain
+        coarse = rng.standard_normal((H // 4 + 2, W // 4 + 2)).astype(np.float32)
+        mottle = resize(coarse, (H + 8, W + 8))[4:H + 4, 4:W + 4]
+        big *= (1.0 + 0.04 * mottle)[:, :, None]
+        big *= (1.0 + 0.02 * rng.standard_normal((H, W), dtype=np.float32))[:, :, None]
+    write_image(path, np.clip(big, 0.0, 1.0))
+    return path
+
+
+def make_graph(case: str, size: str) -> pathlib.Path:
+    W, H = SIZES[size]
+    k = W / 640.0
+    photo = make_photo(size)
+    text = GRAPH.format(cutout=ASSETS / "own_cutout.png", photo=photo, horizon=120 * k,
+                        foot_u=270 * k, foot_v=345 * k, scale=round(0.8 * k, 4), j0=262 * k, j1=292 * k,
+                        width=W, thickness=6 * k,
+                        extra=SOFT if case == "soft" else GLOSSY % (4 * k))
+    path = OUT / f"{case}_{size}.yaml"
+    path.write_text(text)
+    return path
+
+
+def _hwm_mib() -> float:
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def _folder_bytes(folder: str) -> int:
+    return sum(f.stat().st_size for f in pathlib.Path(folder).rglob("*") if f.is_file())
+
+
+def one(a) -> int:
+    """Subprocess mode: one run of one graph in a fresh process; prints JSON."""
+    from pixgraph.session import Session
+    from pixgraph_nodes.ops.imageio import write_image
+    graph = make_graph(a.case, a.size)
+    cache = tempfile.mkdtemp(prefix="photo-bench-cache-")
+    try:
+        s = Session(disk_cache=None if a.no_disk_cache else cache, allow_paths=[str(ROOT)])
+        dest = OUT / f"final_{a.case}_{a.size}{a.ext}"
+        kw = {"params": {"shadow.proxy": a.shadow_proxy}} if a.shadow_proxy is not None else {}
+        prof = None
+        if a.profile:
+            import cProfile
+            prof = cProfile.Profile()
+            prof.enable()
+        t0 = time.perf_counter()
+        out = s.run(graph, **kw)
+        t1 = time.perf_counter()
+        write_image(dest, out["final"])
+        t2 = time.perf_counter()
+        if prof is not None:
+            prof.disable()
+            import pstats
+            pstats.Stats(prof, stream=sys.stderr).sort_stats("cumulative").print_stats(45)
+        timings = dict(sorted(s.last_run.timings.items(), key=lambda kv: -kv[1]))
+        print(json.dumps({"s": t2 - t0, "run_s": t1 - t0, "write_s": t2 - t1, "peak_mib": _hwm_mib(),
+                          "disk_mib": _folder_bytes(cache) / 2**20, "file_mib": dest.stat().st_size / 2**20,
+                          "nodes": {k: round(v, 3) for k, v in timings.items()}}))
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+    return 0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--case", action="append", choices=("soft", "glossy"))
+    ap.add_argument("--size", action="append", choices=tuple(SIZES))
+    ap.add_argument("--ext", action="append", choices=(".png", ".jpg"),
+                    help="output format(s) of the final (default both for soft, .png for glossy)")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--shadow-proxy", type=int, default=None, help="SoftShadow's proxy param (default: its own)")
+    ap.add_argument("--no-disk-cache", action="store_true")
+    ap.add_argument("--profile", action="store_true", help="one run under cProfile (printed to stderr)")
+    ap.add_argument("--one", action="store_true", help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.one:
+        a.case, a.size, a.ext = a.case[0], a.size[0], a.ext[0]
+        return one(a)
+    cases, sizes = a.case or ["soft", "glossy"], a.size or ["512", "20mp"]
+    print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f} at start; python {sys.version.split()[0]}")
+    env = dict(os.environ, PYTHONPATH=str(pathlib.Path(__file__).parent))
+    for case in cases:
+        for size in sizes:
+            make_graph(case, size)     # build the assets off the clock
+            for ext in a.ext or ([".png", ".jpg"] if case == "soft" else [".png"]):
+                rows = []
+                for _ in range(1 if a.profile else a.repeat):
+                    cmd = [sys.executable, __file__, "--one", "--case", case, "--size", size, "--ext", ext]
+                    cmd += ["--no-disk-cache"] if a.no_disk_cache else []
+                    cmd += ["--profile"] if a.profile else []
+                    if a.shadow_proxy is not None:
+                        cmd += ["--shadow-proxy", str(a.shadow_proxy)]
+                    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+                    if p.returncode != 0:
+                        print(p.stdout, p.stderr, file=sys.stderr)
+                        return 1
+                    if a.profile:
+                        print(p.stderr)
+                    rows.append(json.loads(p.stdout.strip().splitlines()[-1]))
+                med = {k: statistics.median(r[k] for r in rows)
+                       for k in ("s", "run_s", "write_s", "peak_mib", "disk_mib", "file_mib")}
+                print(f"{case:6s} {size:5s} {ext:4s} n={len(rows)}  total {med['s']:7.2f} s  (run {med['run_s']:.2f}"
+                      f" + write {med['write_s']:.2f})  peak {med['peak_mib']:6.0f} MiB  disk cache "
+                      f"+{med['disk_mib']:6.1f} MiB  file {med['file_mib']:.1f} MiB  load {os.getloadavg()[0]:.2f}")
+                print("        slowest nodes (last run):",
+                      ", ".join(f"{k} {v:.2f}s" for k, v in list(rows[-1]["nodes"].items())[:6]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
