@@ -47,6 +47,7 @@ class PlaceCutout:
         height: T.PixelHeight = port(doc="cutout pixel height on the canvas [canvas px], 0 outside")
 
     impl_version = "2"   # 2: jumps found by second differences (steep faces blended)
+    disk_cache = False      # large and cheaper to recompute than to read back from disk
 
     def infer(self, ctx, inputs, params):
         """Checks from file headers: alpha or mask, sizes, and a foot that keeps the
