@@ -120,7 +120,8 @@ def _decode_srgb8(data: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     image = np.empty((H, W, C), np.float32)
     if ai is None:
         np.take(_SRGB8_TO_LINEAR, data, out=image)
-        return image, np.ones((H, W), np.float32)
+        # a photo's coverage is all ones: a read-only broadcast of one value, not H*W floats
+        return image, np.broadcast_to(np.float32(1.0), (H, W))
     a = data[:, :, ai].astype(np.float32) * np.float32(1.0 / 255.0)
     for c in range(C):
         if c == ai:
