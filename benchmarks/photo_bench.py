@@ -170,6 +170,46 @@ def one(a) -> int:
     return 0
 
 
+def errors(a) -> int:
+    """``--errors``: each proxy against the full computation on the photo of ``--size``:
+    SoftShadow's darkness (proxy 0 = full trace, against 512/1024/2048), the glossy
+    Reflection layer (proxy 0 against 512/1024), and a whole preview at working
+    resolution ``--preview-scale`` (darkness against the full run's, downsampled).
+    RMSE over background pixels (outside the placed cutout) and max |error|."""
+    from pixgraph.session import Session
+    from pixgraph_nodes.ops.resample import at_scale
+    size = a.size[0] if a.size else "20mp"
+    print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f}; size {SIZES[size]}")
+    s = Session(disk_cache=None, allow_paths=[str(ROOT)], cache_bytes=1 << 30)
+
+    def rmse(x, ref, where):
+        d = (np.asarray(x, np.float64) - ref)[where]
+        return float(np.sqrt(np.mean(d ** 2))), float(np.abs(d).max())
+    for case in a.case or ["soft", "glossy"]:
+        g = s.graph(make_graph(case, size))
+        what, port = ("shadow", "shadow.darkness") if case == "soft" else ("refl", "refl.layer")
+        alpha = s.run(g, outputs=["place.alpha"])["place.alpha"]
+        bgpx = alpha < 0.5
+        t0 = time.perf_counter()
+        full = np.array(s.run(g, outputs=[port], params={f"{what}.proxy": 0})[port], np.float64)
+        print(f"{case}: full computation {time.perf_counter() - t0:.1f} s", flush=True)
+        for side in a.proxies:
+            t0 = time.perf_counter()
+            out = s.run(g, outputs=[port], params={f"{what}.proxy": side})[port]
+            sec = time.perf_counter() - t0
+            e, m = rmse(out, full, bgpx)
+            print(f"  {port} proxy {side:5d}: RMSE {e:.4f}  max {m:.3f}  ({sec:.1f} s)", flush=True)
+        if case == "soft":
+            sc = a.preview_scale
+            lo = s.run(g, outputs=[port], scale=sc)[port]
+            ref = at_scale(full.astype(np.float32), sc)
+            e, m = rmse(lo, ref, at_scale(alpha, sc) < 0.5)
+            print(f"  preview at scale {sc} ({lo.shape[1]}x{lo.shape[0]}): darkness RMSE {e:.4f} max {m:.3f} "
+                  "against the full trace downsampled", flush=True)
+        s.memory.clear() if hasattr(s.memory, "clear") else None
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--case", action="append", choices=("soft", "glossy"))
@@ -180,8 +220,13 @@ def main() -> int:
     ap.add_argument("--shadow-proxy", type=int, default=None, help="SoftShadow's proxy param (default: its own)")
     ap.add_argument("--no-disk-cache", action="store_true")
     ap.add_argument("--profile", action="store_true", help="one run under cProfile (printed to stderr)")
+    ap.add_argument("--errors", action="store_true", help="each proxy's error against the full computation")
+    ap.add_argument("--proxies", type=int, nargs="+", default=[512, 1024, 2048])
+    ap.add_argument("--preview-scale", type=float, default=0.2236, help="--errors: scale of the preview (~1 MP)")
     ap.add_argument("--one", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
+    if a.errors:
+        return errors(a)
     if a.one:
         a.case, a.size, a.ext = a.case[0], a.size[0], a.ext[0]
         return one(a)

@@ -39,7 +39,7 @@ def _shadow_into(out: np.ndarray, darkness: np.ndarray, opacity: float, tint) ->
     if tint.size == 1:
         tint = np.repeat(tint, ncol)
     t = tint[:ncol] if ncol == 3 else tint[:1]
-    sub = np.minimum(d[r0:r1, c0:c1], np.float32(1.0))
+    sub = np.clip(d[r0:r1, c0:c1], np.float32(0.0), np.float32(1.0))
     factor = np.empty_like(sub)
     for c in range(ncol):
         # bg * (1 - opacity * d * (1 - tint_c)), one channel at a time: no (H, W, 3) temporaries
