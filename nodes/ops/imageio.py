@@ -127,8 +127,7 @@ def _decode_srgb8(data: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if c == ai:
             image[:, :, c] = a
         else:
-            np.take(_SRGB8_TO_LINEAR, data[:, :, c], out=image[:, :, c])
-            image[:, :, c] *= a
+            image[:, :, c] = _SRGB8_TO_LINEAR[data[:, :, c]] * a
     return image, a
 
 
