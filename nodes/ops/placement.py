@@ -220,10 +220,31 @@ def place_cutout(image: np.ndarray, alpha: np.ndarray, height: np.ndarray | None
     xs = ax + sign * ((np.arange(W) + 0.5) - foot[0]) / scale
     ys = ay + ((np.arange(H) + 0.5) - foot[1]) / scale
     wy, wx = _weights(h, ys, support), _weights(w, xs, support)
+    C = image.shape[2]
+    # the work is done on the box of canvas rows and columns the cutout reaches (a
+    # cutout covers a part of a 20 MP photo), then put on an empty canvas
+    rows, cols = np.flatnonzero(wy.any(axis=1)), np.flatnonzero(wx.any(axis=1))
+    if len(rows) == 0 or len(cols) == 0:
+        return (np.zeros((H, W, C), np.float32), np.zeros((H, W), np.float32),
+                None if height is None else np.zeros((H, W), np.float32))
+    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    img_b, a_b, h_b = _place_box(image, alpha, height, wy[r0:r1], wx[c0:c1], scale, jump,
+                                 smooth_edge and scale > 1.0 and is_hard_mask(alpha))
+    img = np.zeros((H, W, C), np.float32)
+    a = np.zeros((H, W), np.float32)
+    img[r0:r1, c0:c1], a[r0:r1, c0:c1] = img_b, a_b
+    placed_h = None
+    if h_b is not None:
+        placed_h = np.zeros((H, W), np.float32)
+        placed_h[r0:r1, c0:c1] = h_b
+    return img, a, placed_h
+
+
+def _place_box(image, alpha, height, wy, wx, scale, jump, refine):
+    """``place_cutout`` on the canvas box whose resampling weights are ``wy``, ``wx``."""
     planes = [image, alpha[:, :, None]]
     if height is not None:
         planes.append((np.asarray(height, dtype=np.float32) * alpha)[:, :, None])
-    refine = smooth_edge and scale > 1.0 and is_hard_mask(alpha)
     C = image.shape[2]
     if refine:
         # straight colour (and height) extended past the outline, resampled, then
