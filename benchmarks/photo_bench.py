@@ -22,7 +22,8 @@ Cases (the graphs are written next to the photo):
 
 Each run is a fresh process (``pixgraph run`` as a user runs it) with an empty
 memory cache and a disk cache folder of its own: ``s`` is the wall-clock of
-``Session.run`` plus writing the file, ``peak_mib`` the process's peak resident
+``Session.run`` plus writing the file (``cpu``: the process's CPU seconds, all
+threads: on a loaded shared machine the less noisy number), ``peak_mib`` the process's peak resident
 memory (VmHWM, Linux), ``disk_mib`` how much the disk cache grew. The medians are
 printed with the machine and its load. Nothing here is asserted by the tests.
 """
@@ -152,17 +153,21 @@ def one(a) -> int:
             import cProfile
             prof = cProfile.Profile()
             prof.enable()
+        import resource
+        r0 = resource.getrusage(resource.RUSAGE_SELF)
         t0 = time.perf_counter()
         out = s.run(graph, **kw)
         t1 = time.perf_counter()
         write_image(dest, out["final"])
         t2 = time.perf_counter()
+        r1 = resource.getrusage(resource.RUSAGE_SELF)
+        cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
         if prof is not None:
             prof.disable()
             import pstats
             pstats.Stats(prof, stream=sys.stderr).sort_stats("cumulative").print_stats(45)
         timings = dict(sorted(s.last_run.timings.items(), key=lambda kv: -kv[1]))
-        print(json.dumps({"s": t2 - t0, "run_s": t1 - t0, "write_s": t2 - t1, "peak_mib": _hwm_mib(),
+        print(json.dumps({"s": t2 - t0, "cpu_s": cpu, "run_s": t1 - t0, "write_s": t2 - t1, "peak_mib": _hwm_mib(),
                           "disk_mib": _folder_bytes(cache) / 2**20, "file_mib": dest.stat().st_size / 2**20,
                           "nodes": {k: round(v, 3) for k, v in timings.items()}}))
     finally:
@@ -190,14 +195,22 @@ def errors(a) -> int:
         what, port = ("shadow", "shadow.darkness") if case == "soft" else ("refl", "refl.layer")
         alpha = s.run(g, outputs=["place.alpha"])["place.alpha"]
         bgpx = alpha < 0.5
+        saved = OUT / f"full_{case}_{size}.npy"      # the full computation takes minutes: kept for reruns
         t0 = time.perf_counter()
-        full = np.array(s.run(g, outputs=[port], params={f"{what}.proxy": 0})[port], np.float64)
-        print(f"{case}: full computation {time.perf_counter() - t0:.1f} s", flush=True)
+        if saved.exists() and not a.recompute:
+            full = np.load(saved).astype(np.float64)
+            print(f"{case}: full computation read from {saved.relative_to(ROOT)}", flush=True)
+        else:
+            full = np.array(s.run(g, outputs=[port], params={f"{what}.proxy": 0})[port], np.float64)
+            np.save(saved, full.astype(np.float32))
+            print(f"{case}: full computation {time.perf_counter() - t0:.1f} s", flush=True)
         for side in a.proxies:
             t0 = time.perf_counter()
             out = s.run(g, outputs=[port], params={f"{what}.proxy": side})[port]
             sec = time.perf_counter() - t0
             e, m = rmse(out, full, bgpx)
+            if a.save:
+                np.save(OUT / f"proxy{side}_{case}_{size}.npy", np.asarray(out, np.float32))
             print(f"  {port} proxy {side:5d}: RMSE {e:.4f}  max {m:.3f}  ({sec:.1f} s)", flush=True)
         if case == "soft":
             sc = a.preview_scale
@@ -222,6 +235,8 @@ def main() -> int:
     ap.add_argument("--profile", action="store_true", help="one run under cProfile (printed to stderr)")
     ap.add_argument("--errors", action="store_true", help="each proxy's error against the full computation")
     ap.add_argument("--proxies", type=int, nargs="+", default=[512, 1024, 2048])
+    ap.add_argument("--recompute", action="store_true", help="--errors: recompute the saved full computation")
+    ap.add_argument("--save", action="store_true", help="--errors: save each proxy's result next to it")
     ap.add_argument("--preview-scale", type=float, default=0.2236, help="--errors: scale of the preview (~1 MP)")
     ap.add_argument("--one", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
@@ -232,7 +247,8 @@ def main() -> int:
         return one(a)
     cases, sizes = a.case or ["soft", "glossy"], a.size or ["512", "20mp"]
     print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f} at start; python {sys.version.split()[0]}")
-    env = dict(os.environ, PYTHONPATH=str(pathlib.Path(__file__).parent))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(pathlib.Path(__file__).parent),
+                                                                     os.environ.get("PYTHONPATH")])))
     for case in cases:
         for size in sizes:
             make_graph(case, size)     # build the assets off the clock
@@ -252,9 +268,9 @@ def main() -> int:
                         print(p.stderr)
                     rows.append(json.loads(p.stdout.strip().splitlines()[-1]))
                 med = {k: statistics.median(r[k] for r in rows)
-                       for k in ("s", "run_s", "write_s", "peak_mib", "disk_mib", "file_mib")}
+                       for k in ("s", "cpu_s", "run_s", "write_s", "peak_mib", "disk_mib", "file_mib")}
                 print(f"{case:6s} {size:5s} {ext:4s} n={len(rows)}  total {med['s']:7.2f} s  (run {med['run_s']:.2f}"
-                      f" + write {med['write_s']:.2f})  peak {med['peak_mib']:6.0f} MiB  disk cache "
+                      f" + write {med['write_s']:.2f}; cpu {med['cpu_s']:.2f} s)  peak {med['peak_mib']:6.0f} MiB  disk cache "
                       f"+{med['disk_mib']:6.1f} MiB  file {med['file_mib']:.1f} MiB  load {os.getloadavg()[0]:.2f}")
                 print("        slowest nodes (last run):",
                       ", ".join(f"{k} {v:.2f}s" for k, v in list(rows[-1]["nodes"].items())[:6]))
