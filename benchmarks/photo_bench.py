@@ -219,6 +219,10 @@ def errors(a) -> int:
             e, m = rmse(lo, ref, at_scale(alpha, sc) < 0.5)
             print(f"  preview at scale {sc} ({lo.shape[1]}x{lo.shape[0]}): darkness RMSE {e:.4f} max {m:.3f} "
                   "against the full trace downsampled", flush=True)
+            final = s.run(g, outputs=[port])[port]             # the final as it runs (default proxy)
+            e, m = rmse(lo, at_scale(final, sc), at_scale(alpha, sc) < 0.5)
+            print(f"  preview at scale {sc}: darkness RMSE {e:.4f} max {m:.3f} against the final (default "
+                  "proxy) downsampled: what the preview shows of the final", flush=True)
         s.memory.clear() if hasattr(s.memory, "clear") else None
     return 0
 

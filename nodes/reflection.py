@@ -65,7 +65,7 @@ class Reflection:
                                    "so a wall does not mirror the cutout; combined with the receiver input")
         accelerate: bool = param(True, cache=False,
                                  doc="max-height pyramid skipping (same result, fewer steps)")
-        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px",
+        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px, longer side",
                            doc="glossy reflections (roughness > 0) of images whose longer side exceeds this "
                                "are traced on a copy of this longer side and enlarged edge-aware against the "
                                "full-resolution mask (0: never)")

@@ -178,7 +178,8 @@ class Engine:
     def plan(self, graph: Graph, outputs=None, bind: Mapping[str, Any] | None = None,
              scale: float = 1.0) -> Plan:
         """The plan of a run. ``scale`` in (0, 1] is the working resolution: every
-        param declared with ``unit="px"`` is multiplied by it (ints rounded, kept in
+        param declared with ``unit="px"`` (a length in the picture; not a size cap
+        such as ``unit="px, longer side"``) is multiplied by it (ints rounded, kept in
         the param's range) and nodes that declare ``uses_scale = True`` get it as
         ``ctx.scale`` and in their cache key. The engine knows no more of images than
         that; at 1 (the default) plans and keys are those of an unscaled run."""

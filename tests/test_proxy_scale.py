@@ -47,6 +47,9 @@ def test_params_in_pixels_scale_and_keys_stay_at_full_size(runs):
     assert ph.params["cam"]["width"] == 128 and ph.params["cam"]["horizon"] == 30.0
     assert ph.params["cam"]["hfov"] == 50.0                        # degrees: not scaled
     assert ph.params["shadow"]["thickness"] == 1.5 and ph.params["shadow"]["samples"] == 48
+    # a proxy side is a resolution cap, not a length in the picture: a preview traces at
+    # the final's proxy size, so it shows what the final will
+    assert ph.params["shadow"]["proxy"] == 1024
     assert ph.params["light"]["distance"] == 4.0                   # world units: not scaled
     assert ph.parts["cutout"].params["@scale"] == 0.25             # a loader declares uses_scale
     assert "@scale" not in ph.parts["comp"].params
