@@ -227,6 +227,39 @@ def errors(a) -> int:
     return 0
 
 
+def drag(a) -> int:
+    """``--drag``: a light drag on the photo of ``--size`` previewed at a ~1 MP working
+    resolution (``Session.run(scale=...)``): the first run (loading included), then
+    three light positions per ``shadow.proxy`` in ``--proxies`` (only light, shadow
+    and composite rerun); median wall-clock and CPU seconds."""
+    import resource
+    from pixgraph.session import Session
+    size = a.size[0] if a.size else "20mp"
+    W, H = SIZES[size]
+    sc = min(1.0, (1e6 / (W * H)) ** 0.5)
+    s = Session(disk_cache=None, allow_paths=[str(ROOT)])
+    g = s.graph(make_graph("soft", size))
+    print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f}; {W}x{H} at scale {sc:.4f}")
+    t0 = time.perf_counter()
+    out = s.run(g, scale=sc)
+    print(f"first preview {out['final'].shape[1]}x{out['final'].shape[0]}: {time.perf_counter() - t0:.2f} s")
+
+    def cpu():
+        r = resource.getrusage(resource.RUSAGE_SELF)
+        return r.ru_utime + r.ru_stime
+    for k, side in enumerate(a.proxies):
+        walls, cpus = [], []
+        for az in (-20.0, -10.0, 0.0):
+            c0, t0 = cpu(), time.perf_counter()
+            s.run(g, scale=sc, params={"light.azimuth": az + 0.1 * k, "shadow.proxy": side})
+            walls.append(time.perf_counter() - t0)
+            cpus.append(cpu() - c0)
+        print(f"light drag, shadow.proxy {side}: median {statistics.median(walls):.3f} s wall, "
+              f"{statistics.median(cpus):.3f} CPU s; reran {', '.join(s.last_run.ran)}; "
+              f"load {os.getloadavg()[0]:.2f}")
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--case", action="append", choices=("soft", "glossy"))
@@ -242,10 +275,13 @@ def main() -> int:
     ap.add_argument("--recompute", action="store_true", help="--errors: recompute the saved full computation")
     ap.add_argument("--save", action="store_true", help="--errors: save each proxy's result next to it")
     ap.add_argument("--preview-scale", type=float, default=0.2236, help="--errors: scale of the preview (~1 MP)")
+    ap.add_argument("--drag", action="store_true", help="light drags previewed at ~1 MP (--proxies: shadow.proxy)")
     ap.add_argument("--one", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.errors:
         return errors(a)
+    if a.drag:
+        return drag(a)
     if a.one:
         a.case, a.size, a.ext = a.case[0], a.size[0], a.ext[0]
         return one(a)
