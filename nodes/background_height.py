@@ -51,6 +51,7 @@ class BackgroundHeight:
         height: T.PixelHeight = port(doc="background pixel height [px]")
 
     impl_version = "1"
+    disk_cache = False      # large and cheaper to recompute than to read back from disk
     #: what a shell's page draws (read by pixgraph_serve): the template's handles, i.e. these
     #: params by ``kind`` (points ``corner``/``corner2``, slopes, the junction row)
     handles = {"kind": "background", "params": ("kind", "corner", "corner2", "left_slope", "right_slope",
