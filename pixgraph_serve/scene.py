@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import weakref
 from typing import Any
 
 from pixgraph.graph import Graph
@@ -68,6 +69,14 @@ class Anchors:
     upstream: dict          # node id -> NodeInstance of every node the anchors depend on
     camera: Any             # the camera value
     top: tuple[float, float, float] | None   # the object's top (u, v, h) [px]
+    made_from: tuple = ()   # weak references to the mask and pixel height the top came from
+
+
+def _weak(x):
+    try:
+        return weakref.ref(x)
+    except TypeError:
+        return None
 
 
 def _refs(state: ServeState, graph: Graph, r: dict) -> list[str] | None:
@@ -101,7 +110,9 @@ def _node_of(ref: str) -> str:
 
 def piggyback(state: ServeState, graph: Graph, outputs: list[str] | None) -> list[str]:
     """The anchor refs to fetch along with a run of ``outputs`` of ``graph``: those whose
-    nodes the run needs anyway (so nothing more runs); [] when the anchors are current."""
+    nodes the run needs anyway (so nothing more runs), always (a file read upstream may
+    have changed on disk with the same params: the session's cache sees it, and so
+    does the next drag)."""
     r = roles(state)
     refs = _refs(state, state.graph, r)
     if not refs or outputs is None:
@@ -110,17 +121,22 @@ def piggyback(state: ServeState, graph: Graph, outputs: list[str] | None) -> lis
     up = _upstream(graph, [_node_of(x) for x in refs])
     if not set(up) <= set(needed):
         return []
-    if state.anchors is not None and state.anchors.upstream == up:
-        return []
     return refs
 
 
 def note(state: ServeState, graph: Graph, refs: list[str], values) -> None:
     """Keep the anchors a run fetched (``piggyback``'s refs) with the graph they came from."""
     if refs and all(x in values for x in refs):
-        light_cls = state.registry.get(state.graph.nodes[roles(state)["light"]].type).cls
-        top = light_cls.object_top(values[refs[1]], values[refs[2]])
-        state.anchors = Anchors(_upstream(graph, [_node_of(x) for x in refs]), values[refs[0]], top)
+        mask, height = values[refs[1]], values[refs[2]]
+        old = state.anchors
+        if old is not None and len(old.made_from) == 2 and all(
+                w is not None and w() is v for w, v in zip(old.made_from, (mask, height))):
+            top = old.top       # the same arrays as last time (the session's memory cache): same top
+        else:
+            light_cls = state.registry.get(state.graph.nodes[roles(state)["light"]].type).cls
+            top = light_cls.object_top(mask, height)
+        state.anchors = Anchors(_upstream(graph, [_node_of(x) for x in refs]), values[refs[0]], top,
+                                (_weak(mask), _weak(height)))
 
 
 def anchors(state: ServeState, r: dict) -> Anchors:

@@ -181,3 +181,23 @@ def test_own_photo_graph_camera_size_from_its_image_and_the_placed_cutout(tmp_pa
     assert d["place"]["foot"] == [270, 345] and d["place"]["scale"] == 0.8
     u0, _, u1, v1 = d["place"]["bbox"]
     assert u0 < 270 < u1 and abs(v1 - 345) < 3            # the foot is on the box's bottom edge
+
+
+def test_a_cutout_changed_on_disk_moves_the_top_from_the_next_render(tmp_path):
+    from PIL import Image
+
+    st = ServeState(copy_scene(str(tmp_path / "scene")))
+    path = tmp_path / "scene" / "assets" / "figure.png"
+    _drag(st, [150, 420])
+    top = st.anchors.top
+    assert _drag(st, [151, 421]) == 1 and st.anchors.top == top
+    img = Image.open(path)
+    lowered = Image.new(img.mode, img.size)
+    lowered.paste(img.crop((0, 0, img.width, img.height - 20)), (0, 20))    # the figure 20 px lower
+    lowered.save(path)
+    os.utime(path, ns=(os.stat(path).st_atime_ns, os.stat(path).st_mtime_ns + 10**9))
+    assert _drag(st, [152, 422]) == 1                  # this step still uses the old top; its run sees the file
+    assert st.anchors.top[1] == top[1] + 20 and st.anchors.top[0] == top[0]
+    assert list(st.graph.nodes["light"].params["top_uvh"]) == list(top)
+    _drag(st, [153, 423])
+    assert list(st.graph.nodes["light"].params["top_uvh"]) == list(st.anchors.top)
