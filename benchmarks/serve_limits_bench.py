@@ -13,7 +13,10 @@
               graph runs, first-party files it enters and file-to-file calls. Run it
               also with BEFORE=path to an older checkout's package folder (holding
               pixgraph/, pixgraph_serve/ or pixgraph/serve/, pixgraph_nodes/) to
-              compare: ``BEFORE=/tmp/before python benchmarks/serve_limits_bench.py --drag-trace``.
+              compare: ``BEFORE=/tmp/before python benchmarks/serve_limits_bench.py --drag-trace``,
+              the folder made by e.g. ``git archive main pixgraph nodes | tar -x -C /tmp/src;
+              git archive ac8343f pixgraph_serve | tar -x -C /tmp/src`` and links
+              /tmp/before/{pixgraph,pixgraph_serve,pixgraph_nodes} to /tmp/src/{pixgraph,pixgraph_serve,nodes}.
 """
 from __future__ import annotations
 
