@@ -152,31 +152,45 @@ def paste(pred: np.ndarray, box, bh: float, mask: np.ndarray, clip: bool = True)
 
 def contact_band(mask: np.ndarray, band: float = 1.5) -> np.ndarray:
     """The cutout's contact pixels: mask pixels in its lowest rows, those whose
-    row index is at least ``r1 - band`` (r1 = the row below the mask's lowest
-    row; band in px, so the lowest row and, for band >= 1.5, part of the next)."""
+    row centre ``r + 0.5`` is within ``band`` px of the mask's bottom edge ``r1``
+    (the row below its lowest row): the lowest row for band 1, two rows for 1.5."""
     rows = np.nonzero(np.asarray(mask).any(1))[0]
     out = np.zeros(np.shape(mask), bool)
     if len(rows) == 0:
         return out
     r1 = int(rows.max()) + 1
-    lo = max(int(math.ceil(r1 - band)), 0)
+    lo = max(int(math.ceil(r1 - band - 0.5)), 0)
     out[lo:r1] = np.asarray(mask, bool)[lo:r1]
     return out
 
 
-def pin_contact(height: np.ndarray, mask: np.ndarray, lift: float = 0.0, band: float = 1.5) -> np.ndarray:
+def pin_contact(height: np.ndarray, mask: np.ndarray, lift: float = 0.0, band: float = 1.5,
+                fade: float | None = None) -> np.ndarray:
     """The contact as a constraint: shift a pixel-height map [px] so the mean
-    over the cutout's contact pixels (``contact_band``) is ``lift`` [px] (0: the
+    over the cutout's contact pixels (``contact_band``) is ``lift`` [px] before
+    clipping at 0 (0: the
     object stands on the ground; > 0: it floats that high above its foot, e.g. a
     held object or a hanging lamp). Heights stay >= 0 (clipped after the shift),
     and 0 outside ``mask``. Shifting by a constant keeps the shape above the
-    contact: the predictor supplies the shape, the constraint supplies the level."""
+    contact: the predictor supplies the shape, the constraint supplies the level.
+    ``fade`` (a fraction of the cutout's box height, or None): instead of a
+    constant, the shift fades linearly from full at the bottom edge to 0 at
+    ``fade`` box heights above it (the foot is fixed, the upper part kept where
+    the predictor put it)."""
     m = np.asarray(mask, bool)
     h = np.asarray(height, np.float32)
     c = contact_band(m, band)
     if not c.any():
         return np.where(m, h, 0.0).astype(np.float32)
     off = float(h[c].mean()) - float(lift)
+    if fade is not None:
+        rows = np.nonzero(m.any(1))[0]
+        r0, r1 = int(rows.min()), int(rows.max()) + 1
+        v = np.arange(m.shape[0], dtype=np.float64)[:, None] + 0.5
+        w = np.clip(1.0 - (r1 - v) / (float(fade) * (r1 - r0)), 0.0, 1.0)
+        # the band's own weights are < 1: scale so the band's mean still lands on lift
+        wb = float(np.broadcast_to(w, m.shape)[c].mean())
+        return np.where(m, np.maximum(h - off * w / max(wb, 1e-6), 0.0), 0.0).astype(np.float32)
     return np.where(m, np.maximum(h - off, 0.0), 0.0).astype(np.float32)
 
 
@@ -242,7 +256,8 @@ class LearnedHeightPredictor:
     """
 
     def __init__(self, path: str | pathlib.Path = WEIGHTS, threads: int | None = 1,
-                 flip_average: bool | None = None, heuristic_detail: bool | None = None):
+                 flip_average: bool | None = None, heuristic_detail: bool | None = None,
+                 pin_fade: float | None | str = "checkpoint"):
         import torch
         ck = torch.load(path, map_location="cpu", weights_only=True)
         cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else ck["config"]
@@ -263,6 +278,9 @@ class LearnedHeightPredictor:
         self.flip_average = bool(inf.get("flip_average", False) if flip_average is None else flip_average)
         self.heuristic_detail = bool(inf.get("heuristic_detail", False) if heuristic_detail is None
                                      else heuristic_detail)
+        # how the contact pin shifts the map (pin_contact's fade): the checkpoint's choice
+        # (lab/height/inference_study.py --pin), else a constant shift
+        self.pin_fade = inf.get("pin_fade", None) if pin_fade == "checkpoint" else pin_fade
 
     def predict_normalised(self, x: np.ndarray, aux: bool = False):
         """(N, 6, S, S) inputs -> (N, S, S) height / bh; with ``aux`` also the
@@ -348,7 +366,7 @@ class LearnedHeightPredictor:
             out.update(est_mae_learned=el, est_mae_heuristic=eh, confidence=eh / max(el + eh, 1e-9))
         if contact != "free":
             lv = float(lift) if contact == "lifted" else 0.0
-            h = pin_contact(h, mask, lv)
+            h = pin_contact(h, mask, lv, fade=self.pin_fade)
             out["heuristic"] = pin_contact(heur, mask, lv)
         out["height"] = h
         return out
