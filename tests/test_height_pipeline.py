@@ -108,3 +108,37 @@ def test_benchmark_renders_become_height_samples(tmp_path):
     splits = sorted({p.parent.name for p in written})
     both = train.load_splits(str(d), splits, 32)
     assert len(both["x"]) == 3 and len(both["meta"]) == 3 and both["x"].shape[1:] == (6, 32, 32)
+
+
+def test_real_mix_test_objects_are_only_the_named_meshes_and_heights_are_true():
+    from pixgraph_lab.height import real
+    seen = set()
+    for i in range(3):
+        arrays, meta = generate.make_sample("test", i, seed=0, res=64, mix="real")
+        assert meta["object"] in real.NAMED and meta["category"] == meta["object"]
+        seen.add(meta["object"])
+        cam, m = meta["camera"], arrays["mask"]
+        h = arrays["height"].astype(np.float32)
+        v = np.arange(64, dtype=np.float64)[:, None] + 0.5
+        Y = (cam["cam_height"] * h / (v + h - cam["horizon"]))[m]
+        # back-projected heights lie between the ground and the object's top
+        assert Y.min() > -1e-3 and Y.max() < 1.01 * meta["object_height"]
+        assert Y.max() > 0.5 * meta["object_height"]
+    for i in range(4):
+        arrays, meta = generate.make_sample("train", i, seed=0, res=64, mix="real")
+        assert not str(meta["object"]).startswith("named:")
+        assert meta["category"] in real.CATEGORY_P or meta["category"] == "v2"
+        # matting-like alpha: soft edge values exist, colour is a photo (uint8)
+        assert arrays["rgb"].dtype == np.uint8
+    a2, m2 = generate.make_sample("train", 3, seed=0, res=64, mix="real")
+    np.testing.assert_array_equal(a2["height"], arrays["height"])
+
+
+def test_category_meshes_rest_on_the_ground_with_a_slot_per_face():
+    from pixgraph_lab.datagen.categories import CATEGORIES, make_object
+    for c in CATEGORIES:
+        for s in range(3):
+            V, F, slots, names, kind = make_object(c, np.random.default_rng([s, 5]))
+            assert kind.split("/")[0] == c or c == "figurine"
+            assert V[:, 1].min() == 0.0 and np.isfinite(V).all()
+            assert len(slots) == len(F) and slots.max() < len(names) and F.max() < len(V)
