@@ -142,3 +142,29 @@ def test_category_meshes_rest_on_the_ground_with_a_slot_per_face():
             assert kind.split("/")[0] == c or c == "figurine"
             assert V[:, 1].min() == 0.0 and np.isfinite(V).all()
             assert len(slots) == len(F) and slots.max() < len(names) and F.max() < len(V)
+
+
+def test_confidence_heads_pin_and_real_evaluation(tmp_path):
+    d = tmp_path / "data"
+    for split, n in (("train", 3), ("val", 2), ("test", 2)):
+        assert generate.main(["--split", split, "--n", str(n), "--res", "64", "--mix", "real",
+                              "--out", str(d / split)]) == 0
+    run = tmp_path / "run"
+    assert train.main(["--data", str(d), "--out", str(run), "--size", "32", "--base", "4", "--levels", "2",
+                       "--batch", "2", "--val-every", "2", "--steps", "4", "--outputs", "3", "--pin"]) == 0
+    from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor
+    p = LearnedHeightPredictor(run / "best.pt")
+    assert p.outputs == 3
+    with np.load(sorted((d / "test").glob("0*.npz"))[0]) as z:
+        a = z["alpha"].astype(np.float32) / 255
+        rgba = np.concatenate([z["rgb"].astype(np.float32) / 255 * a[..., None], a[..., None]], 2)
+    r = p.predict_full(rgba)
+    assert 0.0 < r["confidence"] < 1.0 and r["est_mae_learned"] > 0 and r["est_mae_heuristic"] > 0
+    from pixgraph_lab.height import evaluate_real, pin_study
+    assert evaluate_real.main(["--heights", str(d / "test"), "--weights", str(run / "best.pt"),
+                               "--out", str(tmp_path / "ev")]) == 0
+    rep = (tmp_path / "ev" / "report.md").read_text()
+    assert "learned < heuristic" in rep and "named:" in rep
+    assert pin_study.main(["--weights", str(run / "best.pt"), "--heights", str(d / "val"),
+                           "--out", str(tmp_path / "pin"), "--write"]) == 0
+    assert "pin_fade" in LearnedHeightPredictor(run / "best.pt").config["inference"]
