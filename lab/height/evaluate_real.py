@@ -11,9 +11,11 @@
    the contact line; ``auto``: the ``CutoutHeight`` auto rule, learned when the
    confidence is >= 0.5) the mean |predicted - true| over the object's pixels
    (the centre-ray mask); the share of samples where ``learned`` beats the
-   heuristic; the foot error, mean |predicted - true| over the contact pixels
-   (``learned_height.contact_band`` of the alpha > 0.5 mask, inside the
-   centre-ray mask); time of ``predict_full``. Grouped by ``category``.
+   heuristic; the foot error: how high above the ground the map puts the
+   object's visible foot, the mean predicted height over the pixels whose true
+   height is < 1 px (inside the alpha > 0.5 mask; samples without such pixels,
+   e.g. a ball whose contact is hidden, have none); time of ``predict_full``.
+   Grouped by ``category``.
 2. Shadows (``--shadows``: a ``shadow_test`` benchmark): ``soft:64`` and SSN++
    (``pixgraph_lab.ssn.methods:node``, the SoftShadowSSN node's computation)
    traced with the true, learned, auto and heuristic heights; RMSE of darkness
@@ -37,16 +39,14 @@ import numpy as np
 from .evaluate import _rgba_from_height_sample, _write
 
 
-def _errs(pred, true, mask, band):
+def _errs(pred, true, mask, foot_px):
     m = mask.astype(bool)
     mae = float(np.abs(pred[m] - true[m]).mean())
-    b = band & m
-    foot = float(np.abs(pred[b] - true[b]).mean()) if b.any() else float("nan")
+    foot = float(np.abs(pred[foot_px]).mean()) if foot_px.any() else float("nan")
     return mae, foot
 
 
 def eval_heights(data_dir, predictor, baseline=None, limit=0):
-    from pixgraph_nodes.ops.learned_height import contact_band
     rows = []
     files = sorted(glob.glob(os.path.join(data_dir, "[0-9]" * 5 + ".npz")))[: limit or None]
     for f in files:
@@ -55,7 +55,7 @@ def eval_heights(data_dir, predictor, baseline=None, limit=0):
             rgba = _rgba_from_height_sample(z)
             true = z["height"].astype(np.float32)
             mask = z["mask"]
-        band = contact_band(rgba[..., 3] > 0.5)
+        band = mask & (rgba[..., 3] > 0.5) & (true < 1.0)
         t0 = time.perf_counter()
         r = predictor.predict_full(rgba)
         ms = 1e3 * (time.perf_counter() - t0)
@@ -67,7 +67,7 @@ def eval_heights(data_dir, predictor, baseline=None, limit=0):
             maps["baseline"] = baseline.predict(rgba)
         row = {"index": meta["index"], "category": meta.get("category", "?"), "object": meta["object"],
                "pose": meta["pose"], "overhang": int(meta["overhang"]), "object_px": float(true[mask].max()),
-               "confidence": float("nan") if conf is None else conf, "ms": ms}
+               "confidence": float("nan") if conf is None else conf, "ms": ms, "foot_px": int(band.sum())}
         for k, h in maps.items():
             row[f"mae_{k}"], row[f"foot_{k}"] = _errs(h, true, mask, band)
         rows.append(row)
@@ -77,7 +77,7 @@ def eval_heights(data_dir, predictor, baseline=None, limit=0):
 def height_table(rows, keys) -> str:
     cats = ["all"] + sorted({r["category"] for r in rows})
     head = " | ".join(f"MAE {k}" for k in keys)
-    lines = [f"| category | n | {head} | learned < heuristic | foot learned (median) | foot free (median) "
+    lines = [f"| category | n (with a visible foot) | {head} | learned < heuristic | foot learned (median) | foot free (median) "
              f"| foot heuristic (median) |",
              "|---|---|" + "---|" * (len(keys) + 4)]
     for c in cats:
@@ -85,8 +85,9 @@ def height_table(rows, keys) -> str:
         m = lambda k: float(np.mean([r[k] for r in rs]))  # noqa: E731
         med = lambda k: float(np.nanmedian([r[k] for r in rs]))  # noqa: E731
         win = float(np.mean([r["mae_learned"] < r["mae_heuristic"] for r in rs]))
+        nf = sum(r["foot_px"] > 0 for r in rs)
         cells = " | ".join(f"{m('mae_' + k):.2f}" for k in keys)
-        lines.append(f"| {c} | {len(rs)} | {cells} | {win:.0%} | {med('foot_learned'):.2f} | "
+        lines.append(f"| {c} | {len(rs)} ({nf}) | {cells} | {win:.0%} | {med('foot_learned'):.2f} | "
                      f"{med('foot_learned_free'):.2f} | {med('foot_heuristic'):.2f} |")
     return "\n".join(lines) + "\n"
 
