@@ -74,7 +74,7 @@ class CutoutHeight:
     (pixgraph_nodes.ops.learned_height; needs torch, else falls back to contact_line with
     a log message); ``auto``: the learned height where the network's own confidence
     says it beats the contact line (confidence >= 0.5), else the contact line
-    (docs/height.md, "Confidence and auto"). The contact is a constraint: for
+    (docs/height.md, "The contact, confidence and auto"). The contact is a constraint: for
     ``learned`` and ``auto`` the cutout's lowest pixels are pinned to height 0
     (``contact: ground``) or to ``lift`` px (``contact: lifted``, an object that does not
     touch the ground: a held object, a hanging lamp); the heuristics are 0 there by
