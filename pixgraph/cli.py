@@ -15,6 +15,7 @@ from typing import Any
 
 import yaml
 
+from .cache import CacheError
 from .engine import NodeInputError
 from .graph import GraphError, one_line
 from .registry import Registry
@@ -126,7 +127,7 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         return EXIT_BAD_INPUT if e.code else EXIT_OK
     try:
         return _COMMANDS[args.command](args, registry)
-    except (GraphError, UsageError) as e:
+    except (GraphError, UsageError, CacheError) as e:
         _fail(args, e)
         return EXIT_BAD_INPUT
     except NodeInputError as e:
@@ -207,7 +208,7 @@ def _cmd_run(args, registry) -> int:
     sets = parse_sets(args.set)
     graph = s.graph(args.graph, sets)
     _allow_typed_paths(s, graph, sets)
-    _check_output_paths(targets, graph, s.registry)
+    _check_output_paths(s, graph, targets)
     # unknown names or node outputs are reported by the engine's plan (exit 2)
     bar = None
     show_bar = not args.quiet and sys.stderr.isatty()
@@ -227,14 +228,14 @@ def _cmd_run(args, registry) -> int:
             bar.set_postfix_str(f"{ev.node_id} {ev.fraction:.0%} {ev.message}".strip())
 
     try:
-        values = s.run(graph, outputs=list(targets) or None, on_event=on_event)
+        res = s.run(graph, outputs=list(targets) or None, on_event=on_event)
     finally:
         if bar is not None:
             bar.close()
+    values = res.outputs
     for name, path in targets.items():
-        _write_output(name, values[name], path, _port_type(s, graph, name))
+        _write_output(s, graph, name, values[name], path)
     if not args.quiet:
-        res = s.last_run
         print(f"ran {len(res.ran)} node(s), {len(res.cached)} from cache, "
               f"{sum(res.timings.values()):.3f} s compute", file=sys.stderr)
         for nid, messages in res.logs.items():
@@ -244,14 +245,6 @@ def _cmd_run(args, registry) -> int:
             where = f" -> {targets[name]}" if name in targets else ""
             print(f"{name}: {_describe(v)}{where}")
     return EXIT_OK
-
-
-def _port_type(session, graph, name: str):
-    """The declared type of a graph output or ``node.output`` ref."""
-    from .graph import Ref
-
-    ref = graph.outputs.get(name) or Ref.parse(name)
-    return session.registry.get(graph.nodes[ref.node].type).output(ref.output).type
 
 
 def _allow_typed_paths(s, graph, sets: dict[str, Any]) -> None:
@@ -270,39 +263,21 @@ def _allow_typed_paths(s, graph, sets: dict[str, Any]) -> None:
         s.allow_files(files)
 
 
-def _check_output_paths(targets: dict[str, str], graph, registry) -> None:
+def _check_output_paths(s, graph, targets: dict[str, str]) -> None:
     """``-o`` paths are the user's own (any folder), but never hold control
     characters and never overwrite a file this graph reads."""
-    from .paths import bad_characters, quote
+    from .paths import PathError
 
-    reads = {os.path.realpath(graph.file)} if graph.file else set()
-    for nid, inst in graph.nodes.items():
-        spec = registry.get(inst.type)
-        for p in spec.params:
-            if p.kind == "path" and not p.writes and inst.params.get(p.name) is not None:
-                reads.add(os.path.realpath(graph.resolve_path(os.fspath(inst.params[p.name]))))
-    for name, path in targets.items():
-        why = bad_characters(path)
-        if why:
-            raise UsageError(f"-o {name}=...: path {quote(path)} {why}")
-        if os.path.realpath(path) in reads:
-            raise UsageError(f"-o {name}={quote(path)}: would write over a file this graph reads")
-
-
-def _write_output(name: str, value, path: str, port_type=None) -> None:
-    import numpy as np
-
-    from pixgraph_nodes.ops.imageio import write_data, write_image
-
-    from . import types as T
-
-    if not isinstance(value, np.ndarray):
-        raise UsageError(f"-o {name}={path}: output {name!r} is a {type(value).__name__}, not an image")
-    # a matte, a darkness or a pixel height is data: written as numbers, never as colour
-    data = port_type is not None and issubclass(port_type, (T.Mask, T.PixelHeight))
     try:
-        write_data(path, value) if data else write_image(path, value)
-    except (ValueError, OSError) as e:
+        s.check_output_paths(graph, targets)
+    except PathError as e:
+        raise UsageError(f"-o {e.message}") from None
+
+
+def _write_output(s, graph, name: str, value, path: str) -> None:
+    try:
+        s.write_output(graph, name, value, path)
+    except ValueError as e:
         raise UsageError(f"-o {name}={path}: {e}") from None
 
 

@@ -13,6 +13,7 @@ always run when requested and are never cached.
 """
 from __future__ import annotations
 
+import collections.abc
 import dataclasses
 import logging
 import os
@@ -21,13 +22,14 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from . import events as E
+from . import codehash, events as E
 from .device import DeviceError
-from .cache import MISS, DiskCache, MemoryCache, Unstorable
+from .cache import MISS, DiskCache, MemoryCache, Unstorable, misfit
 from .graph import Graph, GraphError, Ref
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import InputError, Namespace, NodeSpec
-from .paths import PathError, PathPolicy
+from .paths import PathError, PathPolicy, WritePath
+from .unusable import refuse_unusable_inputs
 from .registry import Registry
 from .types import SIZED, Shape, nbytes
 
@@ -131,8 +133,15 @@ class Plan:
 
 
 @dataclasses.dataclass(frozen=True)
-class RunResult:
-    values: dict[str, Any]
+class RunResult(collections.abc.Mapping):
+    """What a run returns: its outputs, and what ran and what came from a cache.
+
+    It is a read-only mapping of output name -> value (``result["final"]``,
+    ``dict(result)``, ``result.items()``); ``outputs`` is the same as a plain dict.
+    """
+
+    #: ``{output name: value}``
+    outputs: dict[str, Any]
     #: compute seconds of each node that ran
     timings: dict[str, float]
     ran: tuple[str, ...]
@@ -140,6 +149,20 @@ class RunResult:
     plan: Plan
     #: messages each node that ran logged (``ctx.log``), by node id
     logs: dict[str, list[str]] = dataclasses.field(default_factory=dict)
+
+    @property
+    def seconds(self) -> float:
+        """Compute seconds of the nodes that ran, summed (cache hits count 0)."""
+        return float(sum(self.timings.values()))
+
+    def __getitem__(self, name: str) -> Any:
+        return self.outputs[name]
+
+    def __iter__(self):
+        return iter(self.outputs)
+
+    def __len__(self) -> int:
+        return len(self.outputs)
 
 
 class Engine:
@@ -189,7 +212,7 @@ class Engine:
                     p, relevant = self._params(graph, nid, spec, inst.params, read_paths=False)
                     params[nid] = p
                     bound[nid] = self._bind(graph, nid, spec, bind[nid], p)
-                    parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant,
+                    parts[nid] = KeyParts(spec.type_id, spec.version, codehash.impl_version(spec), relevant,
                                           {"bind": array_key(bind[nid])})
                     keys[nid] = parts[nid].key()
                 else:
@@ -200,9 +223,10 @@ class Engine:
             p, relevant = self._params(graph, nid, spec, inst.params, policy)
             params[nid] = p
             inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
-            parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
+            parts[nid] = KeyParts(spec.type_id, spec.version, codehash.impl_version(spec), relevant, inputs)
             keys[nid] = parts[nid].key()
         self._check_overwrites(graph, params, order, bind)
+        refuse_unusable_inputs(graph, self.registry, order, params, bind)
         steps = self._steps(graph, requested, order, keys, parts, bind, params)
         return Plan(graph, requested, steps, keys, parts, params, bind, bound)
 
@@ -222,6 +246,7 @@ class Engine:
         order = self._ancestors(graph, [r.node for r in requested.values()], {})
         policy = self.policy_for(graph)
         infos: dict[str, dict[str, Any]] = {}
+        checked: dict[str, dict[str, Any]] = {}
         for nid in order:
             inst = graph.nodes[nid]
             spec = self.registry.get(inst.type)
@@ -229,6 +254,8 @@ class Engine:
             for p in spec.params:
                 if p.kind == "path" and params[p.name] is not None:  # the policy before any header is read
                     params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
+            checked[nid] = params
+            refuse_unusable_inputs(graph, self.registry, [nid], checked, {})
             ins = {p.name: None for p in spec.inputs}
             for port, ref in inst.inputs.items():
                 ins[port] = infos[ref.node].get(ref.output)
@@ -333,7 +360,7 @@ class Engine:
         field = f"params.{p.name}"
         try:
             resolved = graph.resolve_path(os.fspath(raw))
-            (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
+            checked = (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
         except PathError as e:
             located = graph.error(e.message, node=nid, field=field)
             raise PathError(e.message, file=located.file, line=located.line, node=nid, field=field) from None
@@ -341,8 +368,9 @@ class Engine:
             located = graph.error(f"bad path: {e}"[:200], node=nid, field=field)
             raise PathError(located.message, file=located.file, line=located.line, node=nid, field=field) from None
         # the node gets the path as the graph names it (made absolute), so its messages
-        # name the user's path; the check above resolved every symlink in it
-        return resolved
+        # name the user's path; the check above resolved every symlink in it, and a
+        # written path carries the folder it checked (writers never follow a symlink)
+        return WritePath(resolved, os.fspath(checked)) if p.writes else resolved
 
     def _check_overwrites(self, graph: Graph, params, order, bind) -> None:
         """A node may not write over a file that this run reads (or the graph file)."""
@@ -468,6 +496,7 @@ class Engine:
                           sum(s.status != "run" for s in plan.steps)))
         missed: set[str] = set()
         tainted: set[str] = set()
+        expected = _Expected(self, plan)
         # a stack: reversed, so outputs (and inputs, below) are pulled in the order given
         stack = list(reversed(dict.fromkeys(r.node for r in plan.outputs.values())))
         while stack:
@@ -487,7 +516,7 @@ class Engine:
                 stack.pop()
                 continue
             if not spec.side_effects and nid not in missed:
-                value, where = self._fetch(key, spec)
+                value, where = self._fetch(key, spec, lambda: expected.of(nid))
                 if value is not MISS:
                     results[nid] = value
                     cached.append(nid)
@@ -553,16 +582,18 @@ class Engine:
             self._last_parts[file] = last
         return last
 
-    def _fetch(self, key: str, spec: NodeSpec):
+    def _fetch(self, key: str, spec: NodeSpec, expect: Callable[[], Any] = dict):
         value = self.memory.get(key)
         if value is not MISS:
             return value, "memory"
         if self.disk is not None:
             value = self.disk.get(key)
             if value is not MISS:
-                why = _misfit(spec, value)
-                if why:  # a well-formed entry that is not this node's outputs
-                    self.disk._discard(key, self.disk.path(key), why)
+                # a well-formed entry that is not this node's outputs: other names, types,
+                # NaN pixels, or another size than the graph's files make it
+                why = misfit([(p.name, p.type) for p in spec.outputs], value, expect())
+                if why:
+                    self.disk.discard(key, why)
                     return MISS, ""
                 _freeze(value)
                 self.memory.put(key, value)
@@ -625,9 +656,14 @@ class Engine:
         where = "memory" if self.memory.put(key, value, size) else "not cached (larger than the memory limit)"
         if self.disk is not None:
             try:
-                self.disk.put(key, value)
-                where = "memory+disk" if where == "memory" else "disk"
-                self.memory_only.pop(spec.type_id, None)
+                bad = misfit([(p.name, p.type) for p in spec.outputs], value)
+                if bad:  # it would be discarded when read
+                    where += f"; not on disk: {bad}"
+                elif self.disk.put(key, value):
+                    where = "memory+disk" if where == "memory" else "disk"
+                    self.memory_only.pop(spec.type_id, None)
+                else:  # a full disk, a read-only folder...: not cached, never a failed run
+                    where += f"; not on disk: {self.disk.last_skip}"
             except Unstorable as e:
                 self.memory_only[spec.type_id] = str(e)
                 where += f"; memory only: {e}"
@@ -683,18 +719,23 @@ def _short(path: str) -> str:
     return path if rel.startswith("..") else rel
 
 
-def _misfit(spec: NodeSpec, value) -> str | None:
-    """Why a cached value is not a valid output dict of ``spec``, or None."""
-    names = [p.name for p in spec.outputs]
-    if not isinstance(value, dict) or sorted(value) != sorted(names):
-        return f"holds outputs {sorted(value)[:8] if isinstance(value, dict) else type(value).__name__}, " \
-               f"not {names}"
-    for p in spec.outputs:
-        try:
-            p.type.validate(value[p.name])
-        except TypeError as e:
-            return f"output {p.name!r} is not a valid {p.type.type_name()}: {e}"[:200]
-    return None
+class _Expected:
+    """What the graph's file headers say each node's outputs will be (``Engine.check``),
+    worked out once per run on the first disk hit; ``{}`` when the check cannot say
+    (values bound by a host, a graph the check refuses: the run then reports it)."""
+
+    def __init__(self, engine: "Engine", plan: Plan):
+        self._engine, self._plan, self._infos = engine, plan, None
+
+    def of(self, nid: str) -> dict[str, Any]:
+        if self._infos is None:
+            self._infos = {}
+            if not self._plan.bind:
+                try:
+                    self._infos = self._engine.check(self._plan.graph, list(self._plan.outputs))
+                except Exception:  # noqa: BLE001 - only a stricter check of cached values is lost
+                    pass
+        return self._infos.get(nid, {})
 
 
 def _freeze(value) -> None:

@@ -95,6 +95,17 @@ class Ref:
         return f"{self.node}.{self.output}"
 
 
+def split_param(name: Any, what: str = "param") -> tuple[str, str]:
+    """``"light.azimuth"`` -> ``("light", "azimuth")``: the one parser of a
+    ``node.param`` name (``--set``, overrides, manifest columns, sweeps, the page's
+    edits). Raises ``GraphError`` naming ``what`` when it is not ``node.param``."""
+    node, dot, pname = str(name).partition(".")
+    if not isinstance(name, str) or not dot or not node or not pname:
+        raise GraphError(f"{what} {name!r} must be 'node.param' or {{node: {{param: value}}}}"
+                         if what == "param override" else f"{what} {name!r} must be 'node.param'")
+    return node, pname
+
+
 def _frozen(d: Mapping) -> Mapping:
     return MappingProxyType(dict(d))
 

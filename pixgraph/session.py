@@ -19,8 +19,8 @@ from . import fileio
 from .cache import DiskCache, MemoryCache
 from .engine import Engine, Plan, RunResult
 from .events import CancelToken
-from .graph import Graph, GraphBuilder, GraphError
-from .paths import PathPolicy
+from .graph import Graph, GraphBuilder, GraphError, Ref, split_param
+from .paths import PathError, PathPolicy, bad_characters, quote
 from .registry import Registry
 
 #: defaults, each overridable by a Session argument or an environment variable
@@ -115,9 +115,7 @@ class Session:
             if isinstance(value, Mapping) and "." not in name:
                 node_id, values = name, dict(value)
             else:
-                node_id, dot, pname = name.partition(".")
-                if not dot or not pname:
-                    raise GraphError(f"param override {name!r} must be 'node.param' or {{node: {{param: value}}}}")
+                node_id, pname = split_param(name, what="param override")
                 values = {pname: value}
             if node_id not in graph.nodes:
                 raise GraphError("param override for a node that is not in the graph", file=graph.file, node=node_id)
@@ -158,8 +156,9 @@ class Session:
         return self.plan(graph_or_path, outputs, params, bind).table()
 
     def run(self, graph_or_path, outputs=None, params=None, bind: Mapping[str, Any] | None = None,
-            cancel: CancelToken | None = None, on_event: Callable[[Any], None] | None = None) -> dict[str, Any]:
-        """Run and return ``{output name: value}``.
+            cancel: CancelToken | None = None, on_event: Callable[[Any], None] | None = None) -> RunResult:
+        """Run and return a ``RunResult``: a mapping ``{output name: value}`` that also
+        says what ran (``ran``, ``cached``, ``seconds``, ``timings``, ``logs``).
 
         outputs: names from the graph's ``outputs`` or ``"node.output"`` refs;
             default all of the graph's outputs.
@@ -183,9 +182,78 @@ class Session:
                 port.type.validate(value)
             except TypeError as e:
                 raise GraphError(f"bound value does not fit output {port.name!r}: {e}", node=nid) from None
-        plan = self.engine.plan(graph, outputs, bind)
+        return self.run_plan(self.engine.plan(graph, outputs, bind), cancel, on_event)
+
+    def run_plan(self, plan: Plan, cancel: CancelToken | None = None,
+                 on_event: Callable[[Any], None] | None = None) -> RunResult:
+        """Run a plan made by ``plan`` (what a shell does when it wants to look at
+        the plan first, e.g. to skip work that is already done)."""
         self.last_run = self.engine.run(plan, cancel, on_event)
-        return self.last_run.values
+        return self.last_run
+
+    # -- outputs and files ------------------------------------------------------
+
+    def output_type(self, graph: Graph, name: str):
+        """The declared port type of a graph output name or a ``"node.output"`` ref."""
+        ref = graph.outputs.get(name) or Ref.parse(name)
+        if ref.node not in graph.nodes:
+            raise GraphError(f"no output {name!r}: no node {ref.node!r} in the graph", file=graph.file)
+        port = self.registry.get(graph.nodes[ref.node].type).output(ref.output)
+        if port is None:
+            raise GraphError(f"no output {name!r}: node {ref.node!r} has no output {ref.output!r}",
+                             file=graph.file, node=ref.node)
+        return port.type
+
+    def write_output(self, graph: Graph, name: str, value: Any, path: str | os.PathLike) -> str:
+        """Write one output value to ``path`` the way its port type writes files (an
+        image as colour, a matte or a pixel height as data: the port type's ``write``).
+        Creates the folder; returns the path written. Raises ``ValueError`` (naming
+        the output and the path) when the value cannot be written there."""
+        port_type = self.output_type(graph, name)
+        path = os.fspath(path)
+        write = getattr(port_type, "write", None)
+        if write is None:
+            raise ValueError(f"output {name!r} ({port_type.type_name()}) cannot be written to a file")
+        os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
+        try:
+            return write(path, value) or path
+        except (ValueError, TypeError, OSError) as e:
+            raise ValueError(f"output {name!r} -> {path}: {e}") from None
+
+    def reads(self, graph: Graph) -> dict[str, str]:
+        """Every file a run of this graph may read (its real path) -> who reads it."""
+        reads = {os.path.realpath(graph.file): "the graph file"} if graph.file else {}
+        for nid, inst in graph.nodes.items():
+            spec = self.registry.get(inst.type)
+            for p in spec.params:
+                if p.kind == "path" and not p.writes and inst.params.get(p.name) is not None:
+                    real = os.path.realpath(graph.resolve_path(os.fspath(inst.params[p.name])))
+                    reads.setdefault(real, f"node {nid!r} param {p.name!r}")
+        return reads
+
+    def check_output_paths(self, graph: Graph, targets: Mapping[str, str | os.PathLike]) -> None:
+        """Output files a person named (``-o``, a batch template, a host's path) may be
+        anywhere, but never hold control characters and never overwrite a file this
+        graph reads. Raises ``paths.PathError`` naming the output."""
+        reads = self.reads(graph)
+        for name, path in targets.items():
+            path = os.fspath(path)
+            why = bad_characters(path)
+            if why:
+                raise PathError(f"output {name}: path {quote(path)} {why}")
+            real = os.path.realpath(path)
+            if real in reads:
+                raise PathError(f"output {name}: {quote(path)} would write over {reads[real]}, read by this run")
+
+    def policy_for(self, graph: Graph) -> PathPolicy:
+        """The path policy that applies to one graph (the session's folders plus the graph's)."""
+        return self.engine.policy_for(graph)
+
+    @property
+    def device_spec(self):
+        """The device this session was asked for (a spec string, a ``Device`` or None),
+        e.g. for a shell that opens the same device in another process."""
+        return self._device_arg
 
     def cache_stats(self) -> dict:
         return {"memory": self.memory.stats(), "disk": self.disk.stats() if self.disk else None}

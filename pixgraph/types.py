@@ -34,6 +34,11 @@ class PortType:
     def validate(cls, value: _Any) -> None:
         """Raise ``TypeError`` when ``value`` is not a valid value of this type."""
 
+    #: A port type whose values can be saved defines ``write(path, value) -> path``
+    #: (``Session.write_output`` calls it: an image is written as colour, a matte or
+    #: a pixel height as data). Types without it cannot be written to a file.
+    write = None
+
 
 class Any(PortType):
     describe = "any value"
@@ -57,6 +62,14 @@ class Image(PortType):
     def validate(cls, value):
         _check_array(value, (2, 3), "Image")
 
+    @classmethod
+    def write(cls, path, value):
+        """Colour: sRGB-encoded 8/16-bit files, or linear EXR."""
+        from pixgraph_nodes.ops.imageio import write_image  # moves with the domain types to the node package
+
+        cls.validate(value)
+        return write_image(path, value)
+
 
 class Mask(Image):
     """float32 array (H, W) in [0, 1]: coverage, 1 = inside."""
@@ -67,6 +80,14 @@ class Mask(Image):
     def validate(cls, value):
         _check_array(value, (2,), "Mask")
 
+    @classmethod
+    def write(cls, path, value):
+        """Data: the numbers themselves, never colour-encoded."""
+        from pixgraph_nodes.ops.imageio import write_data
+
+        cls.validate(value)
+        return write_data(path, value)
+
 
 class PixelHeight(PortType):
     """float32 array (H, W): distance in pixels from each point to its foot on the ground."""
@@ -76,6 +97,14 @@ class PixelHeight(PortType):
     @classmethod
     def validate(cls, value):
         _check_array(value, (2,), "PixelHeight")
+
+    @classmethod
+    def write(cls, path, value):
+        """Data: heights in pixels, never colour-encoded."""
+        from pixgraph_nodes.ops.imageio import write_data
+
+        cls.validate(value)
+        return write_data(path, value)
 
 
 class Scalar(PortType):

@@ -2,5 +2,5 @@
 in spawned processes or on a Dask cluster, resumable. A shell over ``pixgraph.Session``;
 install with ``pip install 'pixgraph[batch]'`` (Dask only for the dask executor).
 """
-from .batch import *  # noqa: F401,F403
-from .batch import batch, cli_batch, add_arguments  # noqa: F401
+from .runner import *  # noqa: F401,F403
+from .runner import batch, cli_batch, add_arguments  # noqa: F401

@@ -96,7 +96,7 @@ class ServeState:
     def _checked(self, graph: Graph) -> Graph:
         """``graph`` after the session's path policy and the image limits; raises ServeError."""
         try:
-            self.session.engine.check_paths(graph)
+            self.session.check_paths(graph)
         except GraphError as e:
             raise ServeError.from_graph_error(e) from None
         for nid, inst in graph.nodes.items():
@@ -115,7 +115,7 @@ class ServeState:
         """Check path params against the policy before the graph is validated, so a
         path outside the roots is refused (403) whether or not the file exists there:
         "file not found" would tell a client which files exist outside."""
-        policy = self.session.engine.paths.with_roots([base_dir])
+        policy = self.session.paths.with_roots([base_dir])
         for nid, type_id, params in nodes:
             if type_id not in self.registry:
                 continue
@@ -250,7 +250,7 @@ class ServeState:
         if not target.endswith((".yaml", ".yml")):
             raise ServeError(400, f"save: {path!r} must end in .yaml or .yml", field="path")
         try:
-            self.session.engine.policy_for(self.graph).check_write(target)
+            self.session.policy_for(self.graph).check_write(target)
         except PathError as e:
             raise ServeError(403, str(e), field="path") from None
         try:
@@ -282,7 +282,7 @@ class ServeState:
             raise ServeError(400, f"mode must be 'final' or 'preview', got {mode!r}", field="mode")
         graph = self.graph if mode == "final" else self.preview_graph()
         try:
-            values = self.session.run(graph, outputs=outputs, cancel=cancel)
+            res = self.session.run(graph, outputs=outputs, cancel=cancel)
         except GraphError as e:
             raise ServeError.from_graph_error(e) from None
         except PathError as e:
@@ -291,7 +291,7 @@ class ServeState:
             raise ServeError(400, str(e), node=e.node_id) from None
         except NodeError as e:
             raise ServeError(422, str(e), node=e.node_id) from None
-        return values, self.session.last_run
+        return res.outputs, res
 
 
 def _refuse_aliases(text: str) -> None:

@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-import pixgraph_batch as B
+import pixgraph_batch.runner as B
 from pixgraph_batch import batch as run_batch
 from pixgraph.cli import main
 from pixgraph.registry import Registry

@@ -261,12 +261,11 @@ def make_items(graph: Graph, rows: Sequence[Row], registry, outputs: Mapping[str
 
 
 def _image_outputs(graph: Graph, registry) -> list[str]:
-    from pixgraph import types as T
-
+    """The graph outputs that can be written to a file (their port type has ``write``)."""
     names = []
     for name, ref in graph.outputs.items():
         port = registry.get(graph.nodes[ref.node].type).output(ref.output)
-        if port is not None and isinstance(port.type, type) and issubclass(port.type, (T.Image, T.PixelHeight)):
+        if port is not None and getattr(port.type, "write", None) is not None:
             names.append(name)
     return names
 
@@ -352,17 +351,16 @@ def run_item(session, graph: Graph, item: Item, force: bool = False) -> ItemResu
     worker = f"{socket.gethostname()}:{os.getpid()}"
     try:
         g = session.graph(graph, item.params)
-        plan = session.engine.plan(g, list(item.outputs))
+        plan = session.plan(g, list(item.outputs))
         keys = {name: content_key(plan.keys[ref.node], ref.output, item.outputs[name])
                 for name, ref in plan.outputs.items()}
         if not force and all(_is_done(item.outputs[n], k) for n, k in keys.items()):
             return ItemResult(item.index, item.row, "skipped", dict(item.outputs), time.perf_counter() - t0,
                               worker=worker)
         _check_outputs(session, g, item)
-        res = session.engine.run(plan)
-        session.last_run = res
+        res = session.run_plan(plan)
         for name, path in item.outputs.items():
-            _write_output(session, g, plan, name, res.values[name], path)
+            _write_output(session, g, name, res.outputs[name], path)
         seconds = time.perf_counter() - t0
         for name, path in item.outputs.items():
             _write_sidecar(session, g, plan, res, item, name, path, keys[name], seconds)
@@ -377,36 +375,20 @@ def run_item(session, graph: Graph, item: Item, force: bool = False) -> ItemResu
 def _check_outputs(session, graph: Graph, item: Item) -> None:
     """Output paths are the user's own (any folder, like ``pixgraph run -o``), but
     never hold control characters and never overwrite a file this row reads."""
-    from pixgraph.paths import bad_characters, quote
+    from pixgraph.paths import PathError
 
-    reads = {os.path.realpath(graph.file)} if graph.file else set()
-    for nid, inst in graph.nodes.items():
-        for p in session.registry.get(inst.type).params:
-            if p.kind == "path" and not p.writes and inst.params.get(p.name) is not None:
-                reads.add(os.path.realpath(graph.resolve_path(os.fspath(inst.params[p.name]))))
-    for name, path in item.outputs.items():
-        why = bad_characters(path)
-        if why:
-            raise BatchError(f"output {name}: path {quote(path)} {why}")
-        if os.path.realpath(path) in reads:
-            raise BatchError(f"output {name}: {quote(path)} would write over a file this row reads")
+    try:
+        session.check_output_paths(graph, item.outputs)
+    except PathError as e:
+        raise BatchError(e.message) from None
 
 
-def _write_output(session, graph: Graph, plan, name: str, value, path: str) -> None:
+def _write_output(session, graph: Graph, name: str, value, path: str) -> None:
     """Write like ``pixgraph run -o``: images as colour, mattes and heights as data."""
-    import numpy as np
-
-    from pixgraph_nodes.ops.imageio import write_data, write_image
-
-    from pixgraph import types as T
-
-    if not isinstance(value, np.ndarray):
-        raise BatchError(f"output {name!r} is a {type(value).__name__}, not an image")
-    ref = plan.outputs[name]
-    port = session.registry.get(graph.nodes[ref.node].type).output(ref.output)
-    data = port is not None and isinstance(port.type, type) and issubclass(port.type, (T.Mask, T.PixelHeight))
-    os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
-    write_data(path, value) if data else write_image(path, value)
+    try:
+        session.write_output(graph, name, value, path)
+    except ValueError as e:
+        raise BatchError(str(e)) from None
 
 
 def user_files(graph: Graph, registry, items: Sequence[Item]) -> list[str]:
@@ -630,8 +612,8 @@ def run_batch(session, graph: Graph | str | os.PathLike, items: Sequence[Item], 
                 record(run_item(session, g, item, force))
             n = 1
         else:
-            if device is None and isinstance(session._device_arg, str):
-                device = session._device_arg  # a Device value cannot cross processes: workers open their own
+            if device is None and isinstance(session.device_spec, str):
+                device = session.device_spec  # a Device value cannot cross processes: workers open their own
             config = WorkerConfig(device=device, cache_bytes=session.memory.limit_bytes,
                                   disk_cache=session.disk.root if session.disk is not None else None,
                                   threads=threads, allow_paths=tuple(session.paths.roots),
