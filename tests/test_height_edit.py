@@ -124,3 +124,28 @@ def test_node_checks_its_params_and_matches_the_function():
         run(h, m, contact_points=[25.0, 5.0])
     with pytest.raises(InputError, match="same size"):
         run(h, np.ones((10, 10), np.float32))
+
+
+def test_graph_saves_the_edit_and_a_preview_scales_its_points(tmp_path):
+    from pixgraph.session import Session
+    g = tmp_path / "g.yaml"
+    g.write_text("""pixgraph: 1
+nodes:
+  m: {type: pixgraph.InputMask}
+  h: {type: pixgraph.InputPixelHeight}
+  e: {type: pixgraph.PixelHeightEdit, inputs: {height: h.height, mask: m.mask},
+      params: {contact_points: [20, 60, 60, 60], contact_mode: upright, lift: 4}}
+outputs: {out: e.height}
+""")
+    H, W = 80, 80
+    m = np.zeros((H, W), np.float32)
+    m[10:60, 20:60] = 1
+    s = Session()
+    out = s.run(g, bind={"m": m, "h": np.zeros((H, W), np.float32)})["out"]
+    _, v = grid(H, W)
+    np.testing.assert_allclose(out[m > 0], (60.0 - v + 4.0)[m > 0], atol=1e-5)
+    # a half-size preview: the points (in px) and the lift scale with the image
+    half = s.run(g, bind={"m": m[::2, ::2].copy(), "h": np.zeros((40, 40), np.float32)}, scale=0.5)["out"]
+    _, v2 = grid(40, 40)
+    mh = m[::2, ::2] > 0
+    np.testing.assert_allclose(half[mh], (30.0 - v2 + 2.0)[mh], atol=1e-5)
