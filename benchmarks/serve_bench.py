@@ -92,7 +92,7 @@ def photo_files(dest: str, width: int = 5120, height: int = 3840, mask: bool = T
 def start(graph: str):
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "pixgraph", "serve", graph, "--port", "0"],
+    proc = subprocess.Popen([sys.executable, "-m", "pixgraph", "serve", graph, "--port", "0", "--no-token"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     line = proc.stdout.readline()
     if "http://" not in line:
@@ -201,7 +201,7 @@ def start_photo(width: int, height: int, folder: str):
     shutil.copy(os.path.join(REPO, "graphs", "own_photo.yaml"), graph)
     files = photo_files(os.path.join(folder, "mine"), width, height, mask=True)
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen([sys.executable, "-m", "pixgraph", "serve", graph, "--port", "0",
+    proc = subprocess.Popen([sys.executable, "-m", "pixgraph", "serve", graph, "--port", "0", "--no-token",
                              "--max-pixels", str(max(16777216, 2 * width * height)), "--max-body", str(512 << 20)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     line = proc.stdout.readline()

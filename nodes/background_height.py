@@ -51,6 +51,12 @@ class BackgroundHeight:
         height: T.PixelHeight = port(doc="background pixel height [px]")
 
     impl_version = "1"
+    disk_cache = False      # large and cheaper to recompute than to read back from disk
+    #: what a shell's page draws (read by pixgraph_serve): the template's handles, i.e. these
+    #: params by ``kind`` (points ``corner``/``corner2``, slopes, the junction row, the
+    #: junction_points that override them)
+    handles = {"kind": "background", "params": ("kind", "corner", "corner2", "left_slope", "right_slope",
+                                                "junction_row", "junction_slope", "junction_points")}
 
     def compute(self, ctx, inputs, params):
         cam = inputs.camera

@@ -34,6 +34,8 @@ class HardShadow:
         darkness: T.Mask = port(doc="1 - lit: 1 = full shadow (what Composite takes)")
 
     impl_version = "1"
+    #: shells may switch this node among the registered types declaring the same handles kind
+    handles = {"kind": "shadow"}
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)

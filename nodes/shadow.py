@@ -45,7 +45,7 @@ class Shadow:
         samples: int = param(64, min=1, max=65536, doc="light samples of method soft")
         thickness: float = param(1.0, min=0.0, max=1000.0, unit="px",
                                  doc="occluder thickness of the pixel-height tracer")
-        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px",
+        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px, longer side",
                            doc="classical shadows of images longer than this are traced at this size (0: never)")
 
     class Outputs:
@@ -55,6 +55,10 @@ class Shadow:
     # the choice depends on the shipped table: a new table is a new implementation
     # the result depends on the shipped table and, through method ssn, on SSN++'s weights and inference
     impl_version = "1+table." + C.table_digest() + "+ssn." + SoftShadowSSN.impl_version
+    #: a cheaper node type with the same ports that stands in for this one in previews
+    preview = "pixgraph.HardShadow"
+    #: shells may switch this node among the registered types declaring the same handles kind
+    handles = {"kind": "shadow"}
 
     @staticmethod
     def describe(params) -> str:

@@ -83,6 +83,10 @@ class SoftShadowSSN:
     # 4: window at the trained scale, softness clamped to the trained range; 5: v2 weights;
     # 6: v3 weights)
     impl_version = "6"
+    #: a cheaper node type with the same ports that stands in for this one in previews
+    preview = "pixgraph.HardShadow"
+    #: shells may switch this node among the registered types declaring the same handles kind
+    handles = {"kind": "shadow"}
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)

@@ -63,15 +63,18 @@ class NodeContext:
     """What a node's ``compute`` may use besides its inputs and params.
 
     ``device`` is opened on first access only, so graphs without OpenCL nodes
-    never touch OpenCL.
+    never touch OpenCL. ``scale`` is the run's working resolution (``Engine.plan``):
+    a node that declares ``uses_scale = True`` (a loader) makes its images this
+    many times the file's size; 1 is full size.
     """
 
-    __slots__ = ("node_id", "graph_dir", "_device", "_cancel", "_emit")
+    __slots__ = ("node_id", "graph_dir", "_device", "_cancel", "_emit", "scale")
 
     def __init__(self, node_id: str, graph_dir: str, device: Callable[[], Any],
-                 cancel: E.CancelToken | None, emit: Callable[[Any], None]):
+                 cancel: E.CancelToken | None, emit: Callable[[Any], None], scale: float = 1.0):
         self.node_id = node_id
         self.graph_dir = graph_dir
+        self.scale = scale
         self._device = device
         self._cancel = cancel
         self._emit = emit
@@ -120,6 +123,8 @@ class Plan:
     #: bound node id -> its outputs (a host input's ``bind`` hook applied; else the
     #: array as the first output)
     bound: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
+    #: working resolution of the run (1 = full size; see ``Engine.plan``)
+    scale: float = 1.0
 
     def step(self, node_id: str) -> Step:
         return next(s for s in self.steps if s.node_id == node_id)
@@ -193,8 +198,16 @@ class Engine:
 
     # -- plan -------------------------------------------------------------------
 
-    def plan(self, graph: Graph, outputs=None, bind: Mapping[str, Any] | None = None) -> Plan:
+    def plan(self, graph: Graph, outputs=None, bind: Mapping[str, Any] | None = None,
+             scale: float = 1.0) -> Plan:
+        """The plan of a run. ``scale`` in (0, 1] is the working resolution: every
+        param declared with ``unit="px"`` (a length in the picture; not a size cap
+        such as ``unit="px, longer side"``) is multiplied by it (ints rounded, kept in
+        the param's range) and nodes that declare ``uses_scale = True`` get it as
+        ``ctx.scale`` and in their cache key. The engine knows no more of images than
+        that; at 1 (the default) plans and keys are those of an unscaled run."""
         bind = dict(bind or {})
+        scale = _check_scale(scale)
         requested = self._requested(graph, outputs)
         for nid in bind:
             if nid not in graph.nodes:
@@ -221,6 +234,8 @@ class Engine:
                     bound[nid] = {spec.outputs[0].name: bind[nid]}
                 continue
             p, relevant = self._params(graph, nid, spec, inst.params, policy)
+            if scale != 1.0:
+                _scale_params(spec, p, relevant, scale)
             params[nid] = p
             inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
             parts[nid] = KeyParts(spec.type_id, spec.version, codehash.impl_version(spec), relevant, inputs)
@@ -228,7 +243,7 @@ class Engine:
         self._check_overwrites(graph, params, order, bind)
         refuse_unusable_inputs(graph, self.registry, order, params, bind)
         steps = self._steps(graph, requested, order, keys, parts, bind, params)
-        return Plan(graph, requested, steps, keys, parts, params, bind, bound)
+        return Plan(graph, requested, steps, keys, parts, params, bind, bound, scale)
 
     # -- check before running -----------------------------------------------------
 
@@ -624,7 +639,7 @@ class Engine:
         inputs = {p.name: None for p in spec.inputs}
         for port, ref in inst.inputs.items():
             inputs[port] = results[ref.node][ref.output]
-        ctx = NodeContext(nid, plan.graph.base_dir, self._device, cancel, emit)
+        ctx = NodeContext(nid, plan.graph.base_dir, self._device, cancel, emit, plan.scale)
         try:
             out = spec.cls().compute(ctx, Namespace(inputs), Namespace(plan.params[nid]))
         except (E.Cancelled, DeviceError):
@@ -659,7 +674,9 @@ class Engine:
             return "not cached (sink)"
         size = nbytes(value)
         where = "memory" if self.memory.put(key, value, size) else "not cached (larger than the memory limit)"
-        if self.disk is not None:
+        if self.disk is not None and not getattr(spec.cls, "disk_cache", True):
+            where += "; not on disk (the node recomputes faster than the disk cache reads)"
+        elif self.disk is not None:
             try:
                 bad = misfit([(p.name, p.type) for p in spec.outputs], value)
                 if bad:  # it would be discarded when read
@@ -673,6 +690,40 @@ class Engine:
                 self.memory_only[spec.type_id] = str(e)
                 where += f"; memory only: {e}"
         return where
+
+
+def _check_scale(scale) -> float:
+    try:
+        scale = float(scale)
+    except (TypeError, ValueError):
+        raise GraphError(f"scale must be a number in (0, 1], got {scale!r}") from None
+    if not 0.0 < scale <= 1.0:
+        raise GraphError(f"scale must be in (0, 1] (1 = full size), got {scale!r}")
+    return scale
+
+
+def _scale_params(spec: NodeSpec, params: dict, relevant: dict, scale: float) -> None:
+    """A scaled run (``Engine.plan``): params declared in pixels (``unit="px"``)
+    times ``scale``, in ``params`` (what compute gets) and ``relevant`` (the key);
+    a node with ``uses_scale = True`` gets ``@scale`` in its key."""
+    def one(p, v):
+        v = v * scale
+        if p.kind == "int":
+            v = int(round(v))
+        if p.min is not None:
+            v = max(v, p.min)
+        if p.max is not None:
+            v = min(v, p.max)
+        return v
+    for p in spec.params:
+        if p.unit != "px" or p.kind not in ("int", "float", "floats") or params.get(p.name) is None:
+            continue
+        v = params[p.name]
+        params[p.name] = tuple(one(p, x) for x in v) if p.kind == "floats" else one(p, v)
+        if p.name in relevant:
+            relevant[p.name] = list(params[p.name]) if p.kind == "floats" else params[p.name]
+    if getattr(spec.cls, "uses_scale", False):
+        relevant["@scale"] = scale
 
 
 def _same_size(spec: NodeSpec, ins: Mapping[str, Any]) -> dict[str, Any]:

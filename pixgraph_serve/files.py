@@ -27,7 +27,8 @@ import yaml
 
 from pixgraph.paths import PathError
 
-from .state import ServeError, ServeState
+from .errors import ServeError, serve_error
+from .state import ServeState
 
 ENTRY_POINT_GROUP = "pixgraph.nodes"
 FILE_ROLES = ("photo", "cutout", "mask")
@@ -163,7 +164,7 @@ def notes(state: ServeState) -> list[str]:
     try:
         state.session.check(state.graph, notes=found)
     except GraphError as e:
-        raise ServeError.from_graph_error(e) from None
+        raise serve_error(e) from None
     return [n.replace(state.root + os.sep, "") for n in found]
 
 

@@ -3,7 +3,8 @@
 // go out one at a time, the newest edit waiting in `pending`; when the pointer
 // stops a "final" render follows at once. Both come back at about the screen's
 // size (`scale`: the server box-filters the image by that integer factor;
-// previews at half resolution or less). The
+// previews run at a working resolution of half or less: the engine scales the
+// photo and every param in pixels, so a drag on a 20 MP photo computes ~1 MP). The
 // server drops or cancels renders superseded by a newer seq (409), and the page
 // never shows an image older than the one shown.
 "use strict";
@@ -33,11 +34,13 @@ export async function render(edits, mode) {
   const seq = ++ui.seq;
   // previews at least at half resolution: a quick look while the pointer moves
   const scale = mode === "preview" ? Math.max(2, screenScale()) : screenScale();
+  // previews run the whole graph at that working resolution (1/scale), finals at full size
+  const size = mode === "preview" ? {scale: 1, work: 1 / scale} : {scale};
   const t0 = performance.now();
   let r;
   try {
     r = await request("/api/render", {method: "POST", headers: {"Content-Type": "application/json"},
-      body: JSON.stringify({...edits, mode, scale, output: "final", client: ui.client, seq})});
+      body: JSON.stringify({...edits, mode, ...size, output: "final", client: ui.client, seq})});
   } catch (err) {
     showError(`server unreachable: ${err.message}`);
     return false;

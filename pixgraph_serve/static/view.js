@@ -96,8 +96,7 @@ export function draw() {
   ctx.setTransform(dpr * view.k, 0, 0, dpr * view.k, dpr * view.ox, dpr * view.oy);
   ctx.imageSmoothingEnabled = view.k * view.scale < 2;   // pixels stay sharp when zoomed far in
   ctx.imageSmoothingQuality = "high";
-  const b = view.bitmap;
-  ctx.drawImage(b, 0, 0, b.width * view.scale, b.height * view.scale);
+  ctx.drawImage(view.bitmap, 0, 0, view.W, view.H);   // whatever size it came at, it is the whole image
 }
 
 // The shown image at its own resolution as a PNG data URL (tests read its pixels).
