@@ -25,10 +25,10 @@ A photo of that size (photo_files: made from the repo's own assets in a temporar
 folder, never kept) opened as the page opens it: uploaded with an RGB cutout and
 a mask file, the own-photo graph built from the template (POST /api/open), then:
   open -> first final      POST /api/open until the first final PNG has arrived
-  drag -> preview (1/s)    one light-drag step as the page sends it, the PNG
-                           downscaled by s (--scales, default 2: the server's old
-                           preview default, and 5: what the page asks for with the
-                           photo fitted in a 1280x800 window)
+  drag -> preview (work 1/s) one light-drag step as the page sends it: the whole
+                           graph at working resolution 1/s (--scales, default 2
+                           and 5: what the page asks for with the photo fitted in
+                           a 1280x800 window)
   --browser                the same drag in headless Chromium on the page: from
                            sending each preview to drawing it
 Goal from issue 22: light drag -> preview image in the page <= 150 ms at 20 MP.
@@ -235,12 +235,13 @@ def photo_drags(url: str, files: dict, width: int, height: int, steps: int, scal
                 tip = [round(foot[0] + 0.3 * width * math.cos(a), 1), round(foot[1] + 0.04 * height * math.sin(a), 1)]
                 seq += 1
                 t0 = time.perf_counter()
-                r = c.post("/api/render", json={"light_tip": tip, "mode": "preview", "scale": s,
+                # as the page asks: the whole graph at working resolution 1/s, the PNG not downscaled again
+                r = c.post("/api/render", json={"light_tip": tip, "mode": "preview", "scale": 1, "work": 1 / s,
                                                 "client": "bench-photo", "seq": seq})
                 r.raise_for_status()
                 times.append(time.perf_counter() - t0)
                 inside.append(float(r.headers["x-pixgraph-seconds"]))
-            rows.append((f"{width}x{height}: drag -> preview (1/{s})", times, f"{steps} steps"))
+            rows.append((f"{width}x{height}: drag -> preview (work 1/{s})", times, f"{steps} steps"))
             rows.append(("  of which inside the server's handler", inside, f"{steps} steps"))
     return rows
 
