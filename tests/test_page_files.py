@@ -88,6 +88,13 @@ def test_open_photo_cutout_and_mask(served, tmp_path):
     # the page asks for images at the screen's size: box-filtered by `scale`
     small = client.post("/api/render", json={"mode": "final", "scale": 3})
     assert Image.open(io.BytesIO(small.content)).size == (320 // 3, 240 // 3)
+    # a preview at working resolution 1/4: the whole graph runs at 80x60
+    quarter = client.post("/api/render", json={"mode": "preview", "scale": 1, "work": 0.25})
+    assert quarter.status_code == 200, quarter.text
+    assert Image.open(io.BytesIO(quarter.content)).size == (80, 60)
+    for bad in (0, 1.5, True, "0.5"):
+        r = client.post("/api/render", json={"mode": "preview", "work": bad})
+        assert r.status_code == 400 and r.json()["field"] == "work", bad
     for bad in (0, 17, 2.5, True, "2"):
         r = client.post("/api/render", json={"mode": "final", "scale": bad})
         assert r.status_code == 400 and r.json()["field"] == "scale", bad
