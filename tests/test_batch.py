@@ -11,6 +11,7 @@ import time
 import numpy as np
 import pytest
 
+import pixgraph_batch.files as F
 import pixgraph_batch.runner as B
 from pixgraph_batch import batch as run_batch
 from pixgraph.cli import main
@@ -98,7 +99,7 @@ def test_fifty_row_manifest_equals_fifty_single_runs(scene, tmp_path, capsys):
     assert meta["pixgraph"] and len(meta["graph_sha256"]) == 64
     assert meta["methods"]["fg_h"]["method"] == "contact_line"
     assert meta["methods"]["shadow"]["type"] == "pixgraph.SoftShadow"
-    assert meta["file_sha256"] == B._file_sha256(str(out / "r07.exr"))
+    assert meta["file_sha256"] == F.file_sha256(str(out / "r07.exr"))
 
 
 def test_bad_rows_are_reported_and_the_rest_complete(scene, tmp_path, capsys):
@@ -190,7 +191,7 @@ def test_bad_manifest_is_exit_2_naming_file_and_line(scene, tmp_path, capsys):
     assert err.startswith(f"{man}:2: column 'lamp.azimuth': no node 'lamp'") and "\n" not in err
     man.write_text("light.azimuth\n10\n20\n")
     assert main(["batch", str(scene / "g.yaml"), str(man), "-o", f"final={tmp_path}/same.png"]) == 2
-    assert "both write" in capsys.readouterr().err
+    assert "output final and row 0001 output final both write" in capsys.readouterr().err
 
 
 def _sweep_kw(tmp_path, scene, name):
