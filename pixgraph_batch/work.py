@@ -18,7 +18,9 @@ from typing import Any, Callable, Sequence
 
 from pixgraph import __version__
 from pixgraph.cache import MISS
+from pixgraph.events import NodeCached, NodeFinished
 from pixgraph.graph import Graph, GraphError, split_param
+from pixgraph.types import nbytes
 
 from . import files as F
 from .items import Item
@@ -117,21 +119,23 @@ def shared_nodes(graph: Graph, items: Sequence[Item]) -> set[str]:
 
 
 class Pins:
-    """Upstream results a group shares, held for the whole group: put back in the
-    session's memory cache before each item if the byte limit evicted them."""
+    """Upstream results a group shares, held for the whole group: each is taken from
+    the session's memory cache the moment its node finishes (or is served from a
+    cache), the cache's byte limit is raised by its size while the group runs (so
+    pins never crowd out the working set the limit was chosen for), and it is put
+    back whenever the LRU evicted it, so the engine finds it in memory for every
+    later item of the group. ``clear`` lowers the limit again."""
 
-    def __init__(self, session):
+    def __init__(self, session, shared: set[str]):
         self.session = session
+        self.shared = shared
         self.values: dict[str, Any] = {}
+        self.extra_bytes = 0
+        self._keys: dict[str, str] = {}
 
-    def hold(self, plan, nodes: set[str]) -> None:
-        memory = self.session.memory
-        for nid in nodes:
-            key = plan.keys.get(nid)
-            if key is not None and key not in self.values:
-                value = memory.get(key)
-                if value is not MISS:
-                    self.values[key] = value
+    def watch(self, plan) -> None:
+        """The plan of the item about to run (its node keys)."""
+        self._keys = {nid: plan.keys[nid] for nid in self.shared if nid in plan.keys}
 
     def restore(self) -> None:
         memory = self.session.memory
@@ -139,20 +143,34 @@ class Pins:
             if key not in memory:
                 memory.put(key, value)
 
+    def on_event(self, event) -> None:
+        key = self._keys.get(getattr(event, "node_id", None))
+        if key is not None and key not in self.values and isinstance(event, (NodeFinished, NodeCached)):
+            value = self.session.memory.get(key)
+            if value is not MISS:  # (a result larger than the whole cache was never stored)
+                self.values[key] = value
+                size = nbytes(value)
+                self.extra_bytes += size
+                self.session.memory.limit_bytes += size
+        if isinstance(event, NodeFinished) and self.values:
+            self.restore()  # this node's store may have evicted a pinned entry
+
     def clear(self) -> None:
         self.values.clear()
+        self.session.memory.limit_bytes -= self.extra_bytes
+        self.extra_bytes = 0
 
 
 def run_group(session, graph: Graph, items: Sequence[Item], force: bool = False,
               on_result: Callable[[ItemResult], None] | None = None, pin: bool = True) -> list[ItemResult]:
     """Run a group's items in order in one session, sharing their upstream results."""
     shared = shared_nodes(graph, items) if pin else set()
-    pins = Pins(session)
+    pins = Pins(session, shared)
     out = []
     try:
         for item in items:
             pins.restore()
-            r = run_item(session, graph, item, force, pins=pins if shared else None, shared=shared)
+            r = run_item(session, graph, item, force, pins=pins if shared else None)
             out.append(r)
             if on_result is not None:
                 on_result(r)
@@ -164,8 +182,7 @@ def run_group(session, graph: Graph, items: Sequence[Item], force: bool = False,
 # -- one item ----------------------------------------------------------------------------
 
 
-def run_item(session, graph: Graph, item: Item, force: bool = False, pins: Pins | None = None,
-             shared: set[str] = frozenset()) -> ItemResult:
+def run_item(session, graph: Graph, item: Item, force: bool = False, pins: Pins | None = None) -> ItemResult:
     """Plan ``item``; skip it when every output is done, else run it and write its
     files and sidecars. Never raises for a failure of the row: it is returned."""
     t0 = time.perf_counter()
@@ -179,9 +196,9 @@ def run_item(session, graph: Graph, item: Item, force: bool = False, pins: Pins 
             return ItemResult(item.index, item.row, "skipped", dict(item.outputs), time.perf_counter() - t0,
                               worker=worker)
         _check_outputs(session, g, item)
-        res = session.run_plan(plan)
         if pins is not None:
-            pins.hold(plan, shared)
+            pins.watch(plan)
+        res = session.run_plan(plan, on_event=pins.on_event if pins is not None else None)
         digests = {}
         for name, path in item.outputs.items():
             digests[name] = _write_output(session, g, name, res.outputs[name], path)

@@ -287,3 +287,52 @@ def test_rows_never_write_over_their_inputs(scene, tmp_path):
                           outputs={"final": str(tmp_path / "cut" / "{stem}.png")})
     assert [r.status for r in res.results] == ["failed"] and "would write over" in res.results[0].error
     assert (tmp_path / "cut" / "c1.png").read_bytes() == src
+
+
+# -- rows that differ only downstream share what is upstream -----------------------------------
+
+
+def _ran(out, n):
+    return [json.loads((out / f"{i:04d}.exr.json").read_text())["ran"] for i in range(n)]
+
+
+@pytest.mark.parametrize("share", [True, False])
+def test_rows_share_upstream_even_past_the_cache_limit(scene, tmp_path, share):
+    """Two cutouts x three azimuths, the cutouts interleaved by a manifest, with a memory
+    cache that holds about one 64x64 result: grouped, each cutout's upstream (load,
+    heights, camera, photo) is computed once and held for its three rows; ungrouped,
+    the byte limit makes every row compute it again. Pixels are the same either way."""
+    rows = [{"cutout.path": f"{scene}/cutouts/c{k}.png", "light.azimuth": a} for a in (-60, 0, 60) for k in (0, 1)]
+    out = tmp_path / "out"
+    s = Session(cache_bytes=100_000)
+    res = run_batch(s, scene / "g.yaml", rows=rows, outputs={"final": str(out / "{index:04d}.exr")}, share=share)
+    assert s.memory.limit_bytes == 100_000  # the pins' extra room is given back
+    assert res.count("done") == 6 and res.groups == (2 if share else 6)
+    ran = _ran(out, 6)
+    upstream = {"cutout", "photo", "fg_h", "bg_h", "cam"}
+    computed = sum(len(upstream & set(r)) for r in ran)
+    if share:
+        assert computed <= 2 * 5  # at most once per group (cutout), in the group's first row
+        assert sum("cutout" in r for r in ran) == 2 and sum("fg_h" in r for r in ran) == 2
+        assert all(set(r) == {"light", "shadow", "comp"} for r in ran[2:])  # rows 2..5: only what the light changes
+    else:
+        assert computed >= 5 * 6 - 6  # the tiny cache kept next to nothing
+    for i, row in enumerate(rows):
+        single = Session().run(scene / "g.yaml", outputs=["final"], params=row)["final"]
+        assert np.array_equal(_pixels(out / f"{i:04d}.exr"), single), f"row {i}"
+
+
+def test_grouping_follows_the_fastest_varying_param(scene):
+    from pixgraph_batch.work import group_items
+
+    s = Session()
+    g = s.load(scene / "g.yaml")
+    rows = B.sweep_rows([("cutout.path", [f"{scene}/cutouts/c{k}.png" for k in range(3)]),
+                         ("light.azimuth", [0, 10, 20, 30]), ("light.elevation", [20, 40])])
+    items = B.make_items(g, rows, s.registry, {"final": "/tmp/x/{index}.png"})
+    groups = group_items(g, items)
+    # azimuth varies most; elevation is on the same node (light): groups are the cutouts
+    assert [len(x) for x in groups] == [8, 8, 8]
+    assert all(len({it.params["cutout.path"] for it in grp}) == 1 for grp in groups)
+    # a shared (--set) value changes nothing; one row, one group
+    assert len(group_items(g, items[:1])) == 1
