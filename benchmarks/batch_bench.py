@@ -30,6 +30,7 @@ own assets by ``photo_scene``: graphs/own_photo.yaml's photo and cutout scaled
 with a fresh disk cache, end to end (process start included)::
 
     python benchmarks/batch_bench.py --photo --repeats 2
+    python benchmarks/batch_bench.py --photo-profile   # where a row's time goes
 """
 from __future__ import annotations
 
@@ -183,6 +184,48 @@ def photo_bench(args) -> None:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+def photo_profile(args) -> None:
+    """Where a 20 MP light sweep's time goes: per node and per write, one session, the
+    rows of a batch (the first row also computes the shared upstream), medians."""
+    import pixgraph_batch
+    from pixgraph.events import NodeFinished
+    from pixgraph.session import Session
+
+    tmp = tempfile.mkdtemp(prefix="batch_profile_")
+    try:
+        graph = photo_scene(tmp, args.photo_width, args.photo_height)
+        t0 = time.perf_counter()
+        s = Session()
+        g = s.load(graph)
+        print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f}; session {time.perf_counter() - t0:.2f} s")
+        rows = []
+        for i, a in enumerate(-60 + 24 * k for k in range(args.photo_rows)):
+            timings = {}
+            t0 = time.perf_counter()
+            plan = s.plan(g, ["final"], params={"light.azimuth": a})
+            t1 = time.perf_counter()
+            res = s.run_plan(plan, on_event=lambda e: isinstance(e, NodeFinished) and
+                             timings.__setitem__(e.node_id, e.seconds))
+            t2 = time.perf_counter()
+            digest = pixgraph_batch.files.write_atomic(os.path.join(tmp, f"{i}.png"),
+                                                        lambda p: s.write_output(g, "final", res["final"], p))
+            t3 = time.perf_counter()
+            rows.append({"plan": t1 - t0, "run": t2 - t1, "write_png": t3 - t2, "nodes": timings, "sha": digest[:8]})
+            print(f"row {i}: plan {t1 - t0:.2f} s, run {t2 - t1:.2f} s "
+                  f"({', '.join(f'{k} {v:.2f}' for k, v in timings.items())}), write PNG {t3 - t2:.2f} s", flush=True)
+        later = rows[1:]
+        med = {k: statistics.median(r[k] for r in later) for k in ("plan", "run", "write_png")}
+        nodes = sorted({n for r in later for n in r["nodes"]})
+        print("\nrows 2..: median " + ", ".join(f"{k} {v:.2f} s" for k, v in med.items()) + "; nodes: " +
+              ", ".join(f"{n} {statistics.median(r['nodes'].get(n, 0.0) for r in later):.2f}" for n in nodes))
+        first_only = {n: v for n, v in rows[0]["nodes"].items() if n not in nodes}
+        print("first row only (shared upstream): " + ", ".join(f"{n} {v:.2f}" for n, v in first_only.items()) +
+              f" = {sum(first_only.values()):.2f} s")
+        print(json.dumps({"rows": rows, "machine": cpu_model()}))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rows", type=int, default=200)
@@ -199,7 +242,11 @@ def main() -> None:
     ap.add_argument("--photo-height", type=int, default=3840)
     ap.add_argument("--photo-modes", default="cli-loop,batch,cli-loop-disk,batch-disk")
     ap.add_argument("--photo-cache-bytes", type=int, default=0, help="batch --cache-bytes (0: the default)")
+    ap.add_argument("--photo-profile", action="store_true", help="where a 20 MP light sweep's row time goes")
     args = ap.parse_args()
+    if args.photo_profile:
+        photo_profile(args)
+        return
     if args.photo:
         photo_bench(args)
         return

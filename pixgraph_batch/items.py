@@ -32,6 +32,8 @@ class Item:
     #: output name (graph output or NODE.OUTPUT) -> absolute file path
     outputs: Mapping[str, str]
     source: str = ""
+    #: output name -> the real output folder of its template (what a batch locks)
+    folders: Mapping[str, str] = dataclasses.field(default_factory=dict)
 
 
 def parse_output_options(options: Sequence[str]) -> dict[str, str] | None:
@@ -119,7 +121,7 @@ def make_items(graph: Graph, rows: Sequence[Row], registry, outputs: Mapping[str
                                  f"write {real}: put {{row}} or {{stem}} in each output template")
             seen[real] = (rid, name)
             files[name] = path
-        items.append(Item(i, rid, merged, files, row.source))
+        items.append(Item(i, rid, merged, files, row.source, folders))
     return items
 
 
@@ -132,8 +134,13 @@ def _fill(tmpl: str, fields: Mapping[str, Any], name: str) -> str:
 
 
 def output_folders(items: Sequence[Item]) -> list[str]:
-    """The real folders the items' files go to, sorted (what a batch locks)."""
-    return sorted({os.path.dirname(os.path.realpath(p)) for it in items for p in it.outputs.values()})
+    """The real output folders of the items' templates, sorted (what a batch locks;
+    the folder of each file for items made without templates)."""
+    folders = set()
+    for it in items:
+        for name, p in it.outputs.items():
+            folders.add(it.folders.get(name) or os.path.dirname(os.path.realpath(p)))
+    return sorted(folders)
 
 
 def image_outputs(graph: Graph, registry) -> list[str]:

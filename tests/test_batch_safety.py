@@ -419,3 +419,17 @@ def test_ctrl_c_to_the_process_group_leaves_no_process(scene, tmp_path):
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
 
+
+
+def test_doc_limit_transcript(tmp_path, monkeypatch, capsys):
+    """docs/batch.md's `$ pixgraph batch ...` transcript prints what the doc shows."""
+    import re
+    import shlex
+
+    doc = os.path.join(os.path.dirname(__file__), "..", "docs", "batch.md")
+    blocks = [b for b in re.findall(r"```text\n(.*?)```", open(doc).read(), re.S) if b.startswith("$ pixgraph batch")]
+    assert len(blocks) == 1
+    cmd, expected = blocks[0].strip().splitlines()
+    monkeypatch.chdir(os.path.join(os.path.dirname(__file__), ".."))
+    assert main(shlex.split(cmd)[2:] + ["--no-disk-cache"]) == 2
+    assert _err(capsys) == expected
