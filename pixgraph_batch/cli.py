@@ -32,7 +32,7 @@ def add_arguments(p) -> None:
     p.add_argument("--force", action="store_true", help="re-render rows whose outputs are already done")
     p.add_argument("--report", metavar="JSON", help="also write every row's result to this JSON file")
     p.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
-    p.add_argument("--cache-bytes", type=int, default=None, help="memory cache limit in bytes (per process)")
+    p.add_argument("--cache-bytes", type=_bytes, default=None, help="memory cache limit in bytes (per process)")
     p.add_argument("--max-rows", type=int, default=DEFAULT_MAX_ROWS,
                    help=f"refuse batches of more rows, counted before any is made (default {DEFAULT_MAX_ROWS})")
     p.add_argument("--max-manifest-bytes", type=int, default=DEFAULT_MAX_MANIFEST_BYTES,
@@ -40,6 +40,19 @@ def add_arguments(p) -> None:
     p.add_argument("--wait-lock", type=float, default=0.0, metavar="SECONDS",
                    help="wait this long for another batch writing the same output folder (default 0: "
                         "refuse at once; -1: wait as long as it takes)")
+
+
+def _bytes(text: str) -> int:
+    """A byte count >= 0 (checked while parsing: the session is made before the batch runs)."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number of bytes") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value}: must be >= 0")
+    return value
 
 
 def cli_batch(args, session, shared_params: Mapping[str, Any], usage_error) -> int:
@@ -51,8 +64,6 @@ def cli_batch(args, session, shared_params: Mapping[str, Any], usage_error) -> i
         for flag, value in (("--max-rows", args.max_rows), ("--max-manifest-bytes", args.max_manifest_bytes)):
             if value < 1:
                 raise BatchError(f"{flag} {value}: must be >= 1")
-        if args.cache_bytes is not None and args.cache_bytes < 0:
-            raise BatchError(f"--cache-bytes {args.cache_bytes}: must be >= 0")
         outputs = parse_output_options(args.output)
         executor, workers = "inprocess", 1
         if args.processes is not None:

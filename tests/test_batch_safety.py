@@ -230,6 +230,28 @@ def test_two_concurrent_batches_100_rounds(scene, tmp_path, references):
     print(f"100 rounds: 0 wrong provenance, {refused} batches refused by the lock")
 
 
+@pytest.mark.slow  # 100 rounds of two `pixgraph batch` processes (about 10 minutes on a loaded 2-core machine)
+def test_two_concurrent_batch_processes_100_rounds(scene, tmp_path, references):
+    """The same with two real processes per round, started together through the CLI."""
+    wrong = refused = 0
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    for k in range(100):
+        out = tmp_path / f"round{k}"
+        wait = ["--wait-lock", "-1"] if k % 2 == 0 else []
+        procs = [subprocess.Popen([sys.executable, "-m", "pixgraph", "batch", str(scene / "g.yaml"), "-q",
+                                   "--no-disk-cache", "--sweep", "light.azimuth=" + ",".join(map(str, AZ[n])),
+                                   "-o", f"final={out}/{{index}}.png", *wait], env=env,
+                                  stderr=subprocess.PIPE, text=True) for n in AZ]
+        codes = [(p.wait(timeout=300), p.stderr.read()) for p in procs]
+        for rc, err in codes:
+            assert rc == 0 or (rc == 2 and not wait and "is in use by another batch" in err), err
+        refused += sum(rc == 2 for rc, _ in codes)
+        wrong += _wrong_provenance(out, references)
+        assert sorted(os.listdir(out)) == sorted(f"{i}.png{e}" for i in range(4) for e in ("", ".json"))
+    print(f"100 rounds of two processes: {wrong} wrong provenance, {refused} batches refused by the lock")
+    assert wrong == 0
+
+
 def test_sidecar_hashes_the_bytes_written(scene, tmp_path, references, monkeypatch):
     """Another writer replaces an image between its rename and its sidecar: the sidecar
     still records what this batch wrote, so the file no longer matches it and a resume
