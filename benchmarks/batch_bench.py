@@ -159,6 +159,8 @@ def photo_bench(args) -> None:
                                               "-o", f"final={out}/{i:04d}.png"], check=True, env=env)
                 else:
                     extra = ["--cache-bytes", str(args.photo_cache_bytes)] if args.photo_cache_bytes else []
+                    if "-p" in mode:  # batch-p2, batch-p2-disk: --processes 2
+                        extra += ["--processes", mode.split("-p", 1)[1].split("-")[0]]
                     subprocess.run(exe + ["batch", graph, "-q", *cache, *extra, "--sweep",
                                           "light.azimuth=" + ",".join(map(str, az)),
                                           "-o", f"final={out}/{{index:04d}}.png", "--report",
@@ -240,7 +242,8 @@ def main() -> None:
     ap.add_argument("--photo-rows", type=int, default=6)
     ap.add_argument("--photo-width", type=int, default=5120)
     ap.add_argument("--photo-height", type=int, default=3840)
-    ap.add_argument("--photo-modes", default="cli-loop,batch,cli-loop-disk,batch-disk")
+    ap.add_argument("--photo-modes", default="cli-loop,batch,cli-loop-disk,batch-disk",
+                    help="comma-separated: cli-loop, batch, batch-pN (--processes N), each with -disk (a fresh disk cache)")
     ap.add_argument("--photo-cache-bytes", type=int, default=0, help="batch --cache-bytes (0: the default)")
     ap.add_argument("--photo-profile", action="store_true", help="where a 20 MP light sweep's row time goes")
     args = ap.parse_args()
