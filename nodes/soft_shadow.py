@@ -33,7 +33,7 @@ class SoftShadow:
         seed: int = param(0, min=0, max=2**31 - 1, doc="rotation of the sample pattern")
         thickness: float = param(1.0, min=0.0, max=1000.0, unit="px",
                                  doc="how far a ray may pass behind the cutout surface and still be blocked")
-        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px",
+        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px, longer side",
                            doc="images whose longer side exceeds this are traced on a copy of this longer side "
                                "and enlarged edge-aware against the full-resolution mask (0: never)")
 

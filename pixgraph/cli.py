@@ -15,6 +15,7 @@ from typing import Any
 
 import yaml
 
+from .cache import CacheError
 from .engine import NodeInputError
 from .graph import GraphError, one_line
 from .registry import Registry
@@ -126,7 +127,7 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         return EXIT_BAD_INPUT if e.code else EXIT_OK
     try:
         return _COMMANDS[args.command](args, registry)
-    except (GraphError, UsageError) as e:
+    except (GraphError, UsageError, CacheError) as e:
         _fail(args, e)
         return EXIT_BAD_INPUT
     except NodeInputError as e:

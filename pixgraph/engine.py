@@ -22,13 +22,14 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from . import events as E
+from . import codehash, events as E
 from .device import DeviceError
-from .cache import MISS, DiskCache, MemoryCache, Unstorable
+from .cache import MISS, DiskCache, MemoryCache, Unstorable, misfit
 from .graph import Graph, GraphError, Ref
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import InputError, Namespace, NodeSpec
-from .paths import PathError, PathPolicy
+from .paths import PathError, PathPolicy, WritePath
+from .unusable import refuse_unusable_inputs
 from .registry import Registry
 from .types import SIZED, Shape, nbytes
 
@@ -62,15 +63,18 @@ class NodeContext:
     """What a node's ``compute`` may use besides its inputs and params.
 
     ``device`` is opened on first access only, so graphs without OpenCL nodes
-    never touch OpenCL.
+    never touch OpenCL. ``scale`` is the run's working resolution (``Engine.plan``):
+    a node that declares ``uses_scale = True`` (a loader) makes its images this
+    many times the file's size; 1 is full size.
     """
 
-    __slots__ = ("node_id", "graph_dir", "_device", "_cancel", "_emit")
+    __slots__ = ("node_id", "graph_dir", "_device", "_cancel", "_emit", "scale")
 
     def __init__(self, node_id: str, graph_dir: str, device: Callable[[], Any],
-                 cancel: E.CancelToken | None, emit: Callable[[Any], None]):
+                 cancel: E.CancelToken | None, emit: Callable[[Any], None], scale: float = 1.0):
         self.node_id = node_id
         self.graph_dir = graph_dir
+        self.scale = scale
         self._device = device
         self._cancel = cancel
         self._emit = emit
@@ -119,6 +123,8 @@ class Plan:
     #: bound node id -> its outputs (a host input's ``bind`` hook applied; else the
     #: array as the first output)
     bound: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
+    #: working resolution of the run (1 = full size; see ``Engine.plan``)
+    scale: float = 1.0
 
     def step(self, node_id: str) -> Step:
         return next(s for s in self.steps if s.node_id == node_id)
@@ -192,8 +198,16 @@ class Engine:
 
     # -- plan -------------------------------------------------------------------
 
-    def plan(self, graph: Graph, outputs=None, bind: Mapping[str, Any] | None = None) -> Plan:
+    def plan(self, graph: Graph, outputs=None, bind: Mapping[str, Any] | None = None,
+             scale: float = 1.0) -> Plan:
+        """The plan of a run. ``scale`` in (0, 1] is the working resolution: every
+        param declared with ``unit="px"`` (a length in the picture; not a size cap
+        such as ``unit="px, longer side"``) is multiplied by it (ints rounded, kept in
+        the param's range) and nodes that declare ``uses_scale = True`` get it as
+        ``ctx.scale`` and in their cache key. The engine knows no more of images than
+        that; at 1 (the default) plans and keys are those of an unscaled run."""
         bind = dict(bind or {})
+        scale = _check_scale(scale)
         requested = self._requested(graph, outputs)
         for nid in bind:
             if nid not in graph.nodes:
@@ -211,7 +225,7 @@ class Engine:
                     p, relevant = self._params(graph, nid, spec, inst.params, read_paths=False)
                     params[nid] = p
                     bound[nid] = self._bind(graph, nid, spec, bind[nid], p)
-                    parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant,
+                    parts[nid] = KeyParts(spec.type_id, spec.version, codehash.impl_version(spec), relevant,
                                           {"bind": array_key(bind[nid])})
                     keys[nid] = parts[nid].key()
                 else:
@@ -220,13 +234,16 @@ class Engine:
                     bound[nid] = {spec.outputs[0].name: bind[nid]}
                 continue
             p, relevant = self._params(graph, nid, spec, inst.params, policy)
+            if scale != 1.0:
+                _scale_params(spec, p, relevant, scale)
             params[nid] = p
             inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
-            parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
+            parts[nid] = KeyParts(spec.type_id, spec.version, codehash.impl_version(spec), relevant, inputs)
             keys[nid] = parts[nid].key()
         self._check_overwrites(graph, params, order, bind)
+        refuse_unusable_inputs(graph, self.registry, order, params, bind)
         steps = self._steps(graph, requested, order, keys, parts, bind, params)
-        return Plan(graph, requested, steps, keys, parts, params, bind, bound)
+        return Plan(graph, requested, steps, keys, parts, params, bind, bound, scale)
 
     # -- check before running -----------------------------------------------------
 
@@ -244,6 +261,7 @@ class Engine:
         order = self._ancestors(graph, [r.node for r in requested.values()], {})
         policy = self.policy_for(graph)
         infos: dict[str, dict[str, Any]] = {}
+        checked: dict[str, dict[str, Any]] = {}
         for nid in order:
             inst = graph.nodes[nid]
             spec = self.registry.get(inst.type)
@@ -251,6 +269,8 @@ class Engine:
             for p in spec.params:
                 if p.kind == "path" and params[p.name] is not None:  # the policy before any header is read
                     params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
+            checked[nid] = params
+            refuse_unusable_inputs(graph, self.registry, [nid], checked, {})
             ins = {p.name: None for p in spec.inputs}
             for port, ref in inst.inputs.items():
                 ins[port] = infos[ref.node].get(ref.output)
@@ -355,7 +375,7 @@ class Engine:
         field = f"params.{p.name}"
         try:
             resolved = graph.resolve_path(os.fspath(raw))
-            (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
+            checked = (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
         except PathError as e:
             located = graph.error(e.message, node=nid, field=field)
             raise PathError(e.message, file=located.file, line=located.line, node=nid, field=field) from None
@@ -363,8 +383,9 @@ class Engine:
             located = graph.error(f"bad path: {e}"[:200], node=nid, field=field)
             raise PathError(located.message, file=located.file, line=located.line, node=nid, field=field) from None
         # the node gets the path as the graph names it (made absolute), so its messages
-        # name the user's path; the check above resolved every symlink in it
-        return resolved
+        # name the user's path; the check above resolved every symlink in it, and a
+        # written path carries the folder it checked (writers never follow a symlink)
+        return WritePath(resolved, os.fspath(checked)) if p.writes else resolved
 
     def _check_overwrites(self, graph: Graph, params, order, bind) -> None:
         """A node may not write over a file that this run reads (or the graph file)."""
@@ -490,6 +511,7 @@ class Engine:
                           sum(s.status != "run" for s in plan.steps)))
         missed: set[str] = set()
         tainted: set[str] = set()
+        expected = _Expected(self, plan)
         # a stack: reversed, so outputs (and inputs, below) are pulled in the order given
         stack = list(reversed(dict.fromkeys(r.node for r in plan.outputs.values())))
         while stack:
@@ -509,7 +531,7 @@ class Engine:
                 stack.pop()
                 continue
             if not spec.side_effects and nid not in missed:
-                value, where = self._fetch(key, spec)
+                value, where = self._fetch(key, spec, lambda: expected.of(nid))
                 if value is not MISS:
                     results[nid] = value
                     cached.append(nid)
@@ -575,16 +597,18 @@ class Engine:
             self._last_parts[file] = last
         return last
 
-    def _fetch(self, key: str, spec: NodeSpec):
+    def _fetch(self, key: str, spec: NodeSpec, expect: Callable[[], Any] = dict):
         value = self.memory.get(key)
         if value is not MISS:
             return value, "memory"
         if self.disk is not None:
             value = self.disk.get(key)
             if value is not MISS:
-                why = _misfit(spec, value)
-                if why:  # a well-formed entry that is not this node's outputs
-                    self.disk._discard(key, self.disk.path(key), why)
+                # a well-formed entry that is not this node's outputs: other names, types,
+                # NaN pixels, or another size than the graph's files make it
+                why = misfit([(p.name, p.type) for p in spec.outputs], value, expect())
+                if why:
+                    self.disk.discard(key, why)
                     return MISS, ""
                 _freeze(value)
                 self.memory.put(key, value)
@@ -610,7 +634,7 @@ class Engine:
         inputs = {p.name: None for p in spec.inputs}
         for port, ref in inst.inputs.items():
             inputs[port] = results[ref.node][ref.output]
-        ctx = NodeContext(nid, plan.graph.base_dir, self._device, cancel, emit)
+        ctx = NodeContext(nid, plan.graph.base_dir, self._device, cancel, emit, plan.scale)
         try:
             out = spec.cls().compute(ctx, Namespace(inputs), Namespace(plan.params[nid]))
         except (E.Cancelled, DeviceError):
@@ -645,15 +669,56 @@ class Engine:
             return "not cached (sink)"
         size = nbytes(value)
         where = "memory" if self.memory.put(key, value, size) else "not cached (larger than the memory limit)"
-        if self.disk is not None:
+        if self.disk is not None and not getattr(spec.cls, "disk_cache", True):
+            where += "; not on disk (the node recomputes faster than the disk cache reads)"
+        elif self.disk is not None:
             try:
-                self.disk.put(key, value)
-                where = "memory+disk" if where == "memory" else "disk"
-                self.memory_only.pop(spec.type_id, None)
+                bad = misfit([(p.name, p.type) for p in spec.outputs], value)
+                if bad:  # it would be discarded when read
+                    where += f"; not on disk: {bad}"
+                elif self.disk.put(key, value):
+                    where = "memory+disk" if where == "memory" else "disk"
+                    self.memory_only.pop(spec.type_id, None)
+                else:  # a full disk, a read-only folder...: not cached, never a failed run
+                    where += f"; not on disk: {self.disk.last_skip}"
             except Unstorable as e:
                 self.memory_only[spec.type_id] = str(e)
                 where += f"; memory only: {e}"
         return where
+
+
+def _check_scale(scale) -> float:
+    try:
+        scale = float(scale)
+    except (TypeError, ValueError):
+        raise GraphError(f"scale must be a number in (0, 1], got {scale!r}") from None
+    if not 0.0 < scale <= 1.0:
+        raise GraphError(f"scale must be in (0, 1] (1 = full size), got {scale!r}")
+    return scale
+
+
+def _scale_params(spec: NodeSpec, params: dict, relevant: dict, scale: float) -> None:
+    """A scaled run (``Engine.plan``): params declared in pixels (``unit="px"``)
+    times ``scale``, in ``params`` (what compute gets) and ``relevant`` (the key);
+    a node with ``uses_scale = True`` gets ``@scale`` in its key."""
+    def one(p, v):
+        v = v * scale
+        if p.kind == "int":
+            v = int(round(v))
+        if p.min is not None:
+            v = max(v, p.min)
+        if p.max is not None:
+            v = min(v, p.max)
+        return v
+    for p in spec.params:
+        if p.unit != "px" or p.kind not in ("int", "float", "floats") or params.get(p.name) is None:
+            continue
+        v = params[p.name]
+        params[p.name] = tuple(one(p, x) for x in v) if p.kind == "floats" else one(p, v)
+        if p.name in relevant:
+            relevant[p.name] = list(params[p.name]) if p.kind == "floats" else params[p.name]
+    if getattr(spec.cls, "uses_scale", False):
+        relevant["@scale"] = scale
 
 
 def _same_size(spec: NodeSpec, ins: Mapping[str, Any]) -> dict[str, Any]:
@@ -705,18 +770,23 @@ def _short(path: str) -> str:
     return path if rel.startswith("..") else rel
 
 
-def _misfit(spec: NodeSpec, value) -> str | None:
-    """Why a cached value is not a valid output dict of ``spec``, or None."""
-    names = [p.name for p in spec.outputs]
-    if not isinstance(value, dict) or sorted(value) != sorted(names):
-        return f"holds outputs {sorted(value)[:8] if isinstance(value, dict) else type(value).__name__}, " \
-               f"not {names}"
-    for p in spec.outputs:
-        try:
-            p.type.validate(value[p.name])
-        except TypeError as e:
-            return f"output {p.name!r} is not a valid {p.type.type_name()}: {e}"[:200]
-    return None
+class _Expected:
+    """What the graph's file headers say each node's outputs will be (``Engine.check``),
+    worked out once per run on the first disk hit; ``{}`` when the check cannot say
+    (values bound by a host, a graph the check refuses: the run then reports it)."""
+
+    def __init__(self, engine: "Engine", plan: Plan):
+        self._engine, self._plan, self._infos = engine, plan, None
+
+    def of(self, nid: str) -> dict[str, Any]:
+        if self._infos is None:
+            self._infos = {}
+            if not self._plan.bind:
+                try:
+                    self._infos = self._engine.check(self._plan.graph, list(self._plan.outputs))
+                except Exception:  # noqa: BLE001 - only a stricter check of cached values is lost
+                    pass
+        return self._infos.get(nid, {})
 
 
 def _freeze(value) -> None:

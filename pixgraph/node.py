@@ -30,6 +30,14 @@ declares a file the node writes (its path, not its content, is hashed).
 
 A node that writes files (a sink) sets ``side_effects = True``: it runs whenever
 one of its outputs is requested and is never served from cache.
+
+A node whose outputs are large and cheap to remake (a file loader, a composite)
+sets ``disk_cache = False``: its results stay in the memory cache only.
+
+Working resolution (``Session.run(..., scale=s)``): params declared with
+``unit="px"`` reach ``compute`` multiplied by ``s``; a node that makes images of
+its own size from files (a loader) sets ``uses_scale = True`` and reads
+``ctx.scale``.
 """
 from __future__ import annotations
 
