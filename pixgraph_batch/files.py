@@ -84,35 +84,61 @@ def temporary_name(path: str, suffix: str = "") -> str:
     return os.path.join(folder, f".{stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{ext}")
 
 
+def _folder(path: str):
+    """The folder of ``path`` held open without following symlinks (``pixgraph.paths``):
+    names are looked up in that very folder, whatever happens to its path meanwhile."""
+    from pixgraph.paths import PathError, open_write_folder
+
+    try:
+        return open_write_folder(path)
+    except PathError as e:
+        raise BatchError(e.message) from None
+
+
 def write_atomic(path: str, write: Callable[[str], Any]) -> str:
     """Write through ``write(tmp)`` to a temporary next to ``path``, hash what was
     written, rename it over ``path``; returns the sha256 of the bytes written. The
-    temporary is removed when anything fails (an error, Ctrl-C)."""
-    tmp = temporary_name(path)
+    hash is read from, and the rename made in, the folder opened before the write
+    (no symlink swapped in meanwhile can redirect either). The temporary is removed
+    when anything fails (an error, Ctrl-C)."""
+    folder, name = _folder(path)
     try:
-        write(tmp)
-        digest = file_sha256(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        _unlink(tmp)
-        raise
-    return digest
+        tmp_name = os.path.basename(temporary_name(path))
+        try:
+            write(os.path.join(folder.path, tmp_name))
+            fd = folder.open(tmp_name, os.O_RDONLY)
+            h = hashlib.sha256()
+            with os.fdopen(fd, "rb") as f:
+                for chunk in iter(lambda: f.read(1 << 20), b""):
+                    h.update(chunk)
+            folder.replace(tmp_name, name)
+        except BaseException:
+            _unlink_in(folder, tmp_name)
+            raise
+        return h.hexdigest()
+    finally:
+        folder.close()
 
 
 def write_json_atomic(path: str, data: dict) -> None:
-    tmp = temporary_name(path, suffix=".tmp")
+    folder, name = _folder(path)
     try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(data, f, indent=1, sort_keys=True, default=str)
-        os.replace(tmp, path)
-    except BaseException:
-        _unlink(tmp)
-        raise
+        tmp_name = os.path.basename(temporary_name(path, suffix=".tmp"))
+        try:
+            fd = folder.open(tmp_name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            with os.fdopen(fd, "w", encoding="utf-8") as f:
+                json.dump(data, f, indent=1, sort_keys=True, default=str)
+            folder.replace(tmp_name, name)
+        except BaseException:
+            _unlink_in(folder, tmp_name)
+            raise
+    finally:
+        folder.close()
 
 
-def _unlink(path: str) -> None:
+def _unlink_in(folder, name: str) -> None:
     try:
-        os.unlink(path)
+        folder.unlink(name)
     except OSError:
         pass
 
