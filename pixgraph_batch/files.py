@@ -84,9 +84,10 @@ def temporary_name(path: str, suffix: str = "") -> str:
     return os.path.join(folder, f".{stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{ext}")
 
 
-def _folder(path: str):
-    """The folder of ``path`` held open without following symlinks (``pixgraph.paths``):
-    names are looked up in that very folder, whatever happens to its path meanwhile."""
+def open_folder(path: str):
+    """``(folder, name)``: the folder of ``path`` held open without following symlinks
+    (``pixgraph.paths.open_write_folder``): names are looked up in that very folder,
+    whatever happens to its path meanwhile. The caller closes the folder."""
     from pixgraph.paths import PathError, open_write_folder
 
     try:
@@ -95,13 +96,16 @@ def _folder(path: str):
         raise BatchError(e.message) from None
 
 
-def write_atomic(path: str, write: Callable[[str], Any]) -> str:
+def write_atomic(path: str, write: Callable[[str], Any], folder=None) -> str:
     """Write through ``write(tmp)`` to a temporary next to ``path``, hash what was
     written, rename it over ``path``; returns the sha256 of the bytes written. The
-    hash is read from, and the rename made in, the folder opened before the write
-    (no symlink swapped in meanwhile can redirect either). The temporary is removed
-    when anything fails (an error, Ctrl-C)."""
-    folder, name = _folder(path)
+    hash is read from, and the rename made in, ``folder`` (from ``open_folder``,
+    opened before the write: no symlink swapped in meanwhile can redirect either).
+    The temporary is removed when anything fails (an error, Ctrl-C)."""
+    own = folder is None
+    if own:
+        folder, _ = open_folder(path)
+    name = os.path.basename(path)
     try:
         tmp_name = os.path.basename(temporary_name(path))
         try:
@@ -117,11 +121,16 @@ def write_atomic(path: str, write: Callable[[str], Any]) -> str:
             raise
         return h.hexdigest()
     finally:
-        folder.close()
+        if own:
+            folder.close()
 
 
-def write_json_atomic(path: str, data: dict) -> None:
-    folder, name = _folder(path)
+def write_json_atomic(path: str, data: dict, folder=None) -> None:
+    """Write ``data`` as JSON to ``path`` through a temporary in ``folder`` (see ``write_atomic``)."""
+    own = folder is None
+    if own:
+        folder, _ = open_folder(path)
+    name = os.path.basename(path)
     try:
         tmp_name = os.path.basename(temporary_name(path, suffix=".tmp"))
         try:
@@ -133,7 +142,8 @@ def write_json_atomic(path: str, data: dict) -> None:
             _unlink_in(folder, tmp_name)
             raise
     finally:
-        folder.close()
+        if own:
+            folder.close()
 
 
 def _unlink_in(folder, name: str) -> None:

@@ -199,13 +199,19 @@ def run_item(session, graph: Graph, item: Item, force: bool = False, pins: Pins 
         if pins is not None:
             pins.watch(plan)
         res = session.run_plan(plan, on_event=pins.on_event if pins is not None else None)
-        digests = {}
-        for name, path in item.outputs.items():
-            digests[name] = _write_output(session, g, name, res.outputs[name], path)
-        seconds = time.perf_counter() - t0
-        for name, path in item.outputs.items():
-            F.write_json_atomic(F.sidecar_path(path),
-                                sidecar(session, g, plan, res, item, name, keys[name], digests[name], seconds))
+        folders = {}
+        try:  # each output's folder held open from its image to its sidecar (no symlink swapped in between)
+            digests = {}
+            for name, path in item.outputs.items():
+                folders[name] = F.open_folder(path)[0]
+                digests[name] = _write_output(session, g, name, res.outputs[name], path, folders[name])
+            seconds = time.perf_counter() - t0
+            for name, path in item.outputs.items():
+                F.write_json_atomic(F.sidecar_path(path), sidecar(session, g, plan, res, item, name, keys[name],
+                                                                  digests[name], seconds), folders[name])
+        finally:
+            for folder in folders.values():
+                folder.close()
         return ItemResult(item.index, item.row, "done", dict(item.outputs), seconds, worker=worker)
     except Exception as e:  # one row's failure is reported, the batch goes on
         msg = str(e) if isinstance(e, (GraphError, BatchError)) else f"{type(e).__name__}: {e}"
@@ -222,7 +228,7 @@ def _check_outputs(session, graph: Graph, item: Item) -> None:
         raise BatchError(e.message) from None
 
 
-def _write_output(session, graph: Graph, name: str, value, path: str) -> str:
+def _write_output(session, graph: Graph, name: str, value, path: str, folder) -> str:
     """Write like ``pixgraph run -o`` (the port type's encoding), through a
     temporary file renamed into place; returns the sha256 of the bytes written."""
     def write(tmp: str) -> None:
@@ -231,7 +237,7 @@ def _write_output(session, graph: Graph, name: str, value, path: str) -> str:
         except ValueError as e:  # name the user's path, not the temporary
             raise BatchError(str(e).replace(tmp, path)) from None
 
-    return F.write_atomic(path, write)
+    return F.write_atomic(path, write, folder)
 
 
 def graph_sha256(graph: Graph) -> str | None:

@@ -138,6 +138,29 @@ def test_duplicate_outputs_through_a_symlinked_folder(scene, tmp_path, capsys):
     assert os.listdir(tmp_path / "out") == []
 
 
+@pytest.mark.skipif(not LINUX, reason="descriptor-relative renames (*at calls)")
+def test_a_folder_swapped_for_a_symlink_mid_write_redirects_nothing(scene, tmp_path, monkeypatch):
+    """The output folder is replaced by a symlink to another folder while a row's image
+    is in its temporary: the hash and the rename happen in the folder the batch opened,
+    so nothing reaches the other folder."""
+    out, moved, elsewhere = tmp_path / "out", tmp_path / "moved", tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    real = Session.write_output
+
+    def swap(self, graph, name, value, path):
+        written = real(self, graph, name, value, path)
+        if not moved.exists():
+            os.rename(out, moved)
+            os.symlink(elsewhere, out)
+        return written
+
+    monkeypatch.setattr(Session, "write_output", swap)
+    res = batch(Session(), scene / "g.yaml", sweeps=[("light.azimuth", [10])], outputs={"final": str(out / "a.png")})
+    assert os.listdir(elsewhere) == []
+    assert res.count("done") + res.count("failed") == 1
+    assert "a.png" in os.listdir(moved)  # renamed where it was being written
+
+
 # -- one batch per output folder ----------------------------------------------------------------
 
 
@@ -260,10 +283,10 @@ def test_sidecar_hashes_the_bytes_written(scene, tmp_path, references, monkeypat
     real = F.write_json_atomic
     foreign = (scene / "photo.png").read_bytes()
 
-    def meddle(path, data):
+    def meddle(path, data, folder=None):
         if path.endswith("/1.png.json"):
             (out / "1.png").write_bytes(foreign)
-        real(path, data)
+        real(path, data, folder)
 
     monkeypatch.setattr(F, "write_json_atomic", meddle)
     kw = dict(sweeps=[("light.azimuth", AZ["a"])], outputs={"final": str(out / "{index}.png")})
