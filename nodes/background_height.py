@@ -1,7 +1,7 @@
 """pixgraph.BackgroundHeight: background pixel height from a template with a few handles."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import node, param, port
 
 from .ops import heightmaps as hm

@@ -1,7 +1,7 @@
 """pixgraph.BufferChannels: the SSN++ 3D-aware buffer channels (PixHt-Lab Sec. 3.2)."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size

@@ -1,9 +1,9 @@
 """pixgraph.Camera: the pixel-height camera (no pitch, horizon set by lens shift)."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import InputError, node, param, port
-from pixgraph.types import Shape
+from pixgraph_nodes.types import Shape
 
 from .ops.camera import Camera as CameraValue
 

@@ -1,7 +1,7 @@
 """pixgraph.Composite: shadow on the background in linear light, then the cutout over it."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import node, param, port
 
 from ._checks import finite, same_size

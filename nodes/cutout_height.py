@@ -9,7 +9,7 @@ import pathlib
 
 import numpy as np
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import InputError, node, param, port
 
 from ._checks import same_size

@@ -1,7 +1,7 @@
 """pixgraph.GaussianBlur: separable Gaussian blur on the OpenCL device."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import node, param, port
 
 from .ops.blur import gaussian_blur

@@ -1,7 +1,7 @@
 """pixgraph.HardShadow: hard shadow of the cutout from the light's centre (SSG's march)."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size

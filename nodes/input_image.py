@@ -1,7 +1,7 @@
 """pixgraph.InputImage: an image a host application hands in as a numpy array."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import InputError, node, param, port
 
 from .ops.imageio import host_pixels, to_internal

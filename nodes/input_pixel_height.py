@@ -1,7 +1,7 @@
 """pixgraph.InputPixelHeight: a pixel-height map a host application hands in as a numpy array."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import InputError, node, port
 
 from .input_image import unbound

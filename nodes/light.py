@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import InputError, node, param, port
 
 from .ops import lights

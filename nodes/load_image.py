@@ -3,9 +3,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import InputError, node, param, port
-from pixgraph.types import Shape
+from pixgraph_nodes.types import Shape
 
 from ._checks import file_shape
 

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import InputError, node, param, port
-from pixgraph.types import Shape
+from pixgraph_nodes.types import Shape
 
 from ._checks import file_shape, npy_finite
 from .ops.heightmaps import load_pixel_height

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import node, param, port
 
 

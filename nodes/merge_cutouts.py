@@ -1,7 +1,7 @@
 """pixgraph.MergeCutouts: two cutouts as one occluder, so each casts shadows on the other."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import node, port
 
 from .ops.cutouts import merge_cutouts

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import InputError, node, param, port
-from pixgraph.types import Shape
+from pixgraph_nodes.types import Shape
 
 from .ops.heightmaps import contact_line_height
 from .ops.placement import place_cutout, resize_map

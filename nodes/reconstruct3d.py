@@ -1,7 +1,7 @@
 """pixgraph.Reconstruct3D: 3D positions, normals and depth from pixel height (paper Eq. 3-4)."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import node, port
 
 from .ops.geometry import reconstruct_geometry

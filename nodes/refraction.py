@@ -1,7 +1,7 @@
 """pixgraph.Refraction: the background seen through a transparent cutout."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import node, param, port
 
 from ._checks import finite, finite_outputs, pixel_heights, rgba, same_size

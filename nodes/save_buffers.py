@@ -4,7 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 import pathlib
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import InputError, node, param, port
 
 from .ops.imageio import write_exr_channels

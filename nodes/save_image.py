@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 import numpy as np
 
 from pixgraph.node import InputError, node, param, port

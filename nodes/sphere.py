@@ -1,7 +1,7 @@
 """pixgraph.Sphere: a procedural ball on the ground (cutout colour, alpha, pixel height)."""
 from __future__ import annotations
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import InputError, node, param, port
 
 from .ops.sphere import sphere_cutout

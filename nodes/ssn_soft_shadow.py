@@ -6,7 +6,7 @@ import pathlib
 
 import numpy as np
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import InputError, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size

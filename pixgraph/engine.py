@@ -30,7 +30,7 @@ from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_tex
 from .node import InputError, Namespace, NodeSpec
 from .paths import PathError, PathPolicy
 from .registry import Registry
-from .types import SIZED, Shape, nbytes
+from .types import Shape, nbytes
 
 
 DEFAULT_MAX_FILE_BYTES = 4 << 30
@@ -668,7 +668,7 @@ def _same_size(spec: NodeSpec, ins: Mapping[str, Any]) -> dict[str, Any]:
         return {}
     (h, w), = sizes
     source = next(iter(shapes.values())).source
-    return {p.name: Shape(h, w, None, source) for p in spec.outputs if issubclass(p.type, SIZED)}
+    return {p.name: Shape(h, w, None, source) for p in spec.outputs if p.type.sized}
 
 
 def _files_upstream(plan: Plan, nid: str) -> str:

@@ -6,7 +6,6 @@ source node of the port's type, and each param is perturbed to another valid val
 """
 import pytest
 
-from pixgraph import types as T
 from pixgraph.engine import Engine
 from pixgraph.cache import MemoryCache
 from pixgraph.graph import GraphBuilder
