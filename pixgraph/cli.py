@@ -15,15 +15,9 @@ from typing import Any
 
 import yaml
 
-from .engine import NodeInputError
-from .graph import GraphError, one_line
+from . import errors
+from .errors import EXIT_BAD_INPUT, EXIT_CANCELLED, EXIT_INTERNAL, EXIT_OK, UsageError  # noqa: F401
 from .registry import Registry
-
-EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_CANCELLED = 0, 1, 2, 130
-
-
-class UsageError(Exception):
-    """Bad command-line input (exit 2)."""
 
 
 def default_disk_cache() -> str:
@@ -35,10 +29,19 @@ def default_disk_cache() -> str:
     return os.path.join(base, "pixgraph")
 
 
-def _parser() -> argparse.ArgumentParser:
+def _common(default) -> argparse.ArgumentParser:
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--debug", action="store_true", help="show tracebacks")
-    common.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summaries")
+    common.add_argument("--debug", action="store_true", default=default, help="show tracebacks")
+    common.add_argument("--quiet", "-q", action="store_true", default=default,
+                        help="no progress bar or summaries")
+    return common
+
+
+def _parser() -> argparse.ArgumentParser:
+    # --debug and --quiet go before or after the command: a command's own default
+    # is SUPPRESS, so ``pixgraph --debug run`` keeps the flag the top level read
+    top = _common(False)
+    common = _common(argparse.SUPPRESS)
 
     graph_opts = argparse.ArgumentParser(add_help=False)
     graph_opts.add_argument("graph", help="graph file (YAML)")
@@ -55,7 +58,7 @@ def _parser() -> argparse.ArgumentParser:
     cache_opts.add_argument("--no-disk-cache", action="store_true", help="memory cache only")
 
     p = argparse.ArgumentParser(prog="pixgraph", description="Node-graph compositing with pixel-height light effects.",
-                                parents=[common])
+                                parents=[top])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     r = sub.add_parser("run", parents=[common, graph_opts, cache_opts], help="run a graph")
@@ -126,26 +129,19 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         return EXIT_BAD_INPUT if e.code else EXIT_OK
     try:
         return _COMMANDS[args.command](args, registry)
-    except (GraphError, UsageError) as e:
-        _fail(args, e)
-        return EXIT_BAD_INPUT
-    except NodeInputError as e:
-        _fail(args, e, prefix="error: ")
-        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("pixgraph: cancelled", file=sys.stderr)
         if argv is None:
             _exit_now(EXIT_CANCELLED)
         return EXIT_CANCELLED
-    except Exception as e:
-        from .device import DeviceError
-        from .events import Cancelled
-
-        if isinstance(e, Cancelled):
+    except Exception as e:  # one table: pixgraph.errors
+        code = errors.exit_code(e)
+        if code == EXIT_CANCELLED:
             print("pixgraph: cancelled", file=sys.stderr)
-            return EXIT_CANCELLED
-        _fail(args, e, prefix="error: ")
-        return EXIT_BAD_INPUT if isinstance(e, DeviceError) and "matches" in str(e) else EXIT_INTERNAL
+            return code
+        # a graph or usage error names its own file/flag; anything else says "error:"
+        _fail(args, e, prefix="" if isinstance(e, (errors.GraphError, UsageError)) else "error: ")
+        return code
 
 
 def _exit_now(code: int) -> None:
@@ -160,17 +156,17 @@ def _exit_now(code: int) -> None:
 
 
 def _fail(args, e: BaseException, prefix: str = "") -> None:
-    try:
-        text = str(e)
-    except Exception:  # noqa: BLE001 - a message that cannot even be formatted
-        text = type(e).__name__
-    print(one_line(f"{prefix}{text}"), file=sys.stderr)
+    print(errors.one_line(f"{prefix}{errors.message(e)}"), file=sys.stderr)
     if getattr(args, "debug", False):
         traceback.print_exception(e, file=sys.stderr)
 
 
 def _session(args, registry, disk: bool = True):
     from .session import Session
+
+    cache_bytes = getattr(args, "cache_bytes", None)
+    if cache_bytes is not None and cache_bytes < 0:
+        raise UsageError(f"--cache-bytes {cache_bytes}: must be 0 or more (0 keeps nothing in memory)")
 
     disk_dir = None
     if disk and not getattr(args, "no_disk_cache", False):

@@ -25,6 +25,7 @@ import numpy as np
 from . import events as E
 from .device import DeviceError
 from .cache import MISS, DiskCache, MemoryCache, Unstorable
+from .errors import NodeError, NodeInputError, out_of_memory  # noqa: F401 (re-exported)
 from .graph import Graph, GraphError, Ref
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import InputError, Namespace, NodeSpec
@@ -43,19 +44,6 @@ def _env_int(name: str, default: int) -> int:
         return int(float(raw)) if raw.strip() else default
     except ValueError:
         raise GraphError(f"{name} must be a number, got {raw[:40]!r}") from None
-
-
-class NodeError(RuntimeError):
-    """A node failed while computing, or returned values that break its declaration."""
-
-    def __init__(self, node_id: str, type_id: str, message: str):
-        super().__init__(f"node {node_id!r} ({type_id}): {message}")
-        self.node_id = node_id
-        self.type_id = type_id
-
-
-class NodeInputError(NodeError):
-    """A node rejected inputs that do not fit together (``node.InputError``): bad input."""
 
 
 class NodeContext:
@@ -542,6 +530,8 @@ class Engine:
                 _log.warning("node %r: %s", nid, stored)
             else:
                 stored = self._store(spec, key, value)
+                if "not on disk:" in stored:
+                    emit(E.NodeLog(nid, stored.split("; ", 1)[-1]))
             emit(E.NodeFinished(nid, timings[nid], stored))
         last = self._last_run_parts(graph.file)
         for nid in results:
@@ -621,8 +611,7 @@ class Engine:
             raise NodeInputError(nid, spec.type_id,
                                  (str(exc).splitlines() or [type(exc).__name__])[0] + where) from exc
         except MemoryError as exc:  # sizes from the user's graph, too large for this machine
-            raise NodeInputError(nid, spec.type_id, "ran out of memory: its inputs or params ask for more "
-                                 "than this machine has") from exc
+            raise NodeInputError(nid, spec.type_id, out_of_memory()) from exc
         except Exception as exc:
             raise NodeError(nid, spec.type_id, (f"failed: {type(exc).__name__}: {exc}".splitlines() or [""])[0]) from exc
         if not isinstance(out, dict):
@@ -653,6 +642,10 @@ class Engine:
             except Unstorable as e:
                 self.memory_only[spec.type_id] = str(e)
                 where += f"; memory only: {e}"
+            except MemoryError:  # the result is computed: a run never fails for want of a cache entry
+                where += "; not on disk: ran out of memory writing the entry"
+            except OSError as e:
+                where += f"; not on disk: {e.strerror or e}"
         return where
 
 

@@ -27,52 +27,11 @@ import re
 from types import MappingProxyType
 from typing import Any, Mapping
 
+from .errors import MAX_ERROR_LINE, GraphError, PathError, one_line  # noqa: F401 (re-exported)
 from .node import NodeSpec, ParamError
 from .registry import Registry, UnknownNodeType
 
-#: longest error line printed, in characters
-MAX_ERROR_LINE = 300
-
-
-def one_line(text: str, limit: int = MAX_ERROR_LINE) -> str:
-    """``text`` on one line, cut to ``limit`` characters (error messages quote user
-    values, which may be huge)."""
-    text = " ".join(str(text).split("\n"))
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
 NODE_ID = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
-
-
-class GraphError(ValueError):
-    """A graph that cannot run: names the node and field, and the file and line.
-
-    ``field`` is a dotted path inside the node: ``"params.sigma"``,
-    ``"inputs.image"``, ``"type"``, or for graph outputs ``"outputs.final"``.
-    ``str()`` is one line: ``"g.yaml:12: node 'blur': param 'sigma': ..."``.
-    """
-
-    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
-                 node: str | None = None, field: str | None = None):
-        super().__init__(message)
-        self.message = message
-        self.file = file
-        self.line = line
-        self.node = node
-        self.field = field
-
-    def __str__(self) -> str:
-        parts = []
-        if self.file:
-            parts.append(f"{self.file}:{self.line}" if self.line else self.file)
-        if self.node:
-            parts.append(f"node {self.node!r}")
-        if self.field and self.field != "type":
-            head, _, rest = self.field.partition(".")
-            label = {"params": "param", "inputs": "input", "outputs": "output"}.get(head)
-            parts.append(f"{label} {rest!r}" if label and rest else self.field)
-        parts.append(self.message)
-        return one_line(": ".join(parts))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -206,7 +165,7 @@ def _check_params(graph: Graph, nid: str, spec: NodeSpec, values: Mapping[str, A
         except ParamError as e:
             raise graph.error(e.message, node=nid, field=f"params.{name}") from None
         if p.kind == "path":
-            from .paths import PathError, bad_characters
+            from .paths import bad_characters
 
             why = bad_characters(os.fspath(out[name]))
             if why:

@@ -41,16 +41,11 @@ from types import MappingProxyType
 from typing import Any, Callable
 
 from . import types as T
+from .errors import InputError  # noqa: F401 (nodes import it from here)
 
 _MISSING = object()
 
 PARAM_KINDS = ("float", "int", "bool", "str", "floats", "path")
-
-
-class InputError(ValueError):
-    """Raised by ``compute`` when its inputs or params do not fit together (say,
-    a mask and a pixel-height map of different sizes): the user's graph is wrong,
-    not the node. The CLI reports it as bad input (exit 2) naming the node."""
 
 
 class ParamError(ValueError):
