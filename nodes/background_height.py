@@ -2,13 +2,13 @@
 from __future__ import annotations
 
 from pixgraph_nodes import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import Node, node, param, port
 
 from .ops import heightmaps as hm
 
 
 @node("pixgraph.BackgroundHeight", version=1)
-class BackgroundHeight:
+class BackgroundHeight(Node):
     """Background pixel height from a template: ground, walls on a junction line, steps, cove.
 
     Wall templates (back_wall, wall_corner, two_corners) are drawn in the image: the

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from pixgraph_nodes import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops.buffers import buffer_channels
@@ -10,7 +10,7 @@ from .ops.lights import disk_extremes, light_point
 
 
 @node("pixgraph.BufferChannels", version=1)
-class BufferChannels:
+class BufferChannels(Node):
     """Cutout pixel height, background pixel-height gradient, the hard shadow from the
     light's centre, the sparse hard shadows from the disk's 4 extreme points and the
     relative occluder distance, as named float32 channels. Export them as one

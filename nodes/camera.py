@@ -2,14 +2,14 @@
 from __future__ import annotations
 
 from pixgraph_nodes import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph.node import InputError, Node, node, param, port
 from pixgraph_nodes.types import Shape
 
 from .ops.camera import Camera as CameraValue
 
 
 @node("pixgraph.Camera", version=1)
-class Camera:
+class Camera(Node):
     """Pixel-height camera: image size, horizontal field of view, horizon row and height.
 
     The size comes from the ``image`` input (the background photo) when ``width`` and

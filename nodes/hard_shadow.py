@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from pixgraph_nodes import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops.lights import light_point
@@ -10,7 +10,7 @@ from .ops.shadow import hard_shadow
 
 
 @node("pixgraph.HardShadow", version=1)
-class HardShadow:
+class HardShadow(Node):
     """Hard shadow cast by the cutout on the background and on itself, traced in
     pixel-height space toward the light's centre (an area light acts as a point here).
 

@@ -6,13 +6,13 @@ import math
 import numpy as np
 
 from pixgraph_nodes import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph.node import InputError, Node, node, param, port
 
 from .ops import lights
 
 
 @node("pixgraph.Light", version=1)
-class Light:
+class Light(Node):
     """A light placed by azimuth/elevation/distance around the object's foot, or by
     dragging the shadow tip.
 
@@ -53,6 +53,17 @@ class Light:
         light: T.Light = port(doc="the light (pixgraph_nodes.ops.lights.Light)")
 
     impl_version = "1"
+
+    def affects(self, params):
+        """Only the active placement's handles are in the key: dragging the shadow tip
+        leaves a light placed by azimuth/elevation cached, and the reverse."""
+        names = {"kind", "placement", "radius", "angular_radius", "facing", "camera"}
+        if params.kind != "directional":
+            names.add("distance")
+        if params.placement == "shadow_tip":
+            return names | {"tip_uv", "top_uvh"}
+        names |= {"azimuth", "elevation", "target_mode"}
+        return names | ({"mask"} if params.target_mode == "mask_foot" else {"target_uv"})
 
     def compute(self, ctx, inputs, params):
         cam = inputs.camera

@@ -4,7 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from pixgraph_nodes import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph.node import InputError, Node, node, param, port
 from pixgraph_nodes.types import Shape
 
 from ._checks import file_shape
@@ -13,7 +13,7 @@ from .ops.imageio import host_pixels, read_image, to_internal
 
 
 @node("pixgraph.LoadImage", version=1)
-class LoadImage:
+class LoadImage(Node):
     """Read PNG, JPEG, TIFF or EXR; decode to linear light and premultiply alpha.
 
     A host may bind a numpy array instead of the file (as for pixgraph.InputImage;

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from pixgraph_nodes import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph.node import InputError, Node, node, param, port
 from pixgraph_nodes.types import Shape
 
 from .ops.heightmaps import contact_line_height
@@ -12,7 +12,7 @@ from .ops.placement import place_cutout, resize_map
 
 
 @node("pixgraph.PlaceCutout", version=1)
-class PlaceCutout:
+class PlaceCutout(Node):
     """Place a cutout (an RGBA image of any size) on the background's canvas: its foot
     lands on ``foot`` (background pixels), scaled by ``scale``, optionally mirrored,
     cropped at the canvas border. Everything downstream works on the canvas size.

@@ -4,14 +4,14 @@ from __future__ import annotations
 import numpy as np
 
 from pixgraph_nodes import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, rgba, same_size
 from .ops.reflection import reflection_cl
 
 
 @node("pixgraph.Reflection", version=1)
-class Reflection:
+class Reflection(Node):
     """Reflection of the cutout in the background surface, traced in pixel-height space.
 
     The receiver is the background (positions and normals reconstructed from its

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from pixgraph_nodes import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph.node import InputError, Node, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops import choose as C
@@ -20,7 +20,7 @@ def _has_torch() -> bool:
 
 
 @node("pixgraph.Shadow", version=1)
-class Shadow:
+class Shadow(Node):
     """Shadow of a cutout, by the method the scene needs ("model no more than a scene
     needs"). ``method: auto`` picks the cheapest of the hard shadow, the classical
     soft shadow with 4-64 light samples and SSN++ whose 90th-percentile RMSE against
@@ -56,8 +56,7 @@ class Shadow:
     # the result depends on the shipped table and, through method ssn, on SSN++'s weights and inference
     impl_version = "1+table." + C.table_digest() + "+ssn." + SoftShadowSSN.impl_version
 
-    @staticmethod
-    def describe(params) -> str:
+    def describe(self, params) -> str:
         """What ``pixgraph explain`` shows before the run (the choice needs the inputs)."""
         if params["method"] != "auto":
             return f"method {params['method']} (forced)"

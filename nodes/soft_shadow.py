@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from pixgraph_nodes import types as T
-from pixgraph.node import node, param, port
+from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops.lights import disk_samples, light_point
@@ -10,7 +10,7 @@ from .ops.upsample import AUTO_MAX_SIDE, proxy_soft_shadow
 
 
 @node("pixgraph.SoftShadow", version=1)
-class SoftShadow:
+class SoftShadow(Node):
     """Soft shadow in pixel-height space: the fraction of ``samples`` stratified points of
     the disk light (sunflower pattern) that each pixel sees. The pixel-height-space
     reference; its cost grows linearly with ``samples``. A point light needs one.

@@ -2,13 +2,13 @@
 from __future__ import annotations
 
 from pixgraph_nodes import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph.node import InputError, Node, node, param, port
 
 from .ops.sphere import sphere_cutout
 
 
 @node("pixgraph.Sphere", version=1)
-class Sphere:
+class Sphere(Node):
     """A procedural ball resting on the ground, as a cutout with exact pixel height.
 
     Premultiplied colour, coverage (4x4 samples per pixel) and the pixel height of

@@ -7,7 +7,7 @@ import pathlib
 import numpy as np
 
 from pixgraph_nodes import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph.node import InputError, Node, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
 from .ops.lights import disk_extremes, light_point
@@ -43,7 +43,7 @@ def load_shipped(name: str):
 
 
 @node("pixgraph.SoftShadowSSN", version=1)
-class SoftShadowSSN:
+class SoftShadowSSN(Node):
     """Soft shadow from SSN++: the 3D-aware buffer channels (cutout pixel height,
     background gradient, hard and sparse hard shadows, relative distance) and the
     light's softness run through a small trained U-Net on the CPU. Same ports as

@@ -31,7 +31,7 @@ from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_tex
 from .node import InputError, Namespace, NodeSpec
 from .paths import PathError, PathPolicy
 from .registry import Registry
-from .types import Shape, nbytes
+from .types import nbytes
 
 
 DEFAULT_MAX_FILE_BYTES = 4 << 30
@@ -194,7 +194,7 @@ class Engine:
             spec = self.registry.get(inst.type)
             if nid in bind:
                 params[nid] = {}
-                if hasattr(spec.cls, "bind"):
+                if "bind" in spec.hooks:
                     # a host input: its params (colour space, alpha...) say how to read the array
                     p, relevant = self._params(graph, nid, spec, inst.params, read_paths=False)
                     params[nid] = p
@@ -210,6 +210,8 @@ class Engine:
             p, relevant = self._params(graph, nid, spec, inst.params, policy)
             params[nid] = p
             inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
+            if "affects" in spec.hooks:  # params and inputs ignored in this mode stay out of the key
+                relevant, inputs = _affecting(nid, spec, p, relevant, inputs)
             parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
             keys[nid] = parts[nid].key()
         self._check_overwrites(graph, params, order, bind)
@@ -222,11 +224,12 @@ class Engine:
         """Check what the needed nodes will get, from file headers only, before anything
         runs: returns ``{node: {output: info}}`` (a ``types.Shape`` where known).
 
-        A node with an ``infer(self, ctx, inputs, params)`` hook turns its inputs'
-        infos into its outputs' (a loader reads its file's header; ``ctx.node_id``
-        names the node) and raises ``InputError`` for inputs that cannot work. Any
-        other node needs inputs of one size: its sized outputs get that size. The
-        first problem is a ``GraphError`` naming the node, its line, and the files.
+        Each node's ``infer(self, ctx, inputs, params)`` hook (``node.Node.infer``)
+        turns its inputs' infos into its outputs' (a loader reads its file's header;
+        ``ctx.node_id`` names the node) and raises ``InputError`` for inputs that
+        cannot work; the default needs inputs of one size and gives it to the sized
+        outputs. The first problem is a ``GraphError`` naming the node, its line,
+        and the files.
         """
         requested = self._requested(graph, outputs)
         order = self._ancestors(graph, [r.node for r in requested.values()], {})
@@ -242,13 +245,9 @@ class Engine:
             ins = {p.name: None for p in spec.inputs}
             for port, ref in inst.inputs.items():
                 ins[port] = infos[ref.node].get(ref.output)
-            infer = getattr(spec.cls, "infer", None)
             try:
-                if infer is not None:
-                    ctx = NodeContext(nid, graph.base_dir, _no_device, None, _ignore)
-                    infos[nid] = dict(spec.cls().infer(ctx, Namespace(ins), Namespace(params)) or {})
-                else:
-                    infos[nid] = _same_size(spec, ins)
+                ctx = NodeContext(nid, graph.base_dir, _no_device, None, _ignore)
+                infos[nid] = dict(spec.cls().infer(ctx, Namespace(ins), Namespace(params)) or {})
             except InputError as e:
                 raise graph.error(str(e).splitlines()[0], node=nid) from None
         return infos
@@ -449,9 +448,11 @@ class Engine:
                 why.append(f"an earlier result is in the {status[nid]} cache")
             # a node may say what it will do with these params (``describe(params)``),
             # and what it logged when it made the result now in the cache
-            describe = getattr(self.registry.get(type_id).cls, "describe", None)
-            if callable(describe) and nid not in bind:
-                why.append(str(describe(params[nid])))
+            spec = self.registry.get(type_id)
+            if "describe" in spec.hooks and nid not in bind:
+                said = spec.cls().describe(Namespace(params[nid]))
+                if said:
+                    why.append(str(said))
             if status[nid] != "run" and keys[nid] in self._logs_by_key:
                 why.append("its run logged: " + " | ".join(self._logs_by_key[keys[nid]]))
             steps.append(Step(nid, type_id, keys[nid], status[nid], "; ".join(why)))
@@ -649,19 +650,17 @@ class Engine:
         return where
 
 
-def _same_size(spec: NodeSpec, ins: Mapping[str, Any]) -> dict[str, Any]:
-    """The default check: every input of known size has the same size, and the node's
-    sized outputs get it."""
-    shapes = {port: v for port, v in ins.items() if isinstance(v, Shape)}
-    sizes = {(v.height, v.width) for v in shapes.values()}
-    if len(sizes) > 1:
-        listing = ", ".join(f"{port} {v.described()}" for port, v in shapes.items())
-        raise InputError(f"inputs differ in size: {listing}")
-    if not sizes:
-        return {}
-    (h, w), = sizes
-    source = next(iter(shapes.values())).source
-    return {p.name: Shape(h, w, None, source) for p in spec.outputs if p.type.sized}
+def _affecting(nid: str, spec: NodeSpec, params: Mapping[str, Any], relevant: dict, inputs: dict):
+    """The key parts the node's ``affects`` hook keeps: it may only leave names out."""
+    names = spec.cls().affects(Namespace(params))
+    if names is None:
+        return relevant, inputs
+    names = set(names)
+    unknown = names - {p.name for p in spec.params} - {p.name for p in spec.inputs}
+    if unknown:
+        raise NodeError(nid, spec.type_id, f"affects() names no param or input {sorted(unknown)}")
+    return ({k: v for k, v in relevant.items() if k in names},
+            {k: v for k, v in inputs.items() if k in names})
 
 
 def _files_upstream(plan: Plan, nid: str) -> str:

@@ -175,7 +175,7 @@ class Session:
             if nid not in graph.nodes:
                 raise GraphError("cannot bind: no such node in the graph", file=graph.file, node=nid)
             spec = self.registry.get(graph.nodes[nid].type)
-            if hasattr(spec.cls, "bind"):
+            if "bind" in spec.hooks:
                 continue  # a host input checks the array itself, in the plan
             port = spec.outputs[0]
             try:
