@@ -6,7 +6,8 @@ import numpy as np
 from pixgraph_nodes import types as T
 from pixgraph.node import InputError, Node, node, param, port
 
-from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
+from ._checks import finite_outputs, inside
+from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
 from .ops import choose as C
 from .ops.softness import softness_of
 from .ops.lights import disk_extremes, disk_samples, light_point
@@ -29,12 +30,8 @@ class Shadow(Node):
     and why are in the run's log and in ``pixgraph explain`` (docs/auto.md).
     ``hard``, ``soft`` (``samples``) and ``ssn`` force a method."""
 
-    class Inputs:
-        mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
-        fg_height: T.PixelHeight = port(doc="cutout pixel height [px]")
-        bg_height: T.PixelHeight = port(doc="background pixel height [px]")
+    class Inputs(ShadowInputs):
         light: T.Light = port(doc="the light; its radius / distance is the softness")
-        camera: T.Camera = port(doc="camera that converts the light to pixel-height space")
 
     class Params:
         method: str = param("auto", choices=("auto", "hard", "soft", "ssn"),
@@ -43,8 +40,7 @@ class Shadow(Node):
                                 doc="auto's accuracy target: RMSE of darkness against ground truth that at "
                                     "most 10% of the benchmark's similar scenes exceeded")
         samples: int = param(64, min=1, max=65536, doc="light samples of method soft")
-        thickness: float = param(1.0, min=0.0, max=1000.0, unit="px",
-                                 doc="occluder thickness of the pixel-height tracer")
+        thickness: float = thickness_param(doc="occluder thickness of the pixel-height tracer")
         proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px",
                            doc="classical shadows of images longer than this are traced at this size (0: never)")
 
@@ -67,10 +63,7 @@ class Shadow(Node):
                 f"(table weights/{C.TABLE.name}, {n} benchmark samples)")
 
     def compute(self, ctx, inputs, params):
-        same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
-        finite(mask=inputs.mask)
-        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
-        pixel_heights(bg_height=inputs.bg_height)
+        check_inputs(inputs)
         light, cam = inputs.light, inputs.camera
         H, W = inputs.mask.shape
         if not inside(inputs.mask).any():  # nothing casts a shadow

@@ -247,19 +247,30 @@ def _param_kind(annotation: Any, owner: str, name: str) -> str:
 
 
 def _annotations(cls: type | None) -> dict[str, Any]:
+    """Annotations of an ``Inputs``/``Params``/``Outputs`` class and its bases (a
+    node pack may share a block of ports: ``class Inputs(ShadowInputs)``), bases
+    first, each resolved in its own module (so ``mask: T.Mask`` works with or
+    without ``from __future__ import annotations``)."""
     if cls is None:
         return {}
-    # resolve string annotations (from __future__ import annotations) in the
-    # module of the node, so `mask: T.Mask` works either way
     import sys
-    module = sys.modules.get(cls.__module__)
-    globalns = dict(vars(module)) if module else {}
-    globalns.setdefault("T", T)
-    globalns.setdefault("Path", pathlib.Path)
-    try:
-        return typing.get_type_hints(cls, globalns=globalns)
-    except Exception:
-        return dict(getattr(cls, "__annotations__", {}))
+    out: dict[str, Any] = {}
+    for klass in reversed(cls.__mro__):
+        own = klass.__dict__.get("__annotations__")
+        if not own:
+            continue
+        module = sys.modules.get(klass.__module__)
+        globalns = dict(vars(module)) if module else {}
+        globalns.setdefault("T", T)
+        globalns.setdefault("Path", pathlib.Path)
+        for name, ann in own.items():
+            if isinstance(ann, str):
+                try:
+                    ann = eval(ann, globalns, dict(vars(klass)))  # noqa: S307 - the node's own source text
+                except Exception:  # noqa: BLE001 - reported as a bad annotation by the caller
+                    pass
+            out[name] = ann
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
