@@ -68,11 +68,21 @@ def _parser() -> argparse.ArgumentParser:
                         "(no gamma, never clipped: 16-bit PNG for 0..1, else npy/exr/tif)")
     r.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
     r.add_argument("--cache-bytes", type=int, default=None, help="memory cache limit in bytes")
+    r.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="compute up to N independent branches at once (default PIXGRAPH_WORKERS, else 1; "
+                        "OpenCL nodes still take turns on the device)")
 
     sub.add_parser("validate", parents=[common, graph_opts],
                    help="check a graph file and its input files' headers without running it")
     sub.add_parser("explain", parents=[common, graph_opts, cache_opts],
                    help="show what a run would compute or take from cache, and why")
+
+    gr = sub.add_parser("graph", parents=[common, graph_opts],
+                        help="draw a graph: Graphviz DOT text (--dot, the default) or an SVG picture (--svg)")
+    fmt = gr.add_mutually_exclusive_group()
+    fmt.add_argument("--dot", action="store_true", help="print DOT text (render with Graphviz: dot -Tpng)")
+    fmt.add_argument("--svg", action="store_true", help="an SVG picture, drawn without Graphviz")
+    gr.add_argument("-o", "--output", metavar="PATH", default=None, help="write to PATH instead of stdout")
 
     n = sub.add_parser("nodes", parents=[common], help="list node types, or show one")
     n.add_argument("name", nargs="?", help="node type id")
@@ -186,8 +196,12 @@ def _session(args, registry, disk: bool = True):
             choose(args.device)  # a bad spec is bad input, found before any node runs
         except DeviceError as e:
             raise UsageError(str(e)) from None
+    workers = getattr(args, "workers", None)
+    if workers is not None and workers < 1:
+        raise UsageError(f"--workers {workers}: must be 1 or more")
     return Session(device=getattr(args, "device", None), cache_bytes=getattr(args, "cache_bytes", None),
-                   disk_cache=disk_dir, registry=registry, allow_paths=getattr(args, "allow_path", []))
+                   disk_cache=disk_dir, registry=registry, allow_paths=getattr(args, "allow_path", []),
+                   workers=workers)
 
 
 def _cmd_run(args, registry) -> int:
@@ -306,6 +320,27 @@ def _cmd_explain(args, registry) -> int:
     graph = s.graph(args.graph, sets)
     _allow_typed_paths(s, graph, sets)
     print(s.explain(graph))
+    return EXIT_OK
+
+
+def _cmd_graph(args, registry) -> int:
+    from . import drawing
+    from .session import Session
+
+    s = Session(registry=registry if registry is not None else Registry.discover(), allow_paths=args.allow_path)
+    g = s.graph(args.graph, parse_sets(args.set))
+    title = os.path.basename(args.graph)
+    text = drawing.to_svg(g, s.registry, title) if args.svg else drawing.to_dot(g, s.registry)
+    if args.output is None:
+        sys.stdout.write(text)
+        return EXIT_OK
+    try:
+        with open(args.output, "w", encoding="utf-8") as f:
+            f.write(text)
+    except OSError as e:
+        raise UsageError(f"-o {args.output}: {e.strerror or e}") from None
+    if not args.quiet:
+        print(f"{args.graph}: {len(g.nodes)} nodes drawn to {args.output}", file=sys.stderr)
     return EXIT_OK
 
 
@@ -438,6 +473,6 @@ def _cmd_serve(args, registry) -> int:
     return EXIT_OK
 
 
-_COMMANDS = {"run": _cmd_run, "batch": _cmd_batch, "serve": _cmd_serve, "validate": _cmd_validate,
+_COMMANDS = {"run": _cmd_run, "graph": _cmd_graph, "batch": _cmd_batch, "serve": _cmd_serve, "validate": _cmd_validate,
              "explain": _cmd_explain, "nodes": _cmd_nodes, "schema": _cmd_schema, "devices": _cmd_devices,
              "cache": _cmd_cache}

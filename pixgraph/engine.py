@@ -17,6 +17,7 @@ import collections.abc
 import dataclasses
 import logging
 import os
+import threading
 import time
 from typing import Any, Callable, Mapping
 
@@ -26,11 +27,12 @@ from . import events as E
 from .device import DeviceError
 from .cache import MISS, DiskCache, MemoryCache, Unstorable
 from .errors import NodeError, NodeInputError, out_of_memory  # noqa: F401 (re-exported)
-from .graph import Graph, GraphError, Ref
+from .graph import Graph, GraphError, Ref, upstream
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import InputError, Namespace, NodeSpec
 from .paths import PathError, PathPolicy
 from .registry import Registry
+from .scheduler import DeviceGate, execute
 from .types import nbytes
 
 
@@ -177,6 +179,8 @@ class Engine:
         self.memory_only: dict[str, str] = {}
         #: cache key -> what the node logged when it computed that key (this process)
         self._logs_by_key: dict[str, list[str]] = {}
+        #: nodes computed at once on independent branches (``scheduler``); 1 = in order
+        self.workers = _env_int("PIXGRAPH_WORKERS", 1)
 
     # -- plan -------------------------------------------------------------------
 
@@ -279,26 +283,8 @@ class Engine:
     @staticmethod
     def _ancestors(graph: Graph, roots: list[str], bind: Mapping[str, Any]) -> list[str]:
         """Ancestors of ``roots`` (inclusive) in dependency order; a bound node's
-        inputs are not followed. Iterative: chains may be thousands long."""
-        order, done = [], set()
-        for root in roots:
-            if root in done:
-                continue
-            stack = [(root, False)]
-            while stack:
-                nid, expanded = stack.pop()
-                if nid in done:
-                    continue
-                if expanded:
-                    done.add(nid)
-                    order.append(nid)
-                    continue
-                stack.append((nid, True))
-                if nid not in bind:
-                    for ref in reversed(list(graph.nodes[nid].inputs.values())):
-                        if ref.node not in done:
-                            stack.append((ref.node, False))
-        return order
+        inputs are not followed (``graph.upstream``, on networkx)."""
+        return upstream(graph, list(dict.fromkeys(roots)), stop=bind)
 
     @staticmethod
     def _bind(graph: Graph, nid: str, spec: NodeSpec, value, params) -> dict[str, Any]:
@@ -462,13 +448,18 @@ class Engine:
 
     def run(self, plan: Plan, cancel: E.CancelToken | None = None,
             on_event: Callable[[Any], None] | None = None) -> RunResult:
+        """Pull the plan's outputs: serve what the caches hold, then compute the
+        rest in dependency order (``scheduler.execute``; ``self.workers`` > 1 runs
+        independent branches concurrently)."""
         forward = on_event or _ignore
         logs: dict[str, list[str]] = {}
+        lock = threading.RLock()
 
         def emit(ev):
-            if isinstance(ev, E.NodeLog):
-                logs.setdefault(ev.node_id, []).append(ev.message)
-            forward(ev)
+            with lock:  # nodes of concurrent branches report from their threads
+                if isinstance(ev, E.NodeLog):
+                    logs.setdefault(ev.node_id, []).append(ev.message)
+                forward(ev)
         graph = plan.graph
         results: dict[str, dict[str, Any]] = {}
         timings: dict[str, float] = {}
@@ -477,13 +468,17 @@ class Engine:
         t_run = time.perf_counter()
         emit(E.RunStarted(sum(s.status == "run" for s in plan.steps),
                           sum(s.status != "run" for s in plan.steps)))
+        # 1. resolve: what the caches hold, and which nodes must compute (inputs first)
+        to_compute: list[str] = []
+        first_of: dict[str, str] = {}  # key -> the node that computes it
+        twins: dict[str, list[str]] = {}  # that node -> nodes of the same key
+        resolved: set[str] = set()
         missed: set[str] = set()
-        tainted: set[str] = set()
         # a stack: reversed, so outputs (and inputs, below) are pulled in the order given
         stack = list(reversed(dict.fromkeys(r.node for r in plan.outputs.values())))
         while stack:
             nid = stack[-1]
-            if nid in results:
+            if nid in resolved:
                 stack.pop()
                 continue
             if cancel is not None:
@@ -494,7 +489,13 @@ class Engine:
             if nid in plan.bind:
                 results[nid] = dict(plan.bound[nid])
                 cached.append(nid)
+                resolved.add(nid)
                 emit(E.NodeCached(nid, "bound"))
+                stack.pop()
+                continue
+            if not spec.side_effects and key in first_of and nid not in missed:
+                twins.setdefault(first_of[key], []).append(nid)  # same key: served by that node's result
+                resolved.add(nid)
                 stack.pop()
                 continue
             if not spec.side_effects and nid not in missed:
@@ -502,6 +503,7 @@ class Engine:
                 if value is not MISS:
                     results[nid] = value
                     cached.append(nid)
+                    resolved.add(nid)
                     emit(E.NodeCached(nid, where))
                     stack.pop()
                     continue
@@ -510,30 +512,59 @@ class Engine:
                 if why:
                     reasons[nid] = f"disk cache entry discarded ({why}); recomputing"
                     emit(E.NodeLog(nid, reasons[nid]))
-            waiting = [ref.node for ref in inst.inputs.values() if ref.node not in results]
+            waiting = [ref.node for ref in inst.inputs.values() if ref.node not in resolved]
             if waiting:
                 stack.extend(reversed(waiting))
                 continue
             stack.pop()
+            resolved.add(nid)
+            to_compute.append(nid)
+            if not spec.side_effects:
+                first_of[key] = nid
+        # 2. compute
+        tainted: set[str] = set()
+        workers = max(1, int(self.workers))
+        gate = DeviceGate(self._device) if workers > 1 and len(to_compute) > 1 else None
+
+        def work(nid: str) -> None:
+            inst = graph.nodes[nid]
+            spec = self.registry.get(inst.type)
             emit(E.NodeStarted(nid, spec.type_id, reasons.get(nid, "evicted since the plan")))
             t0 = time.perf_counter()
-            value = self._compute(nid, spec, inst, plan, results, cancel, emit)
-            timings[nid] = time.perf_counter() - t0
-            results[nid] = value
-            ran.append(nid)
+            try:
+                value = self._compute(nid, spec, inst, plan, results, cancel, emit,
+                                      gate.opener() if gate is not None else self._device)
+            finally:
+                if gate is not None:
+                    gate.release()
+            seconds = time.perf_counter() - t0
             changed = self._sources_changed(nid, spec, plan)
-            if changed or any(ref.node in tainted for ref in inst.inputs.values()):
-                # computed on bytes the key does not describe: never cache it, nor what uses it
-                tainted.add(nid)
-                stored = ("not cached: " + (f"file changed during the run ({', '.join(changed)})" if changed
-                                            else "an input was computed from a file that changed during the run"))
-                emit(E.NodeLog(nid, stored))
-                _log.warning("node %r: %s", nid, stored)
-            else:
-                stored = self._store(spec, key, value)
-                if "not on disk:" in stored:
-                    emit(E.NodeLog(nid, stored.split("; ", 1)[-1]))
-            emit(E.NodeFinished(nid, timings[nid], stored))
+            with lock:
+                timings[nid] = seconds
+                results[nid] = value
+                ran.append(nid)
+                if changed or any(ref.node in tainted for ref in inst.inputs.values()):
+                    # computed on bytes the key does not describe: never cache it, nor what uses it
+                    tainted.add(nid)
+                    stored = ("not cached: " + (f"file changed during the run ({', '.join(changed)})" if changed
+                                                else "an input was computed from a file that changed during the run"))
+                    emit(E.NodeLog(nid, stored))
+                    _log.warning("node %r: %s", nid, stored)
+                else:
+                    stored = self._store(spec, plan.keys[nid], value)
+                    if "not on disk:" in stored:
+                        emit(E.NodeLog(nid, stored.split("; ", 1)[-1]))
+                for twin in twins.get(nid, ()):
+                    results[twin] = value
+                    cached.append(twin)
+            emit(E.NodeFinished(nid, seconds, stored))
+            for twin in twins.get(nid, ()):
+                emit(E.NodeCached(twin, "memory"))
+
+        twin_of = {t: n for n, ts in twins.items() for t in ts}
+        deps = {nid: [twin_of.get(ref.node, ref.node) for ref in graph.nodes[nid].inputs.values()]
+                for nid in to_compute}
+        execute(to_compute, deps, work, workers, cancel)
         last = self._last_run_parts(graph.file)
         for nid in results:
             last[nid] = plan.parts[nid]
@@ -597,11 +628,11 @@ class Engine:
                     changed.append(f"params.{p.name}")
         return changed
 
-    def _compute(self, nid, spec: NodeSpec, inst, plan: Plan, results, cancel, emit) -> dict[str, Any]:
+    def _compute(self, nid, spec: NodeSpec, inst, plan: Plan, results, cancel, emit, device) -> dict[str, Any]:
         inputs = {p.name: None for p in spec.inputs}
         for port, ref in inst.inputs.items():
             inputs[port] = results[ref.node][ref.output]
-        ctx = NodeContext(nid, plan.graph.base_dir, self._device, cancel, emit)
+        ctx = NodeContext(nid, plan.graph.base_dir, device, cancel, emit)
         try:
             out = spec.cls().compute(ctx, Namespace(inputs), Namespace(plan.params[nid]))
         except (E.Cancelled, DeviceError):

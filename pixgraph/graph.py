@@ -209,29 +209,74 @@ def _check_inputs(graph: Graph, nid: str, spec: NodeSpec, inputs: Mapping[str, R
 
 
 def _check_cycles(graph: Graph) -> None:
-    state: dict[str, int] = {}  # 1 = on the DFS stack, 2 = done
-    for root in graph.nodes:
-        if state.get(root):
-            continue
-        stack = [(root, iter(graph.nodes[root].inputs.values()))]
-        path = [root]
-        state[root] = 1
-        while stack:
-            nid, it = stack[-1]
-            ref = next(it, None)
-            if ref is None:
-                state[nid] = 2
-                stack.pop()
-                path.pop()
-                continue
-            s = state.get(ref.node)
-            if s == 1:
-                cycle = path[path.index(ref.node):] + [ref.node]
-                raise graph.error("cycle: " + " <- ".join(cycle), node=ref.node)
-            if s is None:
-                state[ref.node] = 1
-                path.append(ref.node)
-                stack.append((ref.node, iter(graph.nodes[ref.node].inputs.values())))
+    import networkx as nx
+
+    g = dag(graph)
+    if nx.is_directed_acyclic_graph(g):  # linear; find_cycle alone is quadratic on long chains
+        return
+    # the first strongly connected component (file order) that holds a cycle, followed
+    # along inputs so the path reads "a <- b <- a": a takes b's output
+    index = {n: i for i, n in enumerate(graph.nodes)}
+    comps = [c for c in nx.strongly_connected_components(g) if len(c) > 1 or g.has_edge(*[next(iter(c))] * 2)]
+    comp = min(comps, key=lambda c: min(index[n] for n in c))
+    start = min(comp, key=index.__getitem__)
+    cycle = nx.find_cycle(g.subgraph(comp).reverse(copy=False), source=start)
+    path = [u for u, _ in cycle] + [cycle[-1][1]]
+    raise graph.error("cycle: " + " <- ".join(path), node=path[0])
+
+
+# -- the graph as a networkx DiGraph ------------------------------------------------
+
+def dag(graph: Graph):
+    """``graph`` as a ``networkx.DiGraph``: one vertex per node id (file order), an
+    edge ``src -> dst`` for each connection (attribute ``ports``: the list of
+    ``(output, input)`` pairs it carries). Made once per graph value (graphs are
+    immutable); references to missing nodes are left out (``validate`` reports them)."""
+    cached = graph.__dict__.get("_dag")
+    if cached is not None:
+        return cached
+    import networkx as nx
+
+    g = nx.DiGraph()
+    g.add_nodes_from(graph.nodes)
+    for nid, inst in graph.nodes.items():
+        for port, ref in inst.inputs.items():
+            if ref.node in graph.nodes:
+                if g.has_edge(ref.node, nid):
+                    g.edges[ref.node, nid]["ports"].append((ref.output, port))
+                else:
+                    g.add_edge(ref.node, nid, ports=[(ref.output, port)])
+    object.__setattr__(graph, "_dag", g)
+    return g
+
+
+def upstream(graph: Graph, roots, stop=()) -> list[str]:
+    """``roots`` and every node they depend on, inputs before the nodes that use
+    them (ties in file order); the inputs of nodes in ``stop`` (bound nodes) are
+    not followed."""
+    import networkx as nx
+
+    g = dag(graph)
+    if stop:
+        g = g.copy()
+        g.remove_edges_from([e for n in stop if n in g for e in list(g.in_edges(n))])
+    needed = set(roots)
+    for r in roots:
+        needed |= nx.ancestors(g, r)
+    index = {n: i for i, n in enumerate(graph.nodes)}
+    return list(nx.lexicographical_topological_sort(g.subgraph(needed), key=index.__getitem__))
+
+
+def downstream(graph: Graph, node_ids) -> set[str]:
+    """Every node whose result depends on one of ``node_ids`` (exclusive): what an
+    edit of those nodes can change."""
+    import networkx as nx
+
+    g = dag(graph)
+    out: set[str] = set()
+    for n in node_ids:
+        out |= nx.descendants(g, n)
+    return out
 
 
 class GraphBuilder:

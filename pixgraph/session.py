@@ -61,7 +61,7 @@ class Session:
 
     def __init__(self, device=None, cache_bytes: int | None = None, disk_cache: str | os.PathLike | None = None,
                  registry: Registry | None = None, disk_cache_bytes: int | None = None,
-                 allow_paths=(), strict_paths: bool = False):
+                 allow_paths=(), strict_paths: bool = False, workers: int | None = None):
         self.registry = registry if registry is not None else Registry.discover()
         if cache_bytes is None:
             cache_bytes = _env_bytes("PIXGRAPH_CACHE_BYTES", DEFAULT_CACHE_BYTES)
@@ -73,6 +73,8 @@ class Session:
         self._device = None
         self.paths = PathPolicy(allow_paths, strict=strict_paths)
         self.engine = Engine(self.registry, self.memory, self.disk, self._get_device, paths=self.paths)
+        if workers is not None:  # independent branches at once (default PIXGRAPH_WORKERS, else 1)
+            self.engine.workers = max(1, int(workers))
         self.last_run: RunResult | None = None
 
     @property
