@@ -416,9 +416,9 @@ def _cmd_cache(args, registry) -> int:
         print(json.dumps({"root": root, "entries": 0, "bytes": 0}) if args.action == "stats"
               else f"removed 0 entries from {root} (no such folder)")
         return EXIT_OK
-    from .session import DEFAULT_DISK_CACHE_BYTES, _env_bytes
+    from .session import DEFAULT_DISK_CACHE_BYTES, env_bytes
 
-    d = DiskCache(root, _env_bytes("PIXGRAPH_DISK_CACHE_BYTES", DEFAULT_DISK_CACHE_BYTES))
+    d = DiskCache(root, env_bytes("PIXGRAPH_DISK_CACHE_BYTES", DEFAULT_DISK_CACHE_BYTES))
     if args.action == "clear":
         n = d.clear()
         print(f"removed {n} entr{'y' if n == 1 else 'ies'} from {root}")

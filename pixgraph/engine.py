@@ -13,8 +13,6 @@ always run when requested and are never cached.
 """
 from __future__ import annotations
 
-import collections.abc
-import dataclasses
 import logging
 import os
 import threading
@@ -31,7 +29,9 @@ from .graph import Graph, GraphError, Ref, upstream
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import InputError, Namespace, NodeSpec
 from .paths import PathError, PathPolicy
+from .plan import NodeContext, Plan, RunResult, Step, files_upstream  # noqa: F401 (re-exported)
 from .registry import Registry
+from .resolve import check_overwrites, checked_path, resolve_params
 from .scheduler import DeviceGate, execute
 from .types import nbytes
 
@@ -46,112 +46,6 @@ def _env_int(name: str, default: int) -> int:
         return int(float(raw)) if raw.strip() else default
     except ValueError:
         raise GraphError(f"{name} must be a number, got {raw[:40]!r}") from None
-
-
-class NodeContext:
-    """What a node's ``compute`` may use besides its inputs and params.
-
-    ``device`` is opened on first access only, so graphs without OpenCL nodes
-    never touch OpenCL.
-    """
-
-    __slots__ = ("node_id", "graph_dir", "_device", "_cancel", "_emit")
-
-    def __init__(self, node_id: str, graph_dir: str, device: Callable[[], Any],
-                 cancel: E.CancelToken | None, emit: Callable[[Any], None]):
-        self.node_id = node_id
-        self.graph_dir = graph_dir
-        self._device = device
-        self._cancel = cancel
-        self._emit = emit
-
-    @property
-    def device(self):
-        """The session's ``pixgraph.device.Device``."""
-        return self._device()
-
-    def progress(self, fraction: float, message: str = "") -> None:
-        """Report this node's progress, ``fraction`` in [0, 1]."""
-        self._emit(E.NodeProgress(self.node_id, min(1.0, max(0.0, float(fraction))), message))
-
-    def check_cancelled(self) -> None:
-        """Raise ``events.Cancelled`` when the run was cancelled."""
-        if self._cancel is not None:
-            self._cancel.raise_if_cancelled()
-
-    def log(self, message: str) -> None:
-        self._emit(E.NodeLog(self.node_id, str(message)))
-
-
-@dataclasses.dataclass(frozen=True)
-class Step:
-    """One needed node of a plan. ``status`` is run, memory, disk or bound."""
-
-    node_id: str
-    type_id: str
-    key: str
-    status: str
-    reason: str
-
-
-@dataclasses.dataclass(frozen=True)
-class Plan:
-    graph: Graph
-    #: requested output name -> where it comes from
-    outputs: Mapping[str, Ref]
-    #: needed nodes, inputs before the nodes that use them
-    steps: tuple[Step, ...]
-    keys: Mapping[str, str]
-    parts: Mapping[str, KeyParts]
-    #: params as compute receives them: defaults filled in, paths absolute
-    params: Mapping[str, Mapping[str, Any]]
-    bind: Mapping[str, Any]
-    #: bound node id -> its outputs (a host input's ``bind`` hook applied; else the
-    #: array as the first output)
-    bound: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
-
-    def step(self, node_id: str) -> Step:
-        return next(s for s in self.steps if s.node_id == node_id)
-
-    def table(self) -> str:
-        """The plan as a text table, for ``pixgraph explain``."""
-        rows = [("node", "type", "status", "key", "why")]
-        rows += [(s.node_id, s.type_id, s.status, s.key[:12], s.reason) for s in self.steps]
-        widths = [max(len(r[i]) for r in rows) for i in range(4)]
-        return "\n".join("  ".join(c.ljust(w) for c, w in zip(r[:4], widths)) + "  " + r[4] for r in rows)
-
-
-@dataclasses.dataclass(frozen=True)
-class RunResult(collections.abc.Mapping):
-    """What a run returns: its outputs, and what ran and what came from a cache.
-
-    It is a read-only mapping of output name -> value (``result["final"]``,
-    ``dict(result)``, ``result.items()``); ``outputs`` is the same as a plain dict.
-    """
-
-    #: ``{output name: value}``
-    outputs: dict[str, Any]
-    #: compute seconds of each node that ran
-    timings: dict[str, float]
-    ran: tuple[str, ...]
-    cached: tuple[str, ...]
-    plan: Plan
-    #: messages each node that ran logged (``ctx.log``), by node id
-    logs: dict[str, list[str]] = dataclasses.field(default_factory=dict)
-
-    @property
-    def seconds(self) -> float:
-        """Compute seconds of the nodes that ran, summed (cache hits count 0)."""
-        return float(sum(self.timings.values()))
-
-    def __getitem__(self, name: str) -> Any:
-        return self.outputs[name]
-
-    def __iter__(self):
-        return iter(self.outputs)
-
-    def __len__(self) -> int:
-        return len(self.outputs)
 
 
 class Engine:
@@ -200,7 +94,7 @@ class Engine:
                 params[nid] = {}
                 if "bind" in spec.hooks:
                     # a host input: its params (colour space, alpha...) say how to read the array
-                    p, relevant = self._params(graph, nid, spec, inst.params, read_paths=False)
+                    p, relevant = resolve_params(graph, nid, spec, inst.params, None, self._hash_file, self.max_file_bytes, read_paths=False)
                     params[nid] = p
                     bound[nid] = self._bind(graph, nid, spec, bind[nid], p)
                     parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant,
@@ -211,14 +105,14 @@ class Engine:
                     parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
                     bound[nid] = {spec.outputs[0].name: bind[nid]}
                 continue
-            p, relevant = self._params(graph, nid, spec, inst.params, policy)
+            p, relevant = resolve_params(graph, nid, spec, inst.params, policy, self._hash_file, self.max_file_bytes)
             params[nid] = p
             inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
             if "affects" in spec.hooks:  # params and inputs ignored in this mode stay out of the key
                 relevant, inputs = _affecting(nid, spec, p, relevant, inputs)
             parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
             keys[nid] = parts[nid].key()
-        self._check_overwrites(graph, params, order, bind)
+        check_overwrites(self.registry, graph, params, order, bind)
         steps = self._steps(graph, requested, order, keys, parts, bind, params)
         return Plan(graph, requested, steps, keys, parts, params, bind, bound)
 
@@ -245,7 +139,7 @@ class Engine:
             params = spec.coerce_params(inst.params)
             for p in spec.params:
                 if p.kind == "path" and params[p.name] is not None:  # the policy before any header is read
-                    params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
+                    params[p.name] = checked_path(graph, policy, nid, p, params[p.name])
             ins = {p.name: None for p in spec.inputs}
             for port, ref in inst.inputs.items():
                 ins[port] = infos[ref.node].get(ref.output)
@@ -319,76 +213,9 @@ class Engine:
             values = spec.coerce_params(inst.params)
             for p in spec.params:
                 if p.kind == "path" and values.get(p.name) is not None:
-                    values[p.name] = self._checked_path(graph, policy, nid, p, values[p.name])
+                    values[p.name] = checked_path(graph, policy, nid, p, values[p.name])
             params[nid] = values
-        self._check_overwrites(graph, params, list(graph.nodes), {})
-
-    @staticmethod
-    def _checked_path(graph: Graph, policy: PathPolicy, nid: str, p, raw) -> str:
-        field = f"params.{p.name}"
-        try:
-            resolved = graph.resolve_path(os.fspath(raw))
-            (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
-        except PathError as e:
-            located = graph.error(e.message, node=nid, field=field)
-            raise PathError(e.message, file=located.file, line=located.line, node=nid, field=field) from None
-        except ValueError as e:  # e.g. embedded NUL in a home-folder lookup
-            located = graph.error(f"bad path: {e}"[:200], node=nid, field=field)
-            raise PathError(located.message, file=located.file, line=located.line, node=nid, field=field) from None
-        # the node gets the path as the graph names it (made absolute), so its messages
-        # name the user's path; the check above resolved every symlink in it
-        return resolved
-
-    def _check_overwrites(self, graph: Graph, params, order, bind) -> None:
-        """A node may not write over a file that this run reads (or the graph file)."""
-        reads = {os.path.realpath(graph.file): "the graph file"} if graph.file else {}
-        writes = []
-        for nid in order:
-            if nid in bind:
-                continue
-            spec = self.registry.get(graph.nodes[nid].type)
-            for p in spec.params:
-                if p.kind == "path" and params[nid].get(p.name) is not None:
-                    real = os.path.realpath(params[nid][p.name])
-                    if p.writes:
-                        writes.append((nid, p.name, real))
-                    else:
-                        reads.setdefault(real, f"node {nid!r} param {p.name!r}")
-        for nid, pname, path in writes:
-            if path in reads:
-                raise self._located(graph, f"would write over {reads[path]}, read by this run ({path})",
-                                    nid, f"params.{pname}")
-
-    @staticmethod
-    def _located(graph: Graph, message: str, nid: str, field: str) -> PathError:
-        e = graph.error(message, node=nid, field=field)
-        return PathError(e.message, file=e.file, line=e.line, node=nid, field=field)
-
-    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values, policy: PathPolicy | None = None,
-                read_paths: bool = True) -> tuple[dict, dict]:
-        params = spec.coerce_params(values)
-        relevant = {}
-        for p in spec.params:
-            if p.kind == "path" and not read_paths:
-                continue  # a bound host input reads no file
-            if p.kind == "path":
-                params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
-                if p.writes:
-                    relevant[p.name] = params[p.name]
-                else:
-                    try:
-                        size = os.path.getsize(params[p.name])
-                        if size > self.max_file_bytes:
-                            raise graph.error(f"file is {size} bytes, more than the limit of {self.max_file_bytes} "
-                                              "(PIXGRAPH_MAX_FILE_BYTES)", node=nid, field=f"params.{p.name}")
-                        relevant[p.name] = {"file_sha256": self._hash_file(params[p.name])}
-                    except OSError as e:
-                        raise graph.error(f"cannot read {params[p.name]}: {e.strerror}", node=nid,
-                                          field=f"params.{p.name}") from None
-            elif p.cache:
-                v = params[p.name]
-                relevant[p.name] = list(v) if isinstance(v, tuple) else v
-        return params, relevant
+        check_overwrites(self.registry, graph, params, list(graph.nodes), {})
 
     def _steps(self, graph, requested, order, keys, parts, bind, params) -> tuple[Step, ...]:
         last = self._last_run_parts(graph.file)
@@ -638,7 +465,7 @@ class Engine:
         except (E.Cancelled, DeviceError):
             raise  # not the node's fault: no device could be opened
         except InputError as exc:
-            files = _files_upstream(plan, nid)
+            files = files_upstream(plan, nid)
             where = f" (inputs from {files})" if files else ""
             raise NodeInputError(nid, spec.type_id,
                                  (str(exc).splitlines() or [type(exc).__name__])[0] + where) from exc
@@ -692,40 +519,6 @@ def _affecting(nid: str, spec: NodeSpec, params: Mapping[str, Any], relevant: di
         raise NodeError(nid, spec.type_id, f"affects() names no param or input {sorted(unknown)}")
     return ({k: v for k, v in relevant.items() if k in names},
             {k: v for k, v in inputs.items() if k in names})
-
-
-def _files_upstream(plan: Plan, nid: str) -> str:
-    """``"mask: 'small.png' (node 'cutout'), ..."``: for each input of a node, the files
-    read by its nearest ancestors that read files, so an error names the user's files."""
-    graph = plan.graph
-    out = []
-    for port, ref in graph.nodes[nid].inputs.items():
-        seen, stack, files = set(), [ref.node], []
-        while stack:
-            n = stack.pop()
-            if n in seen:
-                continue
-            seen.add(n)
-            paths = [v for k, v in plan.parts[n].params.items() if isinstance(v, dict) and "file_sha256" in v] \
-                if n in plan.parts else []
-            if paths:
-                for p in plan.params.get(n, {}).values():
-                    if isinstance(p, str) and os.path.isfile(p):
-                        files.append(f"{_short(p)!r} (node {n!r})")
-                continue
-            if n in plan.bind:
-                files.append(f"the array bound to {n!r}")
-                continue
-            stack.extend(r.node for r in graph.nodes[n].inputs.values())
-        if files:
-            out.append(f"{port}: {', '.join(dict.fromkeys(files))}")
-    return "; ".join(out)
-
-
-def _short(path: str) -> str:
-    """A path as short as it is clear: relative to the current folder when inside it."""
-    rel = os.path.relpath(path)
-    return path if rel.startswith("..") else rel
 
 
 def _misfit(spec: NodeSpec, value) -> str | None:

@@ -282,23 +282,24 @@ def downstream(graph: Graph, node_ids) -> set[str]:
 class GraphBuilder:
     """Mutable recipe for a ``Graph``; ``build()`` validates and freezes it."""
 
-    def __init__(self, registry: Registry, *, base_dir: str | None = None):
+    def __init__(self, registry: Registry, *, base_dir: str | None = None, graph: Graph | None = None):
+        """An empty builder, or one holding ``graph``'s nodes (``from_graph``)."""
         self.registry = registry
-        self.base_dir = base_dir or os.getcwd()
+        self.base_dir = base_dir or (graph.base_dir if graph is not None else os.getcwd())
         self._nodes: dict[str, dict] = {}
         self._outputs: dict[str, Ref] = {}
         self._file: str | None = None
         self._lines: dict[str, int] = {}
+        if graph is not None:
+            for nid, inst in graph.nodes.items():
+                self._nodes[nid] = {"type": inst.type, "params": dict(inst.params), "inputs": dict(inst.inputs)}
+            self._outputs = dict(graph.outputs)
+            self._file, self._lines = graph.file, dict(graph.lines)
 
     @classmethod
     def from_graph(cls, graph: Graph, registry: Registry) -> "GraphBuilder":
         """A builder holding ``graph``'s nodes, to derive an edited graph from it."""
-        b = cls(registry, base_dir=graph.base_dir)
-        for nid, inst in graph.nodes.items():
-            b._nodes[nid] = {"type": inst.type, "params": dict(inst.params), "inputs": dict(inst.inputs)}
-        b._outputs = dict(graph.outputs)
-        b._file, b._lines = graph.file, dict(graph.lines)
-        return b
+        return cls(registry, graph=graph)
 
     def add(self, type_id: str, node_id: str, **params: Any) -> str:
         """Add a node of type ``type_id``; returns ``node_id``."""

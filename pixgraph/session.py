@@ -28,7 +28,7 @@ DEFAULT_CACHE_BYTES = 2 << 30          # PIXGRAPH_CACHE_BYTES
 DEFAULT_DISK_CACHE_BYTES = 20 << 30    # PIXGRAPH_DISK_CACHE_BYTES
 
 
-def _env_bytes(name: str, default: int) -> int:
+def env_bytes(name: str, default: int) -> int:
     raw = os.environ.get(name)
     if raw is None or raw == "":
         return default
@@ -64,9 +64,9 @@ class Session:
                  allow_paths=(), strict_paths: bool = False, workers: int | None = None):
         self.registry = registry if registry is not None else Registry.discover()
         if cache_bytes is None:
-            cache_bytes = _env_bytes("PIXGRAPH_CACHE_BYTES", DEFAULT_CACHE_BYTES)
+            cache_bytes = env_bytes("PIXGRAPH_CACHE_BYTES", DEFAULT_CACHE_BYTES)
         if disk_cache_bytes is None:
-            disk_cache_bytes = _env_bytes("PIXGRAPH_DISK_CACHE_BYTES", DEFAULT_DISK_CACHE_BYTES)
+            disk_cache_bytes = env_bytes("PIXGRAPH_DISK_CACHE_BYTES", DEFAULT_DISK_CACHE_BYTES)
         self.memory = MemoryCache(cache_bytes)
         self.disk = DiskCache(disk_cache, disk_cache_bytes) if disk_cache is not None else None
         self._device_arg = device
@@ -259,3 +259,6 @@ class Session:
 
     def cache_stats(self) -> dict:
         return {"memory": self.memory.stats(), "disk": self.disk.stats() if self.disk else None}
+
+
+_env_bytes = env_bytes  # the former name
