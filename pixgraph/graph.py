@@ -150,7 +150,9 @@ def validate(graph: Graph, registry: Registry) -> Graph:
     for name, ref in graph.outputs.items():
         _check_ref(graph, ref, None, f"outputs.{name}", registry)
     _check_cycles(graph)
-    return dataclasses.replace(graph, nodes=canonical)
+    out = dataclasses.replace(graph, nodes=canonical)
+    object.__setattr__(out, "_dag", dag(graph))  # same connections: the params alone changed
+    return out
 
 
 def _check_params(graph: Graph, nid: str, spec: NodeSpec, values: Mapping[str, Any]) -> dict:
@@ -237,15 +239,15 @@ def dag(graph: Graph):
         return cached
     import networkx as nx
 
-    g = nx.DiGraph()
-    g.add_nodes_from(graph.nodes)
-    for nid, inst in graph.nodes.items():
+    ports: dict[tuple[str, str], list] = {}
+    nodes = graph.nodes
+    for nid, inst in nodes.items():
         for port, ref in inst.inputs.items():
-            if ref.node in graph.nodes:
-                if g.has_edge(ref.node, nid):
-                    g.edges[ref.node, nid]["ports"].append((ref.output, port))
-                else:
-                    g.add_edge(ref.node, nid, ports=[(ref.output, port)])
+            if ref.node in nodes:
+                ports.setdefault((ref.node, nid), []).append((ref.output, port))
+    g = nx.DiGraph()
+    g.add_nodes_from(nodes)
+    g.add_edges_from((a, b, {"ports": p}) for (a, b), p in ports.items())
     object.__setattr__(graph, "_dag", g)
     return g
 
@@ -256,15 +258,24 @@ def upstream(graph: Graph, roots, stop=()) -> list[str]:
     not followed."""
     import networkx as nx
 
+    memo = graph.__dict__.setdefault("_upstream", {})
+    k = (tuple(roots), frozenset(stop))
+    if k in memo:  # a graph is immutable: plan it again (a warm run) without the walk
+        return list(memo[k])
     g = dag(graph)
     if stop:
         g = g.copy()
         g.remove_edges_from([e for n in stop if n in g for e in list(g.in_edges(n))])
     needed = set(roots)
     for r in roots:
-        needed |= nx.ancestors(g, r)
-    index = {n: i for i, n in enumerate(graph.nodes)}
-    return list(nx.lexicographical_topological_sort(g.subgraph(needed), key=index.__getitem__))
+        if r not in needed or len(needed) < len(g):
+            needed |= nx.ancestors(g, r)
+    sub = g if len(needed) == len(g) else g.subgraph(needed).copy()
+    order = list(nx.topological_sort(sub))  # inputs first; ties in file order (insertion order)
+    memo[k] = tuple(order)
+    if len(memo) > 64:
+        memo.pop(next(iter(memo)))
+    return order
 
 
 def downstream(graph: Graph, node_ids) -> set[str]:
