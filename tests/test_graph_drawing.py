@@ -85,3 +85,18 @@ def test_bad_graph_is_exit_2(tmp_path, capsys):
     bad = os.path.join(ROOT, "tests", "fixtures", "bad", "cycle.yaml")
     assert main(["graph", bad, "--svg"], registry=make_registry()) == 2
     assert capsys.readouterr().err.strip().endswith("node 'a': cycle: a <- b <- a")
+
+
+def test_tutorial_transcript(tmp_path, monkeypatch):
+    """docs/tutorial.md's 'pixgraph graph' line prints what the page shows."""
+    text = open(os.path.join(ROOT, "docs", "tutorial.md")).read()
+    block = re.search(r"```\n(\$ pixgraph graph .*?)```", text, re.S).group(1)
+    line, printed = block.split("\n", 1)
+    monkeypatch.chdir(ROOT)
+    argv = line[len("$ pixgraph "):].split()
+    argv[argv.index("-o") + 1] = str(tmp_path / "wall.svg")
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(argv) == 0
+    assert err.getvalue() == printed.replace("wall.svg", str(tmp_path / "wall.svg"))
+    assert (tmp_path / "wall.svg").read_text().startswith("<svg ")
