@@ -2,6 +2,7 @@
 
     python tools/house_check.py [DIR ...]       # default: pixgraph pixgraph_serve pixgraph_batch
     python tools/house_check.py --json pixgraph  # the counts and offenders as JSON
+    python tools/house_check.py --root OTHER_CHECKOUT  # measure another checkout (e.g. before)
 
 For the Python files under each DIR it counts, and lists each offender of:
 
@@ -142,8 +143,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dirs", nargs="*", default=["pixgraph", "pixgraph_serve", "pixgraph_batch"])
     ap.add_argument("--json", action="store_true", help="print the report as JSON")
+    ap.add_argument("--root", default=ROOT, help="the checkout to measure (default: this tool's)")
     args = ap.parse_args(argv)
-    report = check(args.dirs)
+    report = check(args.dirs, root=args.root)
     if args.json:
         print(json.dumps(report, indent=1))
         return 0
