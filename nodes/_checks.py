@@ -60,6 +60,13 @@ def file_shape(path: str, node_id: str) -> Shape:
     return Shape(h, w, c, source(path, node_id))
 
 
+def no_alpha(shape: Shape) -> str:
+    """The message for a cutout without an alpha channel (an RGB file, e.g. a JPEG),
+    wherever its coverage would be used (PlaceCutout's cutout, LoadImage's alpha)."""
+    return (f"the cutout {shape.described()} has no alpha channel ({shape.channels} channels): "
+            "use an RGBA image (PNG, EXR) or connect a mask (pixgraph.LoadMask)")
+
+
 def rgba(**images) -> None:
     """Raise ``InputError`` unless each named image has 4 channels (colour + alpha)."""
     for name, a in images.items():

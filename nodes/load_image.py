@@ -7,7 +7,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import InputError, Node, node, param, port
 from pixgraph_nodes.types import Shape
 
-from ._checks import file_shape
+from ._checks import file_shape, no_alpha
 
 from .ops.imageio import host_pixels, read_image, to_internal
 
@@ -38,6 +38,13 @@ class LoadImage(Node):
         alpha = "premultiplied" if params.alpha == "auto" else params.alpha
         image, a = to_internal(host_pixels(value, (1, 2, 3, 4), "an image"), colorspace, alpha)
         return {"image": image, "alpha": a}
+
+    def unusable_outputs(self, node_id, params):
+        """``alpha`` of a file without an alpha channel is all ones: as a cutout's
+        coverage it would cover the whole frame, so any node that uses it is refused
+        (the engine's plan and check), with PlaceCutout's message."""
+        shape = file_shape(params.path, node_id)
+        return {} if shape.channels in (2, 4) else {"alpha": no_alpha(shape)}
 
     def infer(self, ctx, inputs, params):
         shape = file_shape(params.path, ctx.node_id)

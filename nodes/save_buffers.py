@@ -29,10 +29,9 @@ class SaveBuffers(Node):
     impl_version = "1"
 
     def compute(self, ctx, inputs, params):
-        p = pathlib.Path(params.path)
-        if not p.is_absolute() and getattr(ctx, "graph_dir", None):
-            p = pathlib.Path(ctx.graph_dir) / p
-        if p.suffix.lower() != ".exr":
+        p = params.path  # a pixgraph.paths.WritePath: the writer creates folders without following symlinks
+        if not pathlib.Path(p).is_absolute() and getattr(ctx, "graph_dir", None):
+            p = str(pathlib.Path(ctx.graph_dir) / p)
+        if pathlib.Path(p).suffix.lower() != ".exr":
             raise InputError(f"SaveBuffers writes OpenEXR; {p} does not end in .exr")
-        p.parent.mkdir(parents=True, exist_ok=True)
         return {"path": write_exr_channels(p, dict(inputs.buffers), 16 if params.half else 32)}

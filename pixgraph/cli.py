@@ -150,7 +150,7 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
             print("pixgraph: cancelled", file=sys.stderr)
             return code
         # a graph or usage error names its own file/flag; anything else says "error:"
-        _fail(args, e, prefix="" if isinstance(e, (errors.GraphError, UsageError)) else "error: ")
+        _fail(args, e, prefix="" if errors.names_its_input(e) else "error: ")
         return code
 
 

@@ -21,9 +21,9 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from . import events as E
+from . import codehash, events as E
 from .device import DeviceError
-from .cache import MISS, DiskCache, MemoryCache, Unstorable
+from .cache import MISS, DiskCache, MemoryCache, Unstorable, misfit
 from .errors import NodeError, NodeInputError, out_of_memory  # noqa: F401 (re-exported)
 from .graph import Graph, GraphError, Ref, upstream
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
@@ -34,6 +34,7 @@ from .registry import Registry
 from .resolve import check_overwrites, checked_path, resolve_params
 from .scheduler import DeviceGate, execute
 from .types import nbytes
+from .unusable import refuse_unusable_inputs
 
 
 DEFAULT_MAX_FILE_BYTES = 4 << 30
@@ -97,7 +98,7 @@ class Engine:
                     p, relevant = resolve_params(graph, nid, spec, inst.params, None, self._hash_file, self.max_file_bytes, read_paths=False)
                     params[nid] = p
                     bound[nid] = self._bind(graph, nid, spec, bind[nid], p)
-                    parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant,
+                    parts[nid] = KeyParts(spec.type_id, spec.version, codehash.impl_version(spec), relevant,
                                           {"bind": array_key(bind[nid])})
                     keys[nid] = parts[nid].key()
                 else:
@@ -110,9 +111,10 @@ class Engine:
             inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
             if "affects" in spec.hooks:  # params and inputs ignored in this mode stay out of the key
                 relevant, inputs = _affecting(nid, spec, p, relevant, inputs)
-            parts[nid] = KeyParts(spec.type_id, spec.version, spec.impl_version, relevant, inputs)
+            parts[nid] = KeyParts(spec.type_id, spec.version, codehash.impl_version(spec), relevant, inputs)
             keys[nid] = parts[nid].key()
         check_overwrites(self.registry, graph, params, order, bind)
+        refuse_unusable_inputs(graph, self.registry, order, params, bind)
         steps = self._steps(graph, requested, order, keys, parts, bind, params)
         return Plan(graph, requested, steps, keys, parts, params, bind, bound)
 
@@ -133,6 +135,7 @@ class Engine:
         order = self._ancestors(graph, [r.node for r in requested.values()], {})
         policy = self.policy_for(graph)
         infos: dict[str, dict[str, Any]] = {}
+        checked: dict[str, dict[str, Any]] = {}
         for nid in order:
             inst = graph.nodes[nid]
             spec = self.registry.get(inst.type)
@@ -140,6 +143,8 @@ class Engine:
             for p in spec.params:
                 if p.kind == "path" and params[p.name] is not None:  # the policy before any header is read
                     params[p.name] = checked_path(graph, policy, nid, p, params[p.name])
+            checked[nid] = params
+            refuse_unusable_inputs(graph, self.registry, [nid], checked, {})
             ins = {p.name: None for p in spec.inputs}
             for port, ref in inst.inputs.items():
                 ins[port] = infos[ref.node].get(ref.output)
@@ -301,6 +306,7 @@ class Engine:
         twins: dict[str, list[str]] = {}  # that node -> nodes of the same key
         resolved: set[str] = set()
         missed: set[str] = set()
+        expected = _Expected(self, plan)
         # a stack: reversed, so outputs (and inputs, below) are pulled in the order given
         stack = list(reversed(dict.fromkeys(r.node for r in plan.outputs.values())))
         while stack:
@@ -326,7 +332,7 @@ class Engine:
                 stack.pop()
                 continue
             if not spec.side_effects and nid not in missed:
-                value, where = self._fetch(key, spec)
+                value, where = self._fetch(key, spec, lambda: expected.of(nid))
                 if value is not MISS:
                     results[nid] = value
                     cached.append(nid)
@@ -424,16 +430,18 @@ class Engine:
             self._last_parts[file] = last
         return last
 
-    def _fetch(self, key: str, spec: NodeSpec):
+    def _fetch(self, key: str, spec: NodeSpec, expect: Callable[[], Any] = dict):
         value = self.memory.get(key)
         if value is not MISS:
             return value, "memory"
         if self.disk is not None:
             value = self.disk.get(key)
             if value is not MISS:
-                why = _misfit(spec, value)
-                if why:  # a well-formed entry that is not this node's outputs
-                    self.disk._discard(key, self.disk.path(key), why)
+                # a well-formed entry that is not this node's outputs: other names, types,
+                # NaN pixels, or another size than the graph's files make it
+                why = misfit([(p.name, p.type) for p in spec.outputs], value, expect())
+                if why:
+                    self.disk.discard(key, why)
                     return MISS, ""
                 _freeze(value)
                 self.memory.put(key, value)
@@ -495,9 +503,14 @@ class Engine:
         where = "memory" if self.memory.put(key, value, size) else "not cached (larger than the memory limit)"
         if self.disk is not None:
             try:
-                self.disk.put(key, value)
-                where = "memory+disk" if where == "memory" else "disk"
-                self.memory_only.pop(spec.type_id, None)
+                bad = misfit([(p.name, p.type) for p in spec.outputs], value)
+                if bad:  # it would be discarded when read
+                    where += f"; not on disk: {bad}"
+                elif self.disk.put(key, value):
+                    where = "memory+disk" if where == "memory" else "disk"
+                    self.memory_only.pop(spec.type_id, None)
+                else:  # a full disk, a read-only folder...: not cached, never a failed run
+                    where += f"; not on disk: {self.disk.last_skip}"
             except Unstorable as e:
                 self.memory_only[spec.type_id] = str(e)
                 where += f"; memory only: {e}"
@@ -521,18 +534,23 @@ def _affecting(nid: str, spec: NodeSpec, params: Mapping[str, Any], relevant: di
             {k: v for k, v in inputs.items() if k in names})
 
 
-def _misfit(spec: NodeSpec, value) -> str | None:
-    """Why a cached value is not a valid output dict of ``spec``, or None."""
-    names = [p.name for p in spec.outputs]
-    if not isinstance(value, dict) or sorted(value) != sorted(names):
-        return f"holds outputs {sorted(value)[:8] if isinstance(value, dict) else type(value).__name__}, " \
-               f"not {names}"
-    for p in spec.outputs:
-        try:
-            p.type.validate(value[p.name])
-        except TypeError as e:
-            return f"output {p.name!r} is not a valid {p.type.type_name()}: {e}"[:200]
-    return None
+class _Expected:
+    """What the graph's file headers say each node's outputs will be (``Engine.check``),
+    worked out once per run on the first disk hit; ``{}`` when the check cannot say
+    (values bound by a host, a graph the check refuses: the run then reports it)."""
+
+    def __init__(self, engine: "Engine", plan: Plan):
+        self._engine, self._plan, self._infos = engine, plan, None
+
+    def of(self, nid: str) -> dict[str, Any]:
+        if self._infos is None:
+            self._infos = {}
+            if not self._plan.bind:
+                try:
+                    self._infos = self._engine.check(self._plan.graph, list(self._plan.outputs))
+                except Exception:  # noqa: BLE001 - only a stricter check of cached values is lost
+                    pass
+        return self._infos.get(nid, {})
 
 
 def _freeze(value) -> None:

@@ -20,9 +20,11 @@ class                exit  HTTP  meaning
 anything else        1     500   internal failure
 ===================  ====  ====  ==============================================
 
-``Cancelled`` stays in ``pixgraph.events`` and ``DeviceError`` in
+``Cancelled`` stays in ``pixgraph.events``, ``DeviceError`` in
 ``pixgraph.device`` (a device spec that matches nothing is bad input, exit 2;
-a device that fails is exit 1); both are mapped here.
+a device that fails is exit 1) and ``CacheError`` in ``pixgraph.cache`` (a cache
+folder that is not pixgraph's, a negative limit: exit 2, HTTP 500: the server's
+own configuration); all are mapped here.
 """
 from __future__ import annotations
 
@@ -135,8 +137,12 @@ def exit_code(exc: BaseException) -> int:
     from .device import DeviceError
     from .events import Cancelled
 
+    from .cache import CacheError
+
     if isinstance(exc, PixgraphError):
         return exc.exit_code
+    if isinstance(exc, CacheError):
+        return EXIT_BAD_INPUT
     if isinstance(exc, (Cancelled, KeyboardInterrupt)):
         return EXIT_CANCELLED
     if isinstance(exc, MemoryError):
@@ -157,6 +163,14 @@ def http_status(exc: BaseException) -> int:
     if isinstance(exc, MemoryError):
         return 507
     return 500
+
+
+def names_its_input(exc: BaseException) -> bool:
+    """True for errors whose one line starts with what was wrong (a file and line, a
+    flag, a cache folder); the CLI prefixes the others with ``error:``."""
+    from .cache import CacheError
+
+    return isinstance(exc, (GraphError, UsageError, CacheError))
 
 
 def message(exc: BaseException) -> str:

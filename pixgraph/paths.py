@@ -13,11 +13,15 @@ leads out of a root. NUL and other control characters are refused everywhere.
     policy.check_write("/etc/passwd", node="save", param="path")       # PathError
 
 ``strict=True`` (the HTTP server) ignores ``PIXGRAPH_ALLOW_PATHS``: only the
-graph's folder and the roots given in code count. What this does and does not
-guard is in ``docs/security.md``.
+graph's folder and the roots given in code count. A path a node writes is
+handed to it as a ``WritePath`` that remembers the folder checked, and the image
+writers open that folder with ``open_write_folder`` (no symlink followed), so a
+folder swapped for a symlink after the check cannot redirect the write. What this
+does and does not guard is in ``docs/security.md``.
 """
 from __future__ import annotations
 
+import errno
 import os
 import pathlib
 import stat
@@ -143,3 +147,156 @@ class PathPolicy:
 
     def __repr__(self) -> str:
         return f"PathPolicy({list(self.roots)!r}, strict={self.strict})"
+
+
+# -- writing without following symlinks ------------------------------------------------
+
+_DIR_FLAGS = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0)
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+#: a folder opened only to look names up in it (Linux ``O_PATH``: needs search
+#: permission only, like a path walk; a folder one may enter but not list works)
+_SEARCH_FLAGS = (os.O_PATH | getattr(os, "O_DIRECTORY", 0)) if hasattr(os, "O_PATH") else _DIR_FLAGS
+#: the platform opens files relative to a folder descriptor (POSIX ``*at`` calls)
+AT_CALLS = hasattr(os, "O_DIRECTORY") and all(
+    f in os.supports_dir_fd for f in (os.open, os.unlink, os.mkdir, os.rmdir, os.rename, os.stat))
+
+
+class Folder:
+    """A folder held open: a descriptor where the platform has ``*at`` calls
+    (Linux, macOS), so names are looked up in *this* folder whatever happens to its
+    path meanwhile, and no symlink is followed (``O_NOFOLLOW``); elsewhere (Windows)
+    its path, with each step checked to be a folder and not a link just before use.
+    Use as a context manager, or ``close()``."""
+
+    def __init__(self, path: str, fd: int | None):
+        self.path, self.fd = path, fd
+
+    @classmethod
+    def at(cls, path: str) -> "Folder":
+        """Open a folder by its path (symlinks in ``path`` itself are followed)."""
+        return cls(path, os.open(path, _DIR_FLAGS) if AT_CALLS else None)
+
+    def sub(self, name: str, create: bool = False) -> "Folder":
+        """The child folder ``name`` (created when missing and ``create``); an
+        ``OSError`` (``ELOOP``/``ENOTDIR``) when it is a symlink or not a folder."""
+        if create:
+            try:
+                self.mkdir(name)
+            except FileExistsError:
+                pass
+        path = os.path.join(self.path, name)
+        if self.fd is not None:
+            fd = os.open(name, _SEARCH_FLAGS | _NOFOLLOW, dir_fd=self.fd)
+            if not stat.S_ISDIR(os.fstat(fd).st_mode):  # O_PATH may hand out a link itself
+                os.close(fd)
+                raise NotADirectoryError(errno.ENOTDIR, "a symlink or not a folder", path)
+            return Folder(path, fd)
+        if not os.path.lexists(path):
+            raise FileNotFoundError(errno.ENOENT, "no such folder", path)
+        if os.path.islink(path) or not os.path.isdir(path):
+            raise NotADirectoryError(errno.ENOTDIR, "a symlink or not a folder", path)
+        return Folder(path, None)
+
+    def _name(self, name: str) -> str:
+        return name if self.fd is not None else os.path.join(self.path, name)
+
+    def _at(self) -> dict:
+        return {"dir_fd": self.fd} if self.fd is not None else {}
+
+    def open(self, name: str, flags: int, mode: int = 0o644) -> int:
+        """``os.open`` of a file in this folder, never through a symlink."""
+        return os.open(self._name(name), flags | _NOFOLLOW, mode, **self._at())
+
+    def mkdir(self, name: str, mode: int = 0o777) -> None:
+        os.mkdir(self._name(name), mode, **self._at())
+
+    def unlink(self, name: str) -> None:
+        os.unlink(self._name(name), **self._at())
+
+    def rmdir(self, name: str) -> None:
+        os.rmdir(self._name(name), **self._at())
+
+    def lstat(self, name: str) -> os.stat_result:
+        return os.stat(self._name(name), follow_symlinks=False, **self._at())
+
+    def replace(self, src: str, dst: str) -> None:
+        """Rename ``src`` over ``dst``, both in this folder."""
+        if self.fd is not None:
+            os.replace(src, dst, src_dir_fd=self.fd, dst_dir_fd=self.fd)
+        else:
+            os.replace(self._name(src), self._name(dst))
+
+    def listdir(self) -> list[str]:
+        if self.fd is None:
+            return os.listdir(self.path)
+        fd = os.open(".", _DIR_FLAGS, dir_fd=self.fd)  # readable, whatever ``self.fd`` was opened for
+        try:
+            return os.listdir(fd)
+        finally:
+            os.close(fd)
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def __enter__(self) -> "Folder":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class WritePath(str):
+    """A path a node writes, as the graph names it (made absolute: messages name
+    the user's path), carrying ``real``: the symlink-free path the policy allowed
+    when the run was planned. ``open_write_folder`` writes there and nowhere else,
+    even if a folder on the way has been swapped for a symlink since."""
+
+    def __new__(cls, named: str, real: str):
+        obj = str.__new__(cls, named)
+        obj.real = os.fspath(real)
+        return obj
+
+    def __reduce__(self):
+        return (WritePath, (str(self), self.real))
+
+
+def open_write_folder(path: PathLike) -> tuple[Folder, str]:
+    """``(folder, file name)`` for writing ``path``: the folder opened one component
+    at a time from the root without following any symlink (missing folders are
+    created). The folder is the one the path policy checked (``WritePath.real``),
+    or for any other path its real folder now (the user's own ``-o`` paths).
+    Raises ``PathError`` (nothing written) when a component is now a symlink or not
+    a folder; the caller closes the folder."""
+    named = os.fspath(path)
+    real = getattr(path, "real", None) or os.path.realpath(os.path.abspath(named))
+    folder, name = os.path.split(real)
+    if not name or name in (os.curdir, os.pardir):
+        raise PathError(f"cannot write {quote(named)}: not a file name")
+    drive, rest = os.path.splitdrive(folder)
+    walked = drive + os.sep
+    current = Folder.at(walked)
+    try:
+        for part in rest.split(os.sep):
+            if not part:
+                continue
+            walked = os.path.join(walked, part)
+            try:
+                child = current.sub(part, create=True)
+            except OSError as e:
+                raise _swapped(named, walked, e) from None
+            current.close()
+            current = child
+        return current, name
+    except BaseException:
+        current.close()
+        raise
+
+
+def _swapped(named: str, walked: str, e: OSError) -> PathError:
+    if e.errno in (errno.ELOOP, errno.ENOTDIR, errno.EMLINK):
+        why = "is now a symlink or not a folder (changed since the path was checked)"
+    else:
+        why = f"cannot be opened ({e.strerror})"
+    return PathError(f"cannot write {quote(named)}: {quote(walked)} {why}; nothing was written")

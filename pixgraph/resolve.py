@@ -9,7 +9,7 @@ from typing import Callable
 
 from .graph import Graph
 from .node import NodeSpec
-from .paths import PathError, PathPolicy
+from .paths import PathError, PathPolicy, WritePath
 from .registry import Registry
 
 
@@ -19,7 +19,7 @@ def checked_path(graph: Graph, policy: PathPolicy, nid: str, p, raw) -> str:
     field = f"params.{p.name}"
     try:
         resolved = graph.resolve_path(os.fspath(raw))
-        (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
+        checked = (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
     except PathError as e:
         located = graph.error(e.message, node=nid, field=field)
         raise PathError(e.message, file=located.file, line=located.line, node=nid, field=field) from None
@@ -27,8 +27,9 @@ def checked_path(graph: Graph, policy: PathPolicy, nid: str, p, raw) -> str:
         located = graph.error(f"bad path: {e}"[:200], node=nid, field=field)
         raise PathError(located.message, file=located.file, line=located.line, node=nid, field=field) from None
     # the node gets the path as the graph names it (made absolute), so its messages
-    # name the user's path; the check above resolved every symlink in it
-    return resolved
+    # name the user's path; the check above resolved every symlink in it, and a
+    # written path carries the folder it checked (writers never follow a symlink)
+    return WritePath(resolved, os.fspath(checked)) if p.writes else resolved
 
 def check_overwrites(registry: Registry, graph: Graph, params, order, bind) -> None:
     """A node may not write over a file that this run reads (or the graph file)."""

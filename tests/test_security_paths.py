@@ -1,13 +1,18 @@
 """The path policy: every way a graph file could read or write outside its
 folder is refused with exit 2 and one line naming file, node and param, and
-allowed once the user allows that folder (``--allow-path``)."""
+allowed once the user allows that folder (``--allow-path``). Writes keep to the
+folder that was checked even when a folder on the way is swapped for a symlink
+before the write, and a cutout without alpha is refused wherever its alpha is used."""
 import os
 import pathlib
+import shutil
 
 import numpy as np
 import pytest
 
+from pixgraph import events as E
 from pixgraph.cli import main
+from pixgraph.engine import NodeInputError
 from pixgraph.paths import PathError, PathPolicy
 from pixgraph.session import Session
 from pixgraph_nodes.ops.imageio import read_image, write_image
@@ -164,3 +169,154 @@ def test_policy_api_and_strict_mode(world, monkeypatch):
         s.run(b.build())
     s = Session(strict_paths=True, allow_paths=[outside])
     assert s.run(b.build())["img"].shape == (2, 3, 4)
+
+
+# -- a folder swapped for a symlink between the check and the write ----------------------
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _tree(root):
+    return sorted((os.path.relpath(os.path.join(d, n), root), os.path.getsize(os.path.join(d, n)))
+                  for d, _, files in os.walk(root) for n in files)
+
+
+@pytest.mark.parametrize("swapped", ["out", "out/sub"])
+@pytest.mark.parametrize("ext", ["png", "npy", "exr"])
+def test_a_folder_swapped_for_a_symlink_after_the_check_is_not_written_through(world, swapped, ext):
+    job, outside = world
+    (job / "out" / "sub").mkdir(parents=True)
+    before = _tree(outside)
+    s = Session(disk_cache=None)
+    b = s.builder(base_dir=str(job))
+    b.add("pixgraph.Constant", "c", width=3, height=2)
+    b.add("pixgraph.SaveImage", "save", path=f"out/sub/x.{ext}")
+    b.connect("c.image", "save.image")
+    b.output("file", "save.path")
+    g = b.build()
+    target = outside if swapped == "out" else outside / "sub"
+
+    def swap(ev):  # the plan checked out/sub; now the attacker's symlink takes its place
+        if isinstance(ev, E.NodeStarted) and ev.node_id == "save":
+            shutil.rmtree(job / swapped)
+            os.symlink(target, job / swapped)
+
+    with pytest.raises(NodeInputError) as e:
+        s.run(g, on_event=swap)
+    msg = str(e.value)
+    assert "node 'save'" in msg and "now a symlink or not a folder" in msg and "nothing was written" in msg
+    assert _tree(outside) == before  # 0 files written outside, no temporary left
+    # the same graph, unswapped, writes where it was checked to
+    os.unlink(job / swapped)
+    (job / "out" / "sub").mkdir(parents=True, exist_ok=True)
+    assert s.run(g)["file"] == str(job / "out" / "sub" / f"x.{ext}")
+    assert (job / "out" / "sub" / f"x.{ext}").is_file() and _tree(outside) == before
+
+
+def test_a_symlinked_folder_inside_the_graph_folder_is_written_through_as_checked(world):
+    job, outside = world
+    (job / "real").mkdir()
+    os.symlink(job / "real", job / "alias")
+    s = Session(disk_cache=None)
+    b = s.builder(base_dir=str(job))
+    b.add("pixgraph.Constant", "c", width=3, height=2)
+    b.add("pixgraph.SaveImage", "save", path="alias/new/y.png")
+    b.connect("c.image", "save.image")
+    b.output("file", "save.path")
+    out = s.run(b.build())["file"]
+    assert out == str(job / "alias" / "new" / "y.png")  # the path as the graph names it
+    assert read_image(job / "real" / "new" / "y.png")[0].shape == (2, 3, 4)
+    assert sorted(os.listdir(job / "real" / "new")) == ["y.png"]  # no temporary left
+
+
+# -- a cutout without alpha: refused wherever its alpha is used ----------------------------
+
+def test_a_jpeg_as_the_cutout_of_the_example_graph_is_refused(capsys, tmp_path):
+    graph = os.path.join(REPO, "graphs", "wall_corner_shadow.yaml")
+    before = _tree(os.path.join(REPO, "graphs"))
+    messages = []
+    for argv in (["run", graph, "-q", "--no-disk-cache", "--set", "cutout.path=assets/room_ground.jpg",
+                  "-o", f"final={tmp_path / 'final.png'}"],
+                 ["validate", graph, "-q", "--set", "cutout.path=assets/room_ground.jpg"]):
+        code = main(argv)
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and len(err[0]) <= 300, err
+        assert err[0].startswith(graph + ":") and "node 'fg_h'" in err[0] and "input 'mask'" in err[0]
+        assert "'assets/room_ground.jpg' (node 'cutout')" in err[0] or "room_ground.jpg' (node 'cutout')" in err[0]
+        messages.append(err[0])
+    assert not (tmp_path / "final.png").exists() and _tree(os.path.join(REPO, "graphs")) == before
+    # PlaceCutout's own refusal of the same file, word for word
+    (tmp_path / "g.yaml").write_text(f"""pixgraph: 1
+nodes:
+  cutout: {{type: pixgraph.LoadImage, params: {{path: {os.path.join(REPO, 'graphs', 'assets', 'room_ground.jpg')}}}}}
+  place: {{type: pixgraph.PlaceCutout, inputs: {{cutout: cutout.image, background: cutout.image}}}}
+outputs: {{img: place.image}}
+""")
+    assert main(["validate", str(tmp_path / "g.yaml"), "-q", "--allow-path", REPO]) == 2
+    placed = capsys.readouterr().err.strip()
+    tail = placed[placed.index("has no alpha channel"):]
+    assert all(m.endswith(tail) for m in messages) and "(3 channels)" in tail
+    # the JPEG as the photo (its image, not its alpha) is fine
+    assert main(["validate", graph, "-q", "--set", "photo.path=assets/room_ground.jpg"]) == 0
+
+
+@pytest.mark.parametrize("writer", ["image", "data", "exr_channels"])
+def test_every_writer_keeps_to_the_folder_that_was_checked(world, writer):
+    from pixgraph.paths import WritePath
+    from pixgraph_nodes.ops.imageio import ImageFileError, write_data, write_exr_channels
+
+    job, outside = world
+    (job / "out").mkdir()
+    named = str(job / "out" / "new" / "m.exr")
+    checked = WritePath(named, os.path.realpath(named))  # as the engine hands it to a node
+    os.rmdir(job / "out")
+    os.symlink(outside, job / "out")  # swapped after the check
+    before = _tree(outside)
+    a = np.full((2, 3), 0.25, np.float32)
+    write = {"image": lambda p: write_image(p, a), "data": lambda p: write_data(p, a),
+             "exr_channels": lambda p: write_exr_channels(p, {"x": a, "y": a})}[writer]
+    with pytest.raises(ImageFileError, match="now a symlink or not a folder"):
+        write(checked)
+    assert _tree(outside) == before and not (outside / "new").exists()
+    # a plain path (the user's own -o) goes where it points at the time of the write
+    write(named)
+    assert (outside / "new" / "m.exr").is_file()
+
+
+ENTER_ONLY = """
+import os, sys, tempfile
+import numpy as np
+from pixgraph.paths import WritePath
+from pixgraph_nodes.ops.imageio import write_image
+with tempfile.TemporaryDirectory() as warm:  # load the PNG plugin while the installation is readable
+    write_image(os.path.join(warm, "w.png"), np.zeros((2, 2, 4), np.float32))
+if os.geteuid() == 0:
+    os.setgid(65534)
+    os.setuid(65534)  # nobody: the folder above may be entered, not listed
+p = sys.argv[1]
+write_image(WritePath(p, p), np.zeros((2, 2, 4), np.float32))
+print("written")
+"""
+
+
+def test_a_folder_that_may_be_entered_but_not_listed_is_written_through():
+    """Like a path walk, the writer needs only search permission on the folders above
+    (``O_PATH``): a home folder of mode 0711 must not stop a write below it."""
+    import subprocess
+    import sys
+    import tempfile
+
+    top = tempfile.mkdtemp(prefix="pixgraph-enter-only-", dir="/tmp")
+    try:
+        os.chmod(top, 0o711)
+        outer, inner = os.path.join(top, "outer"), os.path.join(top, "outer", "inner")
+        os.makedirs(inner)
+        os.chmod(inner, 0o777)
+        os.chmod(outer, 0o311 if os.geteuid() else 0o711)  # search, no read: for the user who writes
+        target = os.path.join(inner, "a.png")
+        p = subprocess.run([sys.executable, "-c", ENTER_ONLY, target], capture_output=True, text=True, timeout=120)
+        assert p.returncode == 0 and "written" in p.stdout, p.stderr[-500:]
+        assert os.path.getsize(target) > 0
+    finally:
+        os.chmod(os.path.join(top, "outer"), 0o755)
+        shutil.rmtree(top)

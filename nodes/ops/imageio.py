@@ -250,14 +250,11 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
     The file is written to a temporary name next to it and renamed, so a reader
     never sees a half-written image. Returns the path written, as a string.
     """
-    path = str(path)
+    target, path = path, str(path)
     ext = pathlib.Path(path).suffix.lower()
     if ext == ".npy":  # the array itself: float32 linear premultiplied, exact
-        folder, name = os.path.split(os.path.abspath(path))
-        os.makedirs(folder, exist_ok=True)
-        tmp = os.path.join(folder, f".{name}.tmp-{os.getpid()}.npy")
-        np.save(tmp, np.ascontiguousarray(array, dtype=np.float32))
-        os.replace(tmp, path)
+        a = np.ascontiguousarray(array, dtype=np.float32)
+        _write_via_temp(target, ".npy", lambda f, tmp: np.save(f, a))
         return path
     oiio = _oiio()
     img = _as_hwc(array)
@@ -299,7 +296,7 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
         spec.attribute("oiio:ColorSpace", "sRGB")
     else:
         raise ImageFileError(f"unsupported image extension {ext!r} for {path} (png, tif, jpg, exr)")
-    _write_atomic(oiio, path, spec, np.ascontiguousarray(pixels, dtype=np.float32))
+    _write_atomic(oiio, target, spec, np.ascontiguousarray(pixels, dtype=np.float32))
     return path
 
 
@@ -321,7 +318,7 @@ def write_data(path: str | os.PathLike, array: np.ndarray, bit_depth: int | None
       an integer file cannot hold them.
     NaN or infinite values are a ``ValueError``. Written atomically (temp + rename).
     """
-    path = str(path)
+    target, path = path, str(path)
     ext = pathlib.Path(path).suffix.lower()
     a = np.asarray(array, dtype=np.float32)
     if a.ndim == 3 and a.shape[2] == 1:
@@ -331,11 +328,7 @@ def write_data(path: str | os.PathLike, array: np.ndarray, bit_depth: int | None
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{path}: the map has NaN or infinite values")
     if ext == ".npy":
-        folder, name = os.path.split(os.path.abspath(path))
-        os.makedirs(folder, exist_ok=True)
-        tmp = os.path.join(folder, f".{name}.tmp-{os.getpid()}.npy")
-        np.save(tmp, np.ascontiguousarray(a))
-        os.replace(tmp, path)
+        _write_via_temp(target, ".npy", lambda f, tmp: np.save(f, np.ascontiguousarray(a)))
         return path
     oiio = _oiio()
     integer = ext == ".png" or (ext in (".tif", ".tiff") and bit_depth in (8, 16))
@@ -360,7 +353,7 @@ def write_data(path: str | os.PathLike, array: np.ndarray, bit_depth: int | None
     else:
         raise ValueError(f"cannot write a data map to {ext!r} ({path}): use .npy, .exr, .tif or .png")
     spec.channelnames = ("Y",)
-    _write_atomic(oiio, path, spec, np.ascontiguousarray(pixels[:, :, None], dtype=np.float32))
+    _write_atomic(oiio, target, spec, np.ascontiguousarray(pixels[:, :, None], dtype=np.float32))
     return path
 
 
@@ -378,22 +371,65 @@ def read_data(path: str | os.PathLike, white: float = 1.0) -> np.ndarray:
     return (data[:, :, 0] * np.float32(scale)).astype(np.float32)
 
 
-def _write_atomic(oiio, path: str, spec, pixels: np.ndarray) -> None:
-    folder, name = os.path.split(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)  # "-o final=out/x.png" must work in a fresh checkout
-    stem, ext = os.path.splitext(name)
-    tmp = os.path.join(folder, f".{stem}.tmp-{os.getpid()}{ext}")
-    out = oiio.ImageOutput.create(tmp)
-    if out is None:
-        raise OSError(f"cannot write image {path}: {oiio.geterror()}")
+def _write_atomic(oiio, path, spec, pixels: np.ndarray) -> None:
+    def fill(f, via):
+        out = oiio.ImageOutput.create("x" + os.path.splitext(str(path))[1])  # the format, by extension
+        if out is None:
+            raise OSError(f"cannot write image {path}: {oiio.geterror()}")
+        try:
+            if not out.open(via, spec):
+                raise OSError(f"cannot write image {path}: {out.geterror()}")
+            if not out.write_image(pixels):
+                raise OSError(f"cannot write image {path}: {out.geterror()}")
+        finally:
+            out.close()
+
+    _write_via_temp(path, os.path.splitext(str(path))[1], fill)
+
+
+def _write_via_temp(path, suffix: str, fill) -> None:
+    """Write the file ``path`` through a temporary next to it, renamed into place (a
+    reader never sees half a file), without following any symlink: the folder is
+    opened by ``pixgraph.paths.open_write_folder`` (for a node's ``WritePath``, the
+    folder the path policy checked; missing folders are created), the temporary is
+    created there with ``O_EXCL | O_NOFOLLOW`` under a random name, and
+    ``fill(file, via)`` writes it: to the open file, or (OpenImageIO) by the path
+    ``via``, which is ``/proc/self/fd/N`` of that very file, so the bytes go to the
+    file created whatever happens to names in the folder meanwhile. The rename is
+    refused if the temporary's name no longer holds that file. A folder on the way
+    that became a symlink is an ``ImageFileError`` (bad input): nothing is written."""
+    import stat
+    import uuid
+
+    from pixgraph.paths import PathError, open_write_folder
+
     try:
-        if not out.open(tmp, spec):
-            raise OSError(f"cannot write image {path}: {out.geterror()}")
-        if not out.write_image(pixels):
-            raise OSError(f"cannot write image {path}: {out.geterror()}")
+        folder, name = open_write_folder(path)
+    except PathError as e:
+        raise ImageFileError(e.message) from None
+    tmp = f".{os.path.splitext(name)[0]}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}{suffix}"
+    created = False
+    try:
+        fd = folder.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        created = True
+        with os.fdopen(fd, "wb") as f:
+            inode = os.fstat(f.fileno()).st_ino
+            via = f"/proc/self/fd/{f.fileno()}"
+            if not os.path.exists(via):  # no /proc (not Linux): the temporary's path in the checked folder
+                via = os.path.join(folder.path, tmp)
+            fill(f, via)
+        st = folder.lstat(tmp)
+        if not stat.S_ISREG(st.st_mode) or (st.st_ino and st.st_ino != inode):
+            raise ImageFileError(f"cannot write {path}: its temporary file was replaced while it was written")
+        folder.replace(tmp, name)
+        created = False
     finally:
-        out.close()
-    os.replace(tmp, path)
+        if created:
+            try:
+                folder.unlink(tmp)
+            except OSError:
+                pass
+        folder.close()
 
 
 def write_exr_channels(path: str | os.PathLike, channels: dict[str, np.ndarray], bit_depth: int = 32) -> str:
@@ -410,7 +446,7 @@ def write_exr_channels(path: str | os.PathLike, channels: dict[str, np.ndarray],
         raise ImageFileError(f"EXR bit_depth must be 16 or 32, got {bit_depth}")
     spec = oiio.ImageSpec(shape[1], shape[0], len(arrays), oiio.HALF if bit_depth == 16 else oiio.FLOAT)
     spec.channelnames = tuple(channels)
-    _write_atomic(oiio, str(path), spec, np.ascontiguousarray(np.stack(arrays, axis=2)))
+    _write_atomic(oiio, path, spec, np.ascontiguousarray(np.stack(arrays, axis=2)))
     return str(path)
 
 
