@@ -19,6 +19,7 @@ class Image(PortType):
 
     describe = "float32 (H, W, C) linear-light image, premultiplied alpha when C = 4"
     sized = True
+    finite = True
 
     @classmethod
     def validate(cls, value):
@@ -57,6 +58,7 @@ class PixelHeight(PortType):
 
     describe = "float32 (H, W) pixel height, pixels"
     sized = True
+    finite = True
 
     @classmethod
     def validate(cls, value):
@@ -95,6 +97,7 @@ class Buffers(PortType):
 
     describe = "dict of named float32 (H, W) channels"
     sized = True
+    finite = True
 
     @classmethod
     def validate(cls, value):

@@ -38,6 +38,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from .errors import EXIT_BAD_INPUT, PixgraphError
 from .paths import Folder
 from .types import nbytes
 
@@ -258,13 +259,13 @@ def unpack_entry(key: str, data: bytes) -> Any:
 # -- checking a value against a node's declared outputs ------------------------------
 
 def _port_arrays(port_type, name: str, value) -> list[tuple[str, np.ndarray]]:
-    """The pixel arrays of an image-like port's value, labelled for messages."""
-    from . import types as T
-
-    if isinstance(port_type, type) and issubclass(port_type, (T.Image, T.PixelHeight)) \
-            and isinstance(value, np.ndarray):
+    """The pixel arrays of a port whose type declares its values finite
+    (``PortType.finite``: images, masks, pixel heights, buffers), labelled for messages."""
+    if not getattr(port_type, "finite", False):
+        return []
+    if isinstance(value, np.ndarray):
         return [(repr(name), value)]
-    if isinstance(port_type, type) and issubclass(port_type, T.Buffers) and isinstance(value, dict):
+    if isinstance(value, dict):
         return [(f"{name!r} channel {k!r}", v) for k, v in value.items() if isinstance(v, np.ndarray)]
     return []
 
@@ -282,8 +283,8 @@ def _non_finite(a: np.ndarray, chunk: int = 1 << 22) -> int:
 def misfit(outputs, value: Any, expected: Mapping[str, Any] | None = None) -> str | None:
     """Why ``value`` is not a valid output dict for ``outputs`` (``(name, port
     type)`` pairs), or None. Checked: the output names; each port type's
-    ``validate`` (array, dimensions, dtype); that the arrays of image-like ports
-    (Image, Mask, PixelHeight, Buffers) are all finite; and, where ``expected``
+    ``validate`` (array, dimensions, dtype); that the arrays of ports whose type
+    declares ``finite`` (Image, Mask, PixelHeight, Buffers) are all finite; and, where ``expected``
     holds a ``types.Shape`` for an output (the engine's check from file headers),
     that its arrays have that height and width."""
     from . import types as T
@@ -332,9 +333,12 @@ _MAX_MARKER = 64 << 10
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 
 
-class CacheError(ValueError):
+class CacheError(PixgraphError, ValueError):
     """A cache the user configured that cannot be used as asked (a negative limit, a
     folder that is not pixgraph's): bad input, the CLI exits 2 with this one line."""
+
+    exit_code = EXIT_BAD_INPUT
+    http_status = 500  # the server's own configuration, not the request
 
 
 class CacheFolderError(CacheError):

@@ -174,9 +174,6 @@ def _fail(args, e: BaseException, prefix: str = "") -> None:
 def _session(args, registry, disk: bool = True):
     from .session import Session
 
-    cache_bytes = getattr(args, "cache_bytes", None)
-    if cache_bytes is not None and cache_bytes < 0:
-        raise UsageError(f"--cache-bytes {cache_bytes}: must be 0 or more (0 keeps nothing in memory)")
 
     disk_dir = None
     if disk and not getattr(args, "no_disk_cache", False):

@@ -20,11 +20,11 @@ class                exit  HTTP  meaning
 anything else        1     500   internal failure
 ===================  ====  ====  ==============================================
 
-``Cancelled`` stays in ``pixgraph.events``, ``DeviceError`` in
-``pixgraph.device`` (a device spec that matches nothing is bad input, exit 2;
-a device that fails is exit 1) and ``CacheError`` in ``pixgraph.cache`` (a cache
-folder that is not pixgraph's, a negative limit: exit 2, HTTP 500: the server's
-own configuration); all are mapped here.
+``CacheError`` (``pixgraph.cache``: a cache folder that is not pixgraph's, a
+negative limit) is a ``PixgraphError`` with exit 2 and HTTP 500 (the server's
+own configuration). ``Cancelled`` stays in ``pixgraph.events`` and
+``DeviceError`` in ``pixgraph.device`` (a device spec that matches nothing is bad
+input, exit 2; a device that fails is exit 1); both are mapped here.
 """
 from __future__ import annotations
 
@@ -137,12 +137,8 @@ def exit_code(exc: BaseException) -> int:
     from .device import DeviceError
     from .events import Cancelled
 
-    from .cache import CacheError
-
     if isinstance(exc, PixgraphError):
         return exc.exit_code
-    if isinstance(exc, CacheError):
-        return EXIT_BAD_INPUT
     if isinstance(exc, (Cancelled, KeyboardInterrupt)):
         return EXIT_CANCELLED
     if isinstance(exc, MemoryError):
@@ -167,10 +163,9 @@ def http_status(exc: BaseException) -> int:
 
 def names_its_input(exc: BaseException) -> bool:
     """True for errors whose one line starts with what was wrong (a file and line, a
-    flag, a cache folder); the CLI prefixes the others with ``error:``."""
-    from .cache import CacheError
-
-    return isinstance(exc, (GraphError, UsageError, CacheError))
+    flag, a cache folder); the CLI prefixes the others (a node's, an internal
+    failure) with ``error:``."""
+    return isinstance(exc, PixgraphError) and not isinstance(exc, (NodeError, InputError))
 
 
 def message(exc: BaseException) -> str:

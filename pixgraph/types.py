@@ -33,6 +33,9 @@ class PortType:
         True when a value is an (H, W[, C]) array or carries one image size: the
         default check before running (``Engine.check``) gives such outputs the
         size of the node's inputs. Default False.
+    ``finite``
+        True when every number of a value must be finite: a disk cache entry
+        holding NaN or infinity is discarded, not served. Default False.
     ``write(path, value) -> path``
         write a value to a file (``Session.write_output`` calls it; the type
         decides colour vs data encoding). Default ``None``: the type cannot be
@@ -41,6 +44,7 @@ class PortType:
 
     describe: ClassVar[str] = "any value"
     sized: ClassVar[bool] = False
+    finite: ClassVar[bool] = False
     write: ClassVar[Callable[[str, _Any], str] | None] = None
 
     @classmethod

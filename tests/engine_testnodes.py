@@ -28,6 +28,7 @@ class T:
 
         describe = "test image"
         sized = True
+        finite = True
 
         @classmethod
         def validate(cls, value):

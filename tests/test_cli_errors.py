@@ -34,7 +34,8 @@ def test_negative_cache_bytes_names_the_flag(tmp_path, capsys):
     g.write_text("pixgraph: 1\nnodes:\n  s: {type: t.Source}\noutputs: {o: s.out}\n")
     code = main(["run", str(g), "--no-disk-cache", "--cache-bytes", "-1"], registry=make_registry())
     assert code == 2
-    assert _one_line(capsys.readouterr().err).startswith("--cache-bytes -1: must be 0 or more")
+    line = _one_line(capsys.readouterr().err)
+    assert "(--cache-bytes, PIXGRAPH_CACHE_BYTES), got -1" in line and not line.startswith("error:")
 
 
 @pytest.mark.parametrize("where", ["before", "after"])
@@ -93,12 +94,12 @@ def test_image_too_large_for_memory_exits_2_saying_what_to_lower(tmp_path):
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS and /proc are Linux's")
-def test_no_memory_for_the_disk_entry_still_finishes_the_run(tmp_path):
-    # 4096^2 RGBA float32 = 256 MiB fits in 384 MiB of headroom; packing its disk
-    # entry needs two more copies and does not: the run ends well, memory only
+def test_little_memory_left_for_the_disk_entry_still_finishes_the_run(tmp_path):
+    # 4096^2 RGBA float32 = 256 MiB fits in 384 MiB of headroom; its disk entry is
+    # written streamed (or, were it not, left out): the run ends well either way
     r = _child(tmp_path, 4096, 384 << 20)
     assert r.returncode == 0, r.stderr
-    assert "c: not on disk: ran out of memory writing the entry" in r.stderr
+    assert "final: array float32 (4096, 4096, 4)" in r.stdout
 
 
 def test_every_error_class_has_its_exit_code_and_status():
