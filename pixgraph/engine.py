@@ -501,7 +501,9 @@ class Engine:
             return "not cached (sink)"
         size = nbytes(value)
         where = "memory" if self.memory.put(key, value, size) else "not cached (larger than the memory limit)"
-        if self.disk is not None:
+        if self.disk is not None and not spec.disk_cache:
+            where += "; not on disk (the node keeps its results in memory: disk_cache = False)"
+        elif self.disk is not None:
             try:
                 bad = misfit([(p.name, p.type) for p in spec.outputs], value)
                 if bad:  # it would be discarded when read

@@ -177,3 +177,36 @@ def test_light_placed_by_shadow_tip_ignores_azimuth_downstream():
     r1 = s.run(g, params={"light.placement": "controls"})
     r2 = s.run(g, params={"light.placement": "controls", "light.azimuth": 140.0})
     assert "light" in r2.ran and not np.array_equal(r1["o"], r2["o"])
+
+
+def test_disk_cache_false_keeps_results_in_memory_only(tmp_path):
+    calls = []
+
+    @node("tb.Cheap", version=1)
+    class Cheap(Node):
+        """Large and cheap: not worth the disk."""
+        disk_cache = False
+        class Outputs:
+            out: T.Image = port()
+
+        def compute(self, ctx, inputs, params):
+            calls.append(ctx.node_id)
+            return {"out": np.ones((2, 2), np.float32)}
+
+    reg = make_registry(calls)
+    reg.add(Cheap)
+    b = Session(registry=reg).builder()
+    b.add("tb.Cheap", "cheap")
+    b.add("t.Add", "add")
+    b.connect("cheap.out", "add.a")
+    b.output("o", "add.out")
+    g = b.build()
+    s = Session(registry=reg, disk_cache=str(tmp_path / "c"))
+    plan = s.plan(g)
+    s.run(g)
+    assert plan.keys["add"] in s.disk and plan.keys["cheap"] not in s.disk
+    assert Cheap.spec.disk_cache is False
+    # a new process (a fresh session on the same disk cache) reads add from disk, never needs cheap
+    s2 = Session(registry=reg, disk_cache=str(tmp_path / "c"))
+    r = s2.run(g)
+    assert r.ran == () and calls == ["cheap", "add"]
