@@ -51,6 +51,7 @@ class BackgroundHeight(Node):
         height: T.PixelHeight = port(doc="background pixel height [px]")
 
     impl_version = "1"
+    disk_cache = False      # large and cheaper to recompute than to read back from disk
 
     def compute(self, ctx, inputs, params):
         cam = inputs.camera

@@ -32,6 +32,7 @@ class Composite(Node):
         image: T.Image = port(doc="composite, linear light")
 
     impl_version = "1"
+    disk_cache = False      # large and cheaper to recompute than to read back from disk
 
     def compute(self, ctx, inputs, params):
         same_size(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha, shadow=inputs.shadow)

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from pixgraph_nodes import types as T
 from pixgraph.node import InputError, Node, node, param, port
 from pixgraph_nodes.types import Shape
@@ -10,6 +12,7 @@ from pixgraph_nodes.types import Shape
 from ._checks import file_shape, no_alpha
 
 from .ops.imageio import host_pixels, read_image, to_internal
+from .ops.resample import at_scale
 
 
 @node("pixgraph.LoadImage", version=1)
@@ -32,6 +35,8 @@ class LoadImage(Node):
         alpha: T.Mask = port(doc="coverage; ones when the file has no alpha")
 
     impl_version = "1"
+    disk_cache = False      # the file is its own cache: decoding it is cheaper than a float32 copy
+    uses_scale = True       # a scaled run (Session.run(scale=...)) reads it at that size
 
     def bind(self, value, params):
         colorspace = "linear" if params.colorspace == "auto" else params.colorspace
@@ -55,4 +60,6 @@ class LoadImage(Node):
             image, alpha = read_image(params.path, params.colorspace, params.alpha)
         except OSError as e:
             raise InputError(str(e).splitlines()[0]) from None
+        if ctx.scale != 1.0:
+            image, alpha = at_scale(image, ctx.scale), np.clip(at_scale(alpha, ctx.scale), 0.0, 1.0)
         return {"image": image, "alpha": alpha}

@@ -12,6 +12,7 @@ from pixgraph_nodes.types import Shape
 from ._checks import file_shape, npy_finite, source
 
 from .ops.imageio import host_pixels, read_mask
+from .ops.resample import at_scale
 
 
 @node("pixgraph.LoadMask", version=1)
@@ -28,6 +29,8 @@ class LoadMask(Node):
         mask: T.Mask = port(doc="float32 (H, W) coverage in [0, 1]")
 
     impl_version = "1"
+    disk_cache = False      # the file is its own cache
+    uses_scale = True       # read at the run's working resolution (ctx.scale)
 
     def bind(self, value, params):
         return {"mask": np.clip(host_pixels(value, (1,), "a mask")[:, :, 0], 0.0, 1.0)}
@@ -39,6 +42,7 @@ class LoadMask(Node):
 
     def compute(self, ctx, inputs, params):
         try:
-            return {"mask": read_mask(params.path)}
+            mask = read_mask(params.path)
+            return {"mask": mask if ctx.scale == 1.0 else np.clip(at_scale(mask, ctx.scale), 0.0, 1.0)}
         except (OSError, ValueError) as e:
             raise InputError(f"{source(params.path, ctx.node_id)}: {str(e).splitlines()[0]}") from None

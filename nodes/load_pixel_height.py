@@ -12,6 +12,7 @@ from pixgraph_nodes.types import Shape
 
 from ._checks import file_shape, npy_finite
 from .ops.heightmaps import load_pixel_height
+from .ops.resample import at_scale
 
 
 @node("pixgraph.LoadPixelHeight", version=1)
@@ -30,6 +31,8 @@ class LoadPixelHeight(Node):
         height: T.PixelHeight = port(doc="pixel height [px]")
 
     impl_version = "1"
+    disk_cache = False      # the file is its own cache
+    uses_scale = True       # read at the run's working resolution, heights in its pixels
 
     def bind(self, value, params):
         """A host's (H, W) float array in pixels instead of the file (times ``scale``)."""
@@ -53,4 +56,7 @@ class LoadPixelHeight(Node):
             raise InputError(f"param 'path': {str(e).splitlines()[0]}") from None
         if not np.all(np.isfinite(height)):
             raise InputError(f"param 'scale': {params.scale} times the file's heights overflows float32")
+        if ctx.scale != 1.0:   # a vertical length: in pixels of the scaled image
+            small = at_scale(height, ctx.scale)
+            height = (small * np.float32(small.shape[0] / height.shape[0])).astype(np.float32)
         return {"height": height}

@@ -7,7 +7,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, rgba, same_size
-from .ops.reflection import reflection_cl
+from .ops.reflection_proxy import AUTO_MAX_SIDE, proxy_reflection
 
 
 @node("pixgraph.Reflection", version=1)
@@ -32,7 +32,8 @@ class Reflection(Node):
     be finite and >= 0 (the cutout's inside its mask), else the node stops with
     an input error. An empty cutout reflects nothing (a transparent layer). Long
     runs work in bands of image rows: they report progress and stop at the next
-    band when the run is cancelled.
+    band when the run is cancelled. Glossy reflections of images longer than
+    ``proxy`` are traced at a proxy resolution (docs/reflection.md has the error).
     """
 
     class Inputs:
@@ -64,12 +65,16 @@ class Reflection(Node):
                                    "so a wall does not mirror the cutout; combined with the receiver input")
         accelerate: bool = param(True, cache=False,
                                  doc="max-height pyramid skipping (same result, fewer steps)")
+        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px, longer side",
+                           doc="glossy reflections (roughness > 0) of images whose longer side exceeds this "
+                               "are traced on a copy of this longer side and enlarged edge-aware against the "
+                               "full-resolution mask (0: never)")
 
     class Outputs:
         layer: T.Image = port(doc="reflection, premultiplied linear RGBA")
         stats: T.Buffers = port(doc="per pixel: spp (samples used), steps (march iterations)")
 
-    impl_version = "2"   # 2: low-discrepancy (R2) samples
+    impl_version = "3"   # 2: low-discrepancy (R2) samples; 3: proxy resolution above `proxy` px
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, cutout=inputs.cutout, fg_height=inputs.fg_height, bg_height=inputs.bg_height,
@@ -80,18 +85,19 @@ class Reflection(Node):
         pixel_heights(covered, fg_height=inputs.fg_height)
         pixel_heights(bg_height=inputs.bg_height)
         finite(receiver=inputs.receiver)
-        r = reflection_cl(ctx.device, inputs.camera, inputs.cutout, inputs.fg_height, inputs.bg_height,
-                          roughness=params.roughness, eta=params.eta,
-                          conductor=params.material == "conductor", f0=params.f0,
-                          strength=params.strength, thickness=params.thickness,
-                          min_spp=params.min_spp, max_spp=params.max_spp, target_se=params.noise,
-                          seed=params.seed, mask=inputs.mask, hiz=params.accelerate,
-                          progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        side = max(inputs.bg_height.shape) if params.proxy == 0 else max(16, params.proxy)
+        r = proxy_reflection(ctx.device, inputs.camera, inputs.cutout, inputs.fg_height, inputs.bg_height,
+                             max_side=side, roughness=params.roughness, eta=params.eta,
+                             conductor=params.material == "conductor", f0=params.f0,
+                             strength=params.strength, thickness=params.thickness,
+                             min_spp=params.min_spp, max_spp=params.max_spp, target_se=params.noise,
+                             seed=params.seed, mask=inputs.mask, hiz=params.accelerate,
+                             progress=ctx.progress, check_cancelled=ctx.check_cancelled)
         finite_outputs(layer=r["layer"])
         layer = r["layer"]
         receiver = _receiver_mask(inputs.receiver, inputs.bg_height, params.receivers)
         if receiver is not None:
-            layer = (layer * receiver[:, :, None]).astype(np.float32)
+            layer *= receiver[:, :, None]      # in place: the layer is this run's own array
         return {"layer": layer,
                 "stats": {"spp": r["spp"].astype(np.float32), "steps": r["steps"].astype(np.float32)}}
 

@@ -7,7 +7,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, same_size
-from .ops.composite import apply_shadow, over
+from .ops.composite import _over_into, _shadow_into
 
 
 @node("pixgraph.ReflectionComposite", version=1)
@@ -38,20 +38,21 @@ class ReflectionComposite(Node):
         image: T.Image = port(doc="composite, linear light")
 
     impl_version = "1"
+    disk_cache = False      # large and cheaper to recompute than to read back from disk
 
     def compute(self, ctx, inputs, params):
         same_size(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha,
                   reflection=inputs.reflection, shadow=inputs.shadow, refraction=inputs.refraction)
         finite(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha,
                reflection=inputs.reflection, shadow=inputs.shadow, refraction=inputs.refraction)
-        bg = np.asarray(inputs.background, np.float32)
-        if bg.ndim == 2:
-            bg = bg[..., None]
+        out = np.array(inputs.background, np.float32)        # the one full-size copy, layered in place
+        if out.ndim == 2:
+            out = out[..., None]
         if inputs.shadow is not None:
-            bg = apply_shadow(bg, inputs.shadow, params.opacity, params.tint)
+            _shadow_into(out, inputs.shadow, params.opacity, params.tint)
         if inputs.reflection is not None:
-            bg = over(inputs.reflection, inputs.reflection[..., 3], bg)
-        out = over(inputs.cutout, inputs.alpha, bg)
+            _over_into(out, inputs.reflection, inputs.reflection[..., 3])
+        _over_into(out, inputs.cutout, inputs.alpha)
         if inputs.refraction is not None:
-            out = over(inputs.refraction, inputs.refraction[..., 3], out)
+            _over_into(out, inputs.refraction, inputs.refraction[..., 3])
         return {"image": out}

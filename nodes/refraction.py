@@ -5,7 +5,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, finite_outputs, pixel_heights, rgba, same_size
-from .ops.reflection import refraction_cl
+from .ops.refraction import refraction_cl
 
 
 @node("pixgraph.Refraction", version=1)

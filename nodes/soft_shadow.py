@@ -29,7 +29,7 @@ class SoftShadow(Node):
         samples: int = param(64, min=1, max=65536, doc="light samples (noise falls like 1/samples)")
         seed: int = param(0, min=0, max=2**31 - 1, doc="rotation of the sample pattern")
         thickness: float = thickness_param()
-        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px",
+        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px, longer side",
                            doc="images whose longer side exceeds this are traced on a copy of this longer side "
                                "and enlarged edge-aware against the full-resolution mask (0: never)")
 

@@ -31,7 +31,7 @@ from .node import InputError, Namespace, NodeSpec
 from .paths import PathError, PathPolicy
 from .plan import NodeContext, Plan, RunResult, Step, files_upstream  # noqa: F401 (re-exported)
 from .registry import Registry
-from .resolve import check_overwrites, checked_path, resolve_params
+from .resolve import check_overwrites, check_scale, checked_path, resolve_params, scale_params
 from .scheduler import DeviceGate, execute
 from .types import nbytes
 from .unusable import refuse_unusable_inputs
@@ -79,8 +79,16 @@ class Engine:
 
     # -- plan -------------------------------------------------------------------
 
-    def plan(self, graph: Graph, outputs=None, bind: Mapping[str, Any] | None = None) -> Plan:
+    def plan(self, graph: Graph, outputs=None, bind: Mapping[str, Any] | None = None,
+             scale: float = 1.0) -> Plan:
+        """The plan of a run. ``scale`` in (0, 1] is the working resolution: every
+        param declared with ``unit="px"`` (a length in the picture; not a size cap
+        such as ``unit="px, longer side"``) is multiplied by it (ints rounded, kept in
+        the param's range) and nodes that declare ``uses_scale = True`` get it as
+        ``ctx.scale`` and in their cache key. The engine knows no more of images than
+        that; at 1 (the default) plans and keys are those of an unscaled run."""
         bind = dict(bind or {})
+        scale = check_scale(scale)
         requested = self._requested(graph, outputs)
         for nid in bind:
             if nid not in graph.nodes:
@@ -107,6 +115,8 @@ class Engine:
                     bound[nid] = {spec.outputs[0].name: bind[nid]}
                 continue
             p, relevant = resolve_params(graph, nid, spec, inst.params, policy, self._hash_file, self.max_file_bytes)
+            if scale != 1.0:
+                scale_params(spec, p, relevant, scale)
             params[nid] = p
             inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
             if "affects" in spec.hooks:  # params and inputs ignored in this mode stay out of the key
@@ -116,7 +126,7 @@ class Engine:
         check_overwrites(self.registry, graph, params, order, bind)
         refuse_unusable_inputs(graph, self.registry, order, params, bind)
         steps = self._steps(graph, requested, order, keys, parts, bind, params)
-        return Plan(graph, requested, steps, keys, parts, params, bind, bound)
+        return Plan(graph, requested, steps, keys, parts, params, bind, bound, scale)
 
     # -- check before running -----------------------------------------------------
 
@@ -467,7 +477,7 @@ class Engine:
         inputs = {p.name: None for p in spec.inputs}
         for port, ref in inst.inputs.items():
             inputs[port] = results[ref.node][ref.output]
-        ctx = NodeContext(nid, plan.graph.base_dir, device, cancel, emit)
+        ctx = NodeContext(nid, plan.graph.base_dir, device, cancel, emit, plan.scale)
         try:
             out = spec.cls().compute(ctx, Namespace(inputs), Namespace(plan.params[nid]))
         except (E.Cancelled, DeviceError):
@@ -502,7 +512,7 @@ class Engine:
         size = nbytes(value)
         where = "memory" if self.memory.put(key, value, size) else "not cached (larger than the memory limit)"
         if self.disk is not None and not spec.disk_cache:
-            where += "; not on disk (the node keeps its results in memory: disk_cache = False)"
+            where += "; not on disk (the node recomputes faster than the disk cache reads)"
         elif self.disk is not None:
             try:
                 bad = misfit([(p.name, p.type) for p in spec.outputs], value)

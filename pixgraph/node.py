@@ -33,6 +33,11 @@ Param value types: ``float``, ``int``, ``bool``, ``str`` (optionally with
 its *content* is part of the cache key, so editing the file reruns the node).
 A ``Path`` param with default ``None`` is required; ``param(None, writes=True)``
 declares a file the node writes (its path, not its content, is hashed).
+
+Working resolution (``Session.run(..., scale=s)``): params declared with
+``unit="px"`` reach ``compute`` multiplied by ``s``; a node that makes images of
+its own size from files (a loader) sets ``uses_scale = True`` and reads
+``ctx.scale`` (see ``Node``).
 """
 from __future__ import annotations
 

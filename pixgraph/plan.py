@@ -17,15 +17,18 @@ class NodeContext:
     """What a node's ``compute`` may use besides its inputs and params.
 
     ``device`` is opened on first access only, so graphs without OpenCL nodes
-    never touch OpenCL.
+    never touch OpenCL. ``scale`` is the run's working resolution (``Engine.plan``):
+    a node that declares ``uses_scale = True`` (a loader) makes its images this
+    many times the file's size; 1 is full size.
     """
 
-    __slots__ = ("node_id", "graph_dir", "_device", "_cancel", "_emit")
+    __slots__ = ("node_id", "graph_dir", "_device", "_cancel", "_emit", "scale")
 
     def __init__(self, node_id: str, graph_dir: str, device: Callable[[], Any],
-                 cancel: E.CancelToken | None, emit: Callable[[Any], None]):
+                 cancel: E.CancelToken | None, emit: Callable[[Any], None], scale: float = 1.0):
         self.node_id = node_id
         self.graph_dir = graph_dir
+        self.scale = scale
         self._device = device
         self._cancel = cancel
         self._emit = emit
@@ -74,6 +77,8 @@ class Plan:
     #: bound node id -> its outputs (a host input's ``bind`` hook applied; else the
     #: array as the first output)
     bound: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
+    #: working resolution of the run (1 = full size; see ``Engine.plan``)
+    scale: float = 1.0
 
     def step(self, node_id: str) -> Step:
         return next(s for s in self.steps if s.node_id == node_id)

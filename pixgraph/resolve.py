@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 from typing import Callable
 
-from .graph import Graph
+from .graph import Graph, GraphError
 from .node import NodeSpec
 from .paths import PathError, PathPolicy, WritePath
 from .registry import Registry
@@ -84,3 +84,37 @@ def resolve_params(graph: Graph, nid: str, spec: NodeSpec, values, policy: PathP
             v = params[p.name]
             relevant[p.name] = list(v) if isinstance(v, tuple) else v
     return params, relevant
+
+
+def check_scale(scale) -> float:
+    try:
+        scale = float(scale)
+    except (TypeError, ValueError):
+        raise GraphError(f"scale must be a number in (0, 1], got {scale!r}") from None
+    if not 0.0 < scale <= 1.0:
+        raise GraphError(f"scale must be in (0, 1] (1 = full size), got {scale!r}")
+    return scale
+
+
+def scale_params(spec: NodeSpec, params: dict, relevant: dict, scale: float) -> None:
+    """A scaled run (``Engine.plan``): params declared in pixels (``unit="px"``)
+    times ``scale``, in ``params`` (what compute gets) and ``relevant`` (the key);
+    a node with ``uses_scale = True`` gets ``@scale`` in its key."""
+    def one(p, v):
+        v = v * scale
+        if p.kind == "int":
+            v = int(round(v))
+        if p.min is not None:
+            v = max(v, p.min)
+        if p.max is not None:
+            v = min(v, p.max)
+        return v
+    for p in spec.params:
+        if p.unit != "px" or p.kind not in ("int", "float", "floats") or params.get(p.name) is None:
+            continue
+        v = params[p.name]
+        params[p.name] = tuple(one(p, x) for x in v) if p.kind == "floats" else one(p, v)
+        if p.name in relevant:
+            relevant[p.name] = list(params[p.name]) if p.kind == "floats" else params[p.name]
+    if getattr(spec.cls, "uses_scale", False):
+        relevant["@scale"] = scale

@@ -145,8 +145,8 @@ class Session:
 
     # -- plan and run -----------------------------------------------------------
 
-    def plan(self, graph_or_path, outputs=None, params=None, bind=None) -> Plan:
-        return self.engine.plan(self.graph(graph_or_path, params), outputs, bind)
+    def plan(self, graph_or_path, outputs=None, params=None, bind=None, scale: float = 1.0) -> Plan:
+        return self.engine.plan(self.graph(graph_or_path, params), outputs, bind, scale=scale)
 
     def check(self, graph_or_path, outputs=None, params=None) -> dict:
         """Check before running, from file headers only (``Engine.check``): sizes that
@@ -158,7 +158,8 @@ class Session:
         return self.plan(graph_or_path, outputs, params, bind).table()
 
     def run(self, graph_or_path, outputs=None, params=None, bind: Mapping[str, Any] | None = None,
-            cancel: CancelToken | None = None, on_event: Callable[[Any], None] | None = None) -> RunResult:
+            cancel: CancelToken | None = None, on_event: Callable[[Any], None] | None = None,
+            scale: float = 1.0) -> RunResult:
         """Run and return a ``RunResult``: a mapping ``{output name: value}`` that also
         says what ran (``ran``, ``cached``, ``seconds``, ``timings``, ``logs``).
 
@@ -171,6 +172,9 @@ class Session:
             outputs; any other node's first output is replaced by the array.
         cancel: a ``CancelToken``; cancelling raises ``events.Cancelled``.
         on_event: called with each ``pixgraph.events`` event.
+        scale: working resolution in (0, 1]: loaders read images this many times
+            their size and params in pixels are scaled with them (``Engine.plan``),
+            e.g. a screen-sized preview of a 20 MP photo; 1 (default) is full size.
         """
         graph = self.graph(graph_or_path, params)
         for nid, value in (bind or {}).items():
@@ -184,7 +188,7 @@ class Session:
                 port.type.validate(value)
             except TypeError as e:
                 raise GraphError(f"bound value does not fit output {port.name!r}: {e}", node=nid) from None
-        return self.run_plan(self.engine.plan(graph, outputs, bind), cancel, on_event)
+        return self.run_plan(self.engine.plan(graph, outputs, bind, scale=scale), cancel, on_event)
 
     def run_plan(self, plan: Plan, cancel: CancelToken | None = None,
                  on_event: Callable[[Any], None] | None = None) -> RunResult:

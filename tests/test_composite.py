@@ -83,3 +83,35 @@ def test_merge_cutouts_front_is_the_lower_foot():
     mask2, hb, imgb = merge_cutouts([m2, m1], [h2, h1], [c2, c1])
     np.testing.assert_array_equal(hb, h)
     np.testing.assert_array_equal(imgb, img)
+
+
+@pytest.mark.parametrize("channels", [3, 4])
+def test_box_limited_composite_equals_the_formula_everywhere(channels):
+    """The composite works only over the boxes the shadow and the cutout reach; the
+    result is the plain per-pixel formula on every pixel (also where a premultiplied
+    colour has no alpha: additive light), and the inputs are not modified."""
+    rng = np.random.default_rng(3)
+    H, W = 90, 120
+    bg = rng.random((H, W, channels), dtype=np.float32)
+    dark = np.zeros((H, W), np.float32)
+    dark[20:50, 30:70] = rng.random((30, 40), dtype=np.float32) * 1.3 - 0.1     # out of [0, 1] too
+    a = np.zeros((H, W), np.float32)
+    a[40:80, 60:100] = rng.random((40, 40), dtype=np.float32)
+    fg = np.zeros((H, W, 4), np.float32)
+    fg[..., :3] = a[..., None] * rng.random((H, W, 3), dtype=np.float32)
+    fg[..., 3] = a
+    fg[5, 5, :3] = 0.3                                        # colour without coverage
+    keep = [x.copy() for x in (bg, dark, fg, a)]
+    tint = np.array([0.1, 0.2, 0.3], np.float32)
+    d = np.clip(dark, 0, 1)[..., None]
+    shadowed = bg.copy()
+    shadowed[..., :3] = bg[..., :3] * (1 - 0.7 * d * (1 - tint))
+    want = shadowed.copy()
+    want[..., :3] = fg[..., :3] + shadowed[..., :3] * (1 - a[..., None])
+    if channels == 4:
+        want[..., 3] = a + shadowed[..., 3] * (1 - a)
+    got = composite(bg, fg, a, dark, 0.7, tint)
+    np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(apply_shadow(bg, dark, 0.7, tint), shadowed, rtol=1e-6, atol=1e-7)
+    for x, k in zip((bg, dark, fg, a), keep):
+        np.testing.assert_array_equal(x, k)

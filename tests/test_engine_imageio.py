@@ -88,3 +88,32 @@ def test_jpeg_drops_alpha_and_bad_extension(tmp_path):
         io.write_image(tmp_path / "x.bmpx", premult)
     with pytest.raises(OSError):
         io.read_image(tmp_path / "missing.png")
+
+
+def test_8bit_files_decode_and_encode_by_table(tmp_path):
+    """8-bit files are decoded by a table of the 256 codes (the same numbers as the
+    float decode) and written by a table of 65536 linear levels (within one code of
+    rounding the exact encode, off by one only at a code's boundary)."""
+    from pixgraph_nodes.ops import imageio as I
+    rng = np.random.default_rng(1)
+    x = (rng.random((120, 160, 3), dtype=np.float32) ** 2.2).astype(np.float32)
+    I.write_image(tmp_path / "a.png", x)
+    data, _ = I._read_float(I._oiio(), tmp_path / "a.png", keep_uint8=True)
+    assert data.dtype == np.uint8
+    ref = np.round(I.linear_to_srgb(x) * 255.0)
+    diff = np.abs(data.astype(np.float64) - ref)
+    assert diff.max() <= 1 and (diff > 0).mean() < 0.01
+    image, alpha = I.read_image(tmp_path / "a.png")
+    want, _ = I.to_internal(data.astype(np.float32) / 255.0, "srgb", "straight")
+    np.testing.assert_array_equal(image, want)
+    assert alpha.shape == (120, 160) and np.all(alpha == 1.0)
+    # RGBA: straight 8-bit codes, premultiplied on read like the float path
+    xa = np.concatenate([x * 0.5, np.full((120, 160, 1), 0.5, np.float32)], axis=2)
+    I.write_image(tmp_path / "b.png", xa)
+    image, alpha = I.read_image(tmp_path / "b.png")
+    config = I._oiio().ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)           # the file's straight codes, as read_image asks
+    data, _ = I._read_float(I._oiio(), tmp_path / "b.png", config, keep_uint8=True)
+    want, wa = I.to_internal(data.astype(np.float32) / 255.0, "srgb", "straight")
+    np.testing.assert_array_equal(image, want)
+    np.testing.assert_array_equal(alpha, wa)

@@ -176,7 +176,11 @@ def test_ctrl_c_on_the_command_line(tmp_path):
     env = dict(os.environ, PIXGRAPH_DISK_CACHE=str(cache), XDG_CACHE_HOME=str(tmp_path / "xdg"))
     s = Session(disk_cache=str(cache))
     plan = s.plan(s.graph(GRAPH, {"shadow.samples": 65536}))
-    upstream = [plan.keys[n] for n in ("fg_h", "bg_h", "cutout")]
+    # the upstream nodes that the disk cache keeps (loaders and templates are
+    # remade instead: disk_cache = False)
+    upstream = [plan.keys[n] for n in ("fg_h", "bg_h", "cutout", "light")
+                if getattr(s.registry.get(plan.step(n).type_id).cls, "disk_cache", True)]
+    assert upstream
     p = subprocess.Popen([sys.executable, "-m", "pixgraph", "run", str(GRAPH), "-q", "--set", "shadow.samples=65536",
                           "-o", f"final={tmp_path / 'final.png'}"], env=env, stderr=subprocess.PIPE, text=True)
     try:

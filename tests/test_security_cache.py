@@ -362,9 +362,11 @@ def test_forged_entry_of_the_wrong_size_is_discarded(tmp_path):
     out = s.run(g, on_event=events.append)["img"]
     assert out.shape == (20, 30, 4) and abs(float(out[..., 3].mean()) - 0.5) < 0.01
     assert any(isinstance(e, E.NodeLog) and "is 10x10, but its inputs make it 30x20" in e.message for e in events)
-    # and the recomputed entry is served next time, by a new process's session
+    # and the forged entry is gone: a new process's session reads the file again
+    # (LoadImage stays off the disk cache: disk_cache = False)
     fresh = Session(disk_cache=tmp_path / "disk")
-    assert fresh.run(g)["img"].shape == (20, 30, 4) and fresh.last_run.cached == ("load",)
+    assert key not in fresh.disk
+    assert fresh.run(g)["img"].shape == (20, 30, 4) and fresh.last_run.ran == ("load",)
 
 
 # -- a write that fails means "not cached", never a failed run ----------------------------

@@ -92,12 +92,43 @@ def read_image(path: str | os.PathLike, colorspace: str = "auto",
     oiio = _oiio()
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", 1)
-    data, _ = _read_float(oiio, path, config)
+    data, _ = _read_float(oiio, path, config, keep_uint8=True)
     if colorspace == "auto":
         colorspace = "linear" if _is_linear_file(path) else "srgb"
     if alpha == "auto":
         alpha = "premultiplied" if _is_linear_file(path) else "straight"
+    if data.dtype == np.uint8:
+        if colorspace == "srgb" and (alpha == "straight" or _alpha_channel(data.shape[2]) is None):
+            return _decode_srgb8(data)
+        data = data.astype(np.float32) * np.float32(1.0 / 255.0)
     return to_internal(data, colorspace, alpha)
+
+
+#: sRGB decode of every 8-bit code: ``srgb_to_linear(k / 255)`` (the same float32 numbers)
+_SRGB8_TO_LINEAR = None
+
+
+def _decode_srgb8(data: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``to_internal(data / 255, "srgb", "straight")`` of an 8-bit file, by table:
+    the same numbers (every code's decode is looked up, not recomputed), a few
+    times faster at photo size."""
+    global _SRGB8_TO_LINEAR
+    if _SRGB8_TO_LINEAR is None:
+        _SRGB8_TO_LINEAR = srgb_to_linear(np.arange(256, dtype=np.float32) / np.float32(255.0))
+    H, W, C = data.shape
+    ai = _alpha_channel(C)
+    image = np.empty((H, W, C), np.float32)
+    if ai is None:
+        np.take(_SRGB8_TO_LINEAR, data, out=image)
+        # a photo's coverage is all ones: a read-only broadcast of one value, not H*W floats
+        return image, np.broadcast_to(np.float32(1.0), (H, W))
+    a = data[:, :, ai].astype(np.float32) * np.float32(1.0 / 255.0)
+    for c in range(C):
+        if c == ai:
+            image[:, :, c] = a
+        else:
+            image[:, :, c] = _SRGB8_TO_LINEAR[data[:, :, c]] * a
+    return image, a
 
 
 def to_internal(data: np.ndarray, colorspace: str, alpha: str) -> tuple[np.ndarray, np.ndarray]:
@@ -280,7 +311,9 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
             img = np.delete(img, ai, axis=2)
             c, ai = img.shape[2], None
             names = names[:c] if c == 3 else ["Y"]
-        if ai is not None:
+        if bit_depth == 8:   # straight to the file's 8-bit codes, by table, a band of rows at a time
+            pixels = _encode_srgb8(img, ai)
+        elif ai is not None:
             a = np.clip(img[:, :, ai], 0.0, 1.0)
             colour = linear_to_srgb(np.clip(_unpremultiply(np.delete(img, ai, axis=2), a), 0.0, 1.0))
             pixels = np.insert(colour, ai, a, axis=2)
@@ -294,10 +327,48 @@ def write_image(path: str | os.PathLike, array: np.ndarray, bit_depth: int | Non
             # our pixels are already straight: stop OIIO from un-associating again
             spec.attribute("oiio:UnassociatedAlpha", 1)
         spec.attribute("oiio:ColorSpace", "sRGB")
+        if ext == ".png" and h * w > PNG_FAST_PIXELS:
+            # zlib is single-threaded: at photo size level 1 writes 3-4x faster, files ~20 % larger
+            spec.attribute("png:compressionLevel", 1)
     else:
         raise ImageFileError(f"unsupported image extension {ext!r} for {path} (png, tif, jpg, exr)")
-    _write_atomic(oiio, target, spec, np.ascontiguousarray(pixels, dtype=np.float32))
+    _write_atomic(oiio, target, spec, pixels if pixels.dtype == np.uint8 else
+                  np.ascontiguousarray(pixels, dtype=np.float32))
     return path
+
+
+#: PNGs larger than this many pixels are written with zlib level 1 (fast)
+PNG_FAST_PIXELS = 4 << 20
+#: linear value i / 65535 -> 8-bit sRGB code (``round(255 linear_to_srgb)``)
+_LINEAR16_TO_SRGB8 = None
+
+
+def _encode_srgb8(img: np.ndarray, ai: int | None, band: int = 256) -> np.ndarray:
+    """Linear premultiplied float (H, W, C) -> 8-bit sRGB codes with straight alpha
+    (uint8, H, W, C), by a table of 65536 linear levels: within one code of
+    ``round(255 * linear_to_srgb(x))`` (off by one only where x lies within 1/131070
+    of a code's boundary), a band of rows at a time (no full-size float copies)."""
+    global _LINEAR16_TO_SRGB8
+    if _LINEAR16_TO_SRGB8 is None:
+        levels = np.arange(65536, dtype=np.float32) / np.float32(65535.0)
+        _LINEAR16_TO_SRGB8 = np.round(linear_to_srgb(levels) * 255.0).astype(np.uint8)
+    lut = _LINEAR16_TO_SRGB8
+    H, W, C = img.shape
+    out = np.empty((H, W, C), np.uint8)
+    for r0 in range(0, H, band):
+        blk = img[r0:r0 + band]
+        if ai is not None:
+            a = np.clip(blk[:, :, ai], 0.0, 1.0)
+            colour = np.clip(_unpremultiply(np.delete(blk, ai, axis=2), a), 0.0, 1.0)
+            out[r0:r0 + band, :, ai] = np.round(a * 255.0).astype(np.uint8)
+            chans = [c for c in range(C) if c != ai]
+        else:
+            colour = np.clip(blk, 0.0, 1.0)
+            chans = list(range(C))
+        idx = (colour * np.float32(65535.0) + np.float32(0.5)).astype(np.uint16)
+        for k, c in enumerate(chans):
+            out[r0:r0 + band, :, c] = lut[idx[:, :, k]]
+    return out
 
 
 #: extensions ``write_data`` can write
@@ -456,8 +527,9 @@ def read_exr_channels(path: str | os.PathLike) -> dict[str, np.ndarray]:
     return {n: np.ascontiguousarray(data[:, :, i]) for i, n in enumerate(names)}
 
 
-def _read_float(oiio, path, config=None) -> tuple[np.ndarray, list[str]]:
-    """All pixels of an image file as float32 (H, W, C), and its channel names."""
+def _read_float(oiio, path, config=None, keep_uint8: bool = False) -> tuple[np.ndarray, list[str]]:
+    """All pixels of an image file as float32 (H, W, C), and its channel names;
+    with ``keep_uint8`` an 8-bit file's pixels as stored (uint8: 4x less to convert)."""
     inp = oiio.ImageInput.open(str(path), config) if config is not None else oiio.ImageInput.open(str(path))
     if inp is None:
         raise ImageFileError(f"cannot read image {path}: {oiio.geterror()}"[:300])
@@ -471,12 +543,14 @@ def _read_float(oiio, path, config=None) -> tuple[np.ndarray, list[str]]:
         if pixels == 0 or spec.nchannels < 1:
             raise ImageFileError(f"image {path} has no pixels ({spec.width}x{spec.height}, {spec.nchannels} channels)")
         names = list(spec.channelnames)
-        data = inp.read_image("float")
+        eight = keep_uint8 and str(spec.format) == "uint8" and not any(
+            str(f) != "uint8" for f in (spec.channelformats or ()))
+        data = inp.read_image("uint8" if eight else "float")
         if data is None:
             raise ImageFileError(f"cannot read image {path}: {inp.geterror()}"[:300])
     finally:
         inp.close()
-    data = np.asarray(data, dtype=np.float32)
+    data = np.asarray(data) if eight else np.asarray(data, dtype=np.float32)
     if data.ndim == 2:
         data = data[:, :, None]
     return np.ascontiguousarray(data), names

@@ -1,7 +1,10 @@
 """Reflection and refraction traced in pixel-height space (PixHt-Lab Sec. 3.3).
 
 Numpy references next to the OpenCL kernels of ``reflection.cl`` (same names,
-``rt_`` prefix dropped), plus the host-side wrappers the nodes call.
+``rt_`` prefix dropped), plus the host-side wrappers the nodes call. The sampling
+and material math is in ``reflection_math.py``, refraction in ``refraction.py``,
+the proxy resolution of large images in ``reflection_proxy.py``; their names are
+importable from here too.
 
 Units: image coordinates ``u`` (right), ``v`` (down) and pixel height ``h`` in
 pixels, pixel centres at ``+0.5``; 3D directions are unit vectors in the world
@@ -36,209 +39,16 @@ dielectric reflectance with IOR ``eta`` (not Schlick), or Schlick with a coloure
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from . import march
 from .camera import Camera, reconstruct
+from .reflection_math import (F32, UNBOUNDED, basis, fresnel_dielectric, fresnel_schlick,  # noqa: F401
+                              ggx_d, ggx_sample_weight, pcg, rand, reflect, refract, sample2,
+                              sample_vndf, smith_lambda, uvh_direction, view_directions)
 
-F32 = np.float32
 #: thickness (pixels) of a solid surface: everything behind the background is inside it
 SOLID = F32(1.0e30)
-UNBOUNDED = F32(1.0e30)
-_U32 = np.uint32
-
-
-# ---------------------------------------------------------------------------
-# random numbers (bit-exact mirror of rt_pcg / rt_rand)
-# ---------------------------------------------------------------------------
-
-def pcg(v) -> np.ndarray:
-    """PCG integer hash of uint32 values (wrapping arithmetic)."""
-    v = np.asarray(v, dtype=_U32)
-    with np.errstate(over="ignore"):
-        state = v * _U32(747796405) + _U32(2891336453)
-        word = ((state >> ((state >> _U32(28)) + _U32(4))) ^ state) * _U32(277803737)
-    return (word >> _U32(22)) ^ word
-
-
-def rand(seed, pix, sample, dim) -> np.ndarray:
-    """Uniform float32 in [0, 1), one per (seed, pixel, sample, dimension)."""
-    with np.errstate(over="ignore"):
-        x = pcg(pcg(pcg(_U32(seed) + _U32(dim)) + np.asarray(sample, _U32)) + np.asarray(pix, _U32))
-    return ((x >> _U32(8)).astype(np.float32) * F32(1.0 / 16777216.0)).astype(np.float32)
-
-
-#: R2 sequence increments (1/g, 1/g^2), g the plastic number, as 32-bit fixed point
-R2_STEP = (_U32(3242174889), _U32(2447445413))
-
-
-def sample2(seed, pix, n):
-    """Low-discrepancy 2D sample ``n`` of each pixel (mirror of ``rt_sample2``): the R2
-    sequence with a per-pixel random shift (Cranley-Patterson rotation). Returns
-    two float32 arrays in [0, 1)."""
-    pix = np.asarray(pix, _U32)
-    n = np.asarray(n, _U32)
-    off = (rand(seed, pix, 0, 0), rand(seed, pix, 0, 1))
-    out = []
-    with np.errstate(over="ignore"):
-        for a, o in zip(R2_STEP, off):
-            r = ((n * a) >> _U32(8)).astype(np.float32) * F32(1.0 / 16777216.0) + o
-            out.append((r - np.floor(r)).astype(np.float32))
-    return out[0], out[1]
-
-
-# ---------------------------------------------------------------------------
-# 3D ray -> (u, v, h) ray
-# ---------------------------------------------------------------------------
-
-def uvh_direction(camera: Camera, p0, d):
-    """(u, v, h) direction ``e`` and far end ``s_max`` of 3D rays.
-
-    p0: (..., 3) image point ``(u, v, h)`` of the ray origins [px].
-    d: (..., 3) world directions (need not be unit).
-    Returns ``(e, s_max)``: e (..., 3) [px per unit s], s_max (...) (``UNBOUNDED``
-    where the ray points toward the camera or parallel to the image plane).
-    """
-    p0 = np.asarray(p0, np.float64)
-    d = np.asarray(d, np.float64)
-    f = camera.focal
-    mdz = -d[..., 2]
-    nd = np.stack([0.5 * camera.width * mdz + f * d[..., 0],
-                   camera.horizon * mdz - f * d[..., 1],
-                   f * d[..., 1]], axis=-1)
-    e = nd - mdz[..., None] * p0
-    with np.errstate(divide="ignore"):
-        s_max = np.where(mdz > 0, np.minimum(1.0 / np.where(mdz > 0, mdz, 1.0), UNBOUNDED), UNBOUNDED)
-    return e, s_max
-
-
-def view_directions(camera: Camera) -> np.ndarray:
-    """Unit view ray (camera -> scene) of every pixel centre, float64 (H, W, 3)."""
-    u, v = camera.pixel_grid()
-    r = camera.ray(u, v)
-    return r / np.linalg.norm(r, axis=-1, keepdims=True)
-
-
-# ---------------------------------------------------------------------------
-# BRDF and interface math
-# ---------------------------------------------------------------------------
-
-def fresnel_dielectric(cos_i, eta) -> np.ndarray:
-    """Exact unpolarised Fresnel reflectance; ``eta = n_t / n_i``, cos_i in [0, 1].
-
-    ``((1 - eta)/(1 + eta))**2`` at normal incidence, 1 at grazing incidence and 1
-    under total internal reflection (``eta < 1`` past the critical angle)."""
-    c = np.clip(np.asarray(cos_i, np.float64), 0.0, 1.0)
-    eta = np.asarray(eta, np.float64)
-    g2 = eta * eta - 1.0 + c * c
-    tir = g2 <= 0.0
-    g = np.sqrt(np.where(tir, 1.0, g2))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a = (g - c) / (g + c)
-        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
-        F = 0.5 * a * a * (1.0 + b * b)
-    return np.where(tir, 1.0, np.clip(F, 0.0, 1.0))
-
-
-def fresnel_schlick(cos_i, f0) -> np.ndarray:
-    """Schlick's approximation with normal-incidence reflectance ``f0`` (..., 3)."""
-    m = 1.0 - np.clip(np.asarray(cos_i, np.float64), 0.0, 1.0)
-    f0 = np.asarray(f0, np.float64)
-    return f0 + (1.0 - f0) * (m ** 5)[..., None]
-
-
-def smith_lambda(cos_t, alpha) -> np.ndarray:
-    """GGX Smith Lambda; cos_t = cosine to the macro normal."""
-    c2 = np.maximum(np.asarray(cos_t, np.float64) ** 2, 1e-12)
-    t2 = np.maximum(1.0 - c2, 0.0) / c2
-    return 0.5 * (-1.0 + np.sqrt(1.0 + alpha * alpha * t2))
-
-
-def ggx_d(cos_m, alpha) -> np.ndarray:
-    """GGX normal distribution D(m) [1/sr] for microfacet normals at cosine cos_m."""
-    c2 = np.asarray(cos_m, np.float64) ** 2
-    a2 = alpha * alpha
-    return np.where(c2 > 0, a2 / (math.pi * (c2 * (a2 - 1.0) + 1.0) ** 2), 0.0)
-
-
-def sample_vndf(wo, alpha, u1, u2) -> np.ndarray:
-    """Visible GGX normals (Heitz 2018) in the local frame (n = +z), wo (..., 3), wo_z > 0."""
-    wo = np.asarray(wo, np.float64)
-    vh = np.stack([alpha * wo[..., 0], alpha * wo[..., 1], wo[..., 2]], axis=-1)
-    vh /= np.linalg.norm(vh, axis=-1, keepdims=True)
-    lensq = vh[..., 0] ** 2 + vh[..., 1] ** 2
-    inv = 1.0 / np.sqrt(np.where(lensq > 0, lensq, 1.0))
-    t1 = np.where((lensq > 0)[..., None],
-                  np.stack([-vh[..., 1] * inv, vh[..., 0] * inv, np.zeros_like(lensq)], axis=-1),
-                  np.array([1.0, 0.0, 0.0]))
-    t2 = np.cross(vh, t1)
-    r = np.sqrt(u1)
-    phi = 2.0 * math.pi * u2
-    p1 = r * np.cos(phi)
-    p2 = r * np.sin(phi)
-    s = 0.5 * (1.0 + vh[..., 2])
-    p2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - p1 * p1, 0.0)) + s * p2
-    nh = p1[..., None] * t1 + p2[..., None] * t2 + np.sqrt(np.maximum(0.0, 1.0 - p1 * p1 - p2 * p2))[..., None] * vh
-    m = np.stack([alpha * nh[..., 0], alpha * nh[..., 1], np.maximum(1e-6, nh[..., 2])], axis=-1)
-    return m / np.linalg.norm(m, axis=-1, keepdims=True)
-
-
-def reflect(wo, m) -> np.ndarray:
-    """Mirror of wo (pointing away from the surface) about m: ``2 (wo.m) m - wo``."""
-    return 2.0 * np.sum(wo * m, axis=-1, keepdims=True) * m - wo
-
-
-def refract(view, n, eta):
-    """Snell refraction of ``view`` (toward the surface, unit) through a surface with
-    unit normal ``n`` (toward the viewer); ``eta`` = IOR inside / outside.
-
-    Returns ``(direction, tir)``: the refracted unit direction, or the reflected one
-    where total internal reflection happens (``tir`` True)."""
-    view = np.asarray(view, np.float64)
-    n = np.asarray(n, np.float64)
-    cos_i = -np.sum(view * n, axis=-1, keepdims=True)
-    r = 1.0 / np.asarray(eta, np.float64)
-    k = 1.0 - r * r * (1.0 - cos_i * cos_i)
-    tir = k < 0
-    wt = r * view + (r * cos_i - np.sqrt(np.where(tir, 0.0, k))) * n
-    wt /= np.linalg.norm(wt, axis=-1, keepdims=True)
-    wr = view + 2.0 * cos_i * n
-    return np.where(tir, wr, wt), tir[..., 0]
-
-
-def basis(n):
-    """Orthonormal (b1, b2) completing unit normals n (..., 3) (Duff et al. 2017)."""
-    n = np.asarray(n, np.float64)
-    sgn = np.where(n[..., 2] >= 0, 1.0, -1.0)
-    a = -1.0 / (sgn + n[..., 2])
-    b = n[..., 0] * n[..., 1] * a
-    b1 = np.stack([1.0 + sgn * n[..., 0] ** 2 * a, sgn * b, -sgn * n[..., 0]], axis=-1)
-    b2 = np.stack([b, sgn + n[..., 1] ** 2 * a, -n[..., 1]], axis=-1)
-    return b1, b2
-
-
-def ggx_sample_weight(wol, alpha, u1, u2, eta=1.5, conductor=False, f0=(1.0, 1.0, 1.0)):
-    """One VNDF sample per local outgoing direction ``wol`` (..., 3), ``wol_z > 0``.
-
-    Returns ``(wil, weight)``: the sampled incoming direction (local) and the
-    estimator weight ``f cos / pdf = F G2 / G1`` (..., 3), 0 below the surface.
-    For ``alpha = 0``: the mirror direction and weight F."""
-    wol = np.asarray(wol, np.float64)
-    if alpha > 0:
-        m = sample_vndf(wol, alpha, u1, u2)
-    else:
-        m = np.broadcast_to(np.array([0.0, 0.0, 1.0]), wol.shape)
-    cm = np.sum(wol * m, axis=-1)
-    wil = 2.0 * cm[..., None] * m - wol
-    ok = (wil[..., 2] > 0) & (cm > 0)
-    F = fresnel_schlick(cm, f0) if conductor else np.repeat(fresnel_dielectric(cm, eta)[..., None], 3, -1)
-    if alpha > 0:
-        lo = smith_lambda(wol[..., 2], alpha)
-        li = smith_lambda(wil[..., 2], alpha)
-        F = F * ((1.0 + lo) / (1.0 + lo + li))[..., None]
-    return wil, np.where(ok[..., None], F, 0.0)
 
 
 # ---------------------------------------------------------------------------
@@ -491,150 +301,6 @@ def reflection_numpy(camera: Camera, cutout: np.ndarray, fg_height: np.ndarray,
     return out.astype(np.float32)
 
 
-def local_radius(geo: dict, mask: np.ndarray, max_radius: float = np.inf) -> np.ndarray:
-    """Radius of curvature (world units) of a reconstructed surface at each pixel:
-    ``|dP| / |dn|`` between the two neighbours along u and along v (central
-    differences), the smaller of the two (the most curved direction), for pixels
-    at least two pixels inside ``mask``; the rim takes the mean of the nearest such
-    pixels. Exact for a sphere. 0 where the surface is flat (no finite
-    radius below ``max_radius``) or no interior pixel exists. float32 (H, W)."""
-    P = geo["position"].astype(np.float64)
-    n = geo["normal"].astype(np.float64)
-    inside = (np.asarray(mask) > 0) & (geo["valid"] > 0.5)
-    H, W = inside.shape
-
-    def erode(m):
-        e = m.copy()
-        e[1:-1, 1:-1] &= m[:-2, 1:-1] & m[2:, 1:-1] & m[1:-1, :-2] & m[1:-1, 2:]
-        e[[0, -1], :] = False
-        e[:, [0, -1]] = False
-        return e
-
-    # twice: the rim pixels' normals mix in the outside (reconstruct differences
-    # cross the mask edge), so neighbours must be one pixel in from the rim
-    interior = erode(erode(inside))
-    R = np.full((H, W), np.inf)
-    for ax in (0, 1):
-        dP = np.linalg.norm(np.roll(P, -1, ax) - np.roll(P, 1, ax), axis=-1)
-        dn = np.linalg.norm(np.roll(n, -1, ax) - np.roll(n, 1, ax), axis=-1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            R = np.minimum(R, np.where(dn > 1e-9, dP / np.where(dn > 1e-9, dn, 1.0), np.inf))
-    R = np.where(interior & (R < max_radius), R, 0.0)
-    have = interior & (R > 0)
-    if not have.any():
-        return np.zeros((H, W), np.float32)
-    # fill the rim from the nearest interior pixel (a few rings of 3x3 growth)
-    out = np.where(have, R, 0.0)
-    known = have.copy()
-    for _ in range(max(H, W)):
-        todo = inside & ~known
-        if not todo.any():
-            break
-        pad = np.pad(out, 1)
-        kpad = np.pad(known, 1)
-        acc = np.zeros((H, W))
-        cnt = np.zeros((H, W))
-        for di in (0, 1, 2):
-            for dj in (0, 1, 2):
-                k = kpad[di:di + H, dj:dj + W]
-                acc += np.where(k, pad[di:di + H, dj:dj + W], 0.0)
-                cnt += k
-        grow = todo & (cnt > 0)
-        if not grow.any():
-            break
-        out[grow] = acc[grow] / cnt[grow]
-        known |= grow
-    return np.where(inside, out, 0.0).astype(np.float32)
-
-
-def refraction_numpy(camera: Camera, glass: np.ndarray, glass_height: np.ndarray,
-                     background: np.ndarray, bg_height: np.ndarray, *, eta=1.5,
-                     tint=(1.0, 1.0, 1.0), fresnel=True, back_surface="none"):
-    """Reference of ``rt_refract``. Returns ``(layer, tir)``: float32 (H, W, 4)
-    premultiplied refraction layer and bool (H, W) where total internal reflection
-    happened at the front surface. ``back_surface="local_sphere"`` refracts again
-    at the back of the local sphere (see :func:`local_radius`)."""
-    H, W = bg_height.shape
-    glass = np.asarray(glass, np.float32)
-    a = glass[..., 3]
-    geo = reconstruct(camera, glass_height)
-    view = view_directions(camera)
-    n = geo["normal"].astype(np.float64)
-    cos_i = -np.sum(view * n, -1)
-    n = np.where((cos_i < 0)[..., None], -n, n)
-    cos_i = np.abs(cos_i)
-    sel = (a > 0) & (geo["valid"] > 0.5)
-    idx = np.flatnonzero(sel.ravel())
-    out = np.zeros((H * W, 4))
-    tir_map = np.zeros(H * W, bool)
-    if idx.size == 0:
-        return out.reshape(H, W, 4).astype(np.float32), tir_map.reshape(H, W)
-    bgs = march.surface_buffer(np.ones_like(bg_height), bg_height)
-    bg_rgb = np.asarray(background, np.float32).reshape(-1, background.shape[-1])[:, :3].astype(np.float64)
-    vv = view.reshape(-1, 3)[idx]
-    nn = n.reshape(-1, 3)[idx]
-    ci = cos_i.ravel()[idx]
-    u, v = camera.pixel_grid()
-    p0 = np.stack([u.ravel()[idx], v.ravel()[idx], np.asarray(glass_height, np.float32).ravel()[idx]], -1)
-    d, tir = refract(vv, nn, eta)
-    F = np.where(tir, 1.0, fresnel_dielectric(ci, eta) if fresnel else 0.0)
-    col = np.zeros((idx.size, 3))
-    t = ~tir & (F < 1.0)
-    T = 1.0 - F
-    q0 = p0.copy()
-    if back_surface == "local_sphere":
-        Rr = local_radius(geo, a).astype(np.float64).ravel()[idx]
-        P = geo["position"].astype(np.float64).reshape(-1, 3)[idx]
-        sph = t & (Rr > 0)
-        C = P - Rr[:, None] * nn
-        cos_t = -np.sum(d * nn, -1)
-        Q = P + (2.0 * Rr * cos_t)[:, None] * d
-        with np.errstate(divide="ignore", invalid="ignore"):
-            n2 = (Q - C) / np.where(Rr > 0, Rr, 1.0)[:, None]
-        c2 = np.clip(np.sum(d * n2, -1), 0.0, 1.0)
-        k2 = 1.0 - eta * eta * (1.0 - c2 * c2)
-        out_ok = sph & (k2 >= 0)
-        d2 = eta * d + (eta * c2 - np.sqrt(np.maximum(k2, 0.0)))[:, None] * (-n2)
-        d2 /= np.linalg.norm(d2, axis=-1, keepdims=True)
-        d = np.where(out_ok[:, None], d2, d)
-        if fresnel:
-            T = np.where(out_ok, T * (1.0 - fresnel_dielectric(c2, 1.0 / eta)), T)
-        qq, D = camera.project(Q)
-        qq[:, 0] = np.clip(qq[:, 0], 0.0, W - 1e-3)
-        qq[:, 1] = np.clip(qq[:, 1], 0.0, H - 1e-3)
-        q0 = np.where((sph & (D > 1e-6))[:, None], qq, p0)
-    col[t] += T[t, None] * np.asarray(tint) * _background_along(camera, q0[t], d[t], bgs, bg_rgb)
-    r = F > 0
-    wr = vv + 2.0 * ci[:, None] * nn
-    col[r] += F[r, None] * _background_along(camera, p0[r], wr[r], bgs, bg_rgb)
-    out[idx, :3] = a.ravel()[idx, None] * col
-    out[idx, 3] = a.ravel()[idx]
-    tir_map[idx] = tir
-    return out.reshape(H, W, 4).astype(np.float32), tir_map.reshape(H, W)
-
-
-def _background_along(camera, p0, d, bgs, bg_rgb):
-    """Mirror of rt_background_along for many rays: background colour (N, 3)."""
-    H, W = bgs.shape
-    if len(p0) == 0:
-        return np.zeros((0, 3))
-    e, s_max = uvh_direction(camera, p0, d)
-    e32 = e.astype(np.float32)
-    p32 = np.asarray(p0, np.float32)
-    origin = np.floor(p32[:, 1]).astype(np.int64) * W + np.floor(p32[:, 0]).astype(np.int64)
-    major = np.maximum(np.abs(e32[:, 0]), np.abs(e32[:, 1]))
-    good = major >= march.MIN_IMAGE_LENGTH
-    with np.errstate(divide="ignore", invalid="ignore"):
-        h_edge = np.where(good, p32[:, 2] + F32(0.5) * e32[:, 2] / np.where(good, major, 1),
-                          np.where(e32[:, 2] < 0, -SOLID, p32[:, 2])).astype(np.float32)
-    at_origin = march.side(h_edge, bgs.ravel()[origin]) == 1
-    m, ok = setup_rays(p32, e32, s_max, W, H)
-    ok &= ~at_origin
-    hit, last = trace_closest(bgs, m, ok, SOLID)
-    pix = np.where(at_origin, origin, np.where(hit >= 0, hit, np.where(last >= 0, last, origin)))
-    return bg_rgb[pix]
-
-
 # ---------------------------------------------------------------------------
 # OpenCL wrappers
 # ---------------------------------------------------------------------------
@@ -853,65 +519,12 @@ def check_shapes(camera: Camera, **arrays) -> None:
 RGBA_INPUTS = ("cutout", "glass")
 
 
-def refraction_cl(device, camera: Camera, glass, glass_height, background, bg_height, *, eta=1.5,
-                  tint=(1.0, 1.0, 1.0), fresnel=True, hiz=True, back_surface="none", band_rows=None,
-                  progress=None, check_cancelled=None):
-    """Refraction layer of a transparent cutout on the device. ``back_surface``:
-    ``"none"`` (front interface only) or ``"local_sphere"`` (refract out again at the
-    back of the local sphere: a solid ball or bottle).
+#: names that moved to refraction.py, still importable from here
+_REFRACTION = ("local_radius", "refraction_numpy", "refraction_cl")
 
-    All images share the camera's size (ValueError otherwise). With ``progress``
-    or ``check_cancelled`` the kernel runs in bands of ``band_rows`` rows (default:
-    about 2^18 pixels a band), calling them between bands; the result is the same.
 
-    Returns a dict: ``layer`` float32 (H, W, 4) premultiplied, ``tir`` bool (H, W)
-    (total internal reflection at the front surface), ``hit`` bool (H, W) (the
-    transmitted or TIR ray found the background inside the image), ``steps``."""
-    import pyopencl as cl
-    ctx, queue = device.context, device.queue
-    glass = np.asarray(glass, np.float32)
-    bg = np.asarray(background, np.float32)
-    glass_height = np.asarray(glass_height, np.float32)
-    bg_height = np.asarray(bg_height, np.float32)
-    check_shapes(camera, glass=glass, glass_height=glass_height, background=bg, bg_height=bg_height)
-    H, W = bg_height.shape
-    if bg.ndim == 2:
-        bg = bg[..., None]
-    rgb = np.zeros((H, W, 4), np.float32)
-    rgb[..., :3] = bg[..., :3] if bg.shape[-1] >= 3 else bg[..., :1]
-    geo = reconstruct(camera, glass_height)
-    bgs = march.surface_buffer(np.ones_like(bg_height), bg_height)
-    S = _Surface(cl, ctx, bgs, float(SOLID), hiz)
-    prg = _program(device)
-    mf = cl.mem_flags
-    d_out = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 16)
-    d_flags = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 4)
-    d_steps = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 4)
-    if back_surface not in ("none", "local_sphere"):
-        raise ValueError(f"back_surface must be 'none' or 'local_sphere', got {back_surface!r}")
-    radius = (local_radius(geo, glass[..., 3]) if back_surface == "local_sphere"
-              else np.zeros((H, W), np.float32))
-    kern = prg.rt_refract
-    # held until the last launch: a kernel's arguments do not keep buffers alive
-    args = [np.int32(W), np.int32(H), np.float32(camera.focal),
-            np.float32(camera.horizon), np.float32(camera.cam_height), _buf(cl, ctx, glass[..., 3]),
-            _buf(cl, ctx, glass_height), _buf(cl, ctx, geo["normal"]),
-            _buf(cl, ctx, geo["valid"]), _buf(cl, ctx, geo["position"]), _buf(cl, ctx, radius),
-            S.d_surf, S.d_pyr, S.d_lvl, np.int32(S.nlev),
-            _buf(cl, ctx, rgb), np.float32(eta), np.asarray(tuple(tint) + (0.0,), np.float32),
-            np.int32(bool(fresnel)), d_out, d_flags, d_steps]
-    kern.set_args(*args)
-    banded = progress is not None or check_cancelled is not None
-    rows = H if not banded else max(1, min(H, int(band_rows or (1 << 18) // W)))
-    for y0 in range(0, H, rows):
-        n = min(rows, H - y0)
-        if check_cancelled is not None:
-            check_cancelled()
-        ev = cl.enqueue_nd_range_kernel(queue, kern, (W, n), None, global_work_offset=(0, y0) if y0 else None)
-        if banded:
-            ev.wait()
-            if progress is not None:
-                progress((y0 + n) / H, "refraction")
-    out, flags, steps = _read(cl, queue, (d_out, (H, W, 4), np.float32), (d_flags, (H, W), np.int32),
-                              (d_steps, (H, W), np.int32))
-    return {"layer": out, "tir": (flags & 4) != 0, "hit": (flags & 1) != 0, "steps": steps}
+def __getattr__(name):
+    if name in _REFRACTION:
+        from . import refraction
+        return getattr(refraction, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

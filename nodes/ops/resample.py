@@ -174,3 +174,26 @@ def resize(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 
 def ceil_to(x: float, m: int) -> int:
     return int(m * math.ceil(x / m - 1e-9))
+
+
+def scaled_size(H: int, W: int, scale: float) -> tuple[int, int]:
+    """(H, W) of an image at working resolution ``scale`` (``ctx.scale``): each side
+    rounded, at least 1 px. Loaders and everything that must agree with them use this."""
+    return max(1, int(round(H * scale))), max(1, int(round(W * scale)))
+
+
+def at_scale(a: np.ndarray, scale: float) -> np.ndarray:
+    """An image (H, W) or (H, W, C) at working resolution ``scale`` (``scaled_size``),
+    antialiased bilinear per channel (linear data: premultiplied colour, alpha,
+    masks); the array itself at scale 1. Pixel heights need ``* ky`` as well."""
+    a = np.asarray(a)
+    H, W = a.shape[:2]
+    shape = scaled_size(H, W, scale)
+    if shape == (H, W):
+        return a
+    if a.ndim == 2:
+        return resize(a, shape)
+    out = np.empty(shape + (a.shape[2],), np.float32)
+    for c in range(a.shape[2]):
+        out[:, :, c] = resize(np.ascontiguousarray(a[:, :, c]), shape)
+    return out

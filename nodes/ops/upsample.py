@@ -35,14 +35,16 @@ AUTO_MAX_SIDE = 1024
 MIN_PROXY_THICKNESS = 1.0
 
 
-def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shape, band: int = 256) -> np.ndarray:
+def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shape, band: int = 256,
+                  box=None) -> np.ndarray:
     """Resize ``lo`` (h, w) to ``shape`` (H, W), not mixing across the cutout's outline.
 
     mask_lo (h, w) and mask_hi (H, W): the cutout (> 0.5) at both resolutions.
     A pixel outside ``mask_hi`` is the bilinear average of the ``lo`` pixels
     outside ``mask_lo`` (weights renormalised), a pixel inside of those inside;
     where no such pixel is within reach (a gap thinner than a proxy pixel) it
-    falls back to the plain bilinear value. Returns float32 (H, W).
+    falls back to the plain bilinear value. Returns float32 (H, W), or with
+    ``box = (r0, r1, c0, c1)`` (output pixels) only that part of it.
 
     The columns are resized first on the small image (five (h, W) planes), then
     the output is made ``band`` rows at a time, so besides the result only a
@@ -51,27 +53,33 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
     """
     lo = np.asarray(lo, np.float32)
     H, W = (int(s) for s in shape)
-    h = lo.shape[0]
+    h, w = lo.shape
+    r0b, r1b, c0b, c1b = (0, H, 0, W) if box is None else (int(b) for b in box)
     inside_lo = np.asarray(mask_lo) > 0.5
     sides = [s for s in (~inside_lo, inside_lo) if s.any()]
     planes = [lo]
     for side in sides:
         wgt = side.astype(np.float32)
         planes += [wgt, lo * wgt]
-    cols = [_resize_axis(p_, W, 1) for p_ in planes]          # (h, W) each
+    if w == W:
+        cols = [p_[:, c0b:c1b] for p_ in planes]
+    else:
+        cidx, cwt = _axis_weights(w, W)
+        cidx, cwt = cidx[c0b:c1b], cwt[c0b:c1b]
+        cols = [np.einsum("rot,ot->ro", p_[:, cidx], cwt) for p_ in planes]      # (h, c1 - c0) each
     if h == H:
         idx, wts = np.arange(H)[:, None], np.ones((H, 1), np.float32)
     else:
         idx, wts = _axis_weights(h, H)
-    out = np.empty((H, W), np.float32)
-    for r0 in range(0, H, band):
-        r1 = min(H, r0 + band)
+    out = np.empty((r1b - r0b, c1b - c0b), np.float32)
+    for r0 in range(r0b, r1b, band):
+        r1 = min(r1b, r0 + band)
         ix, wt = idx[r0:r1], wts[r0:r1]
 
         def rows(c):
             return np.einsum("rtx,rt->rx", c[ix], wt)
         res = rows(cols[0])
-        inside_hi = np.asarray(mask_hi[r0:r1]) > 0.5
+        inside_hi = np.asarray(mask_hi[r0:r1, c0b:c1b]) > 0.5
         for k, side in enumerate(sides):
             side_hi = inside_hi if side is inside_lo else ~inside_hi
             if not side_hi.any():
@@ -79,8 +87,25 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
             den, num = rows(cols[1 + 2 * k]), rows(cols[2 + 2 * k])
             ok = side_hi & (den > 1e-3)
             res[ok] = num[ok] / den[ok]
-        out[r0:r1] = res
+        out[r0 - r0b:r1 - r0b] = res
     return out
+
+
+def support_box(active_lo: np.ndarray, shape, pad: int = 2):
+    """The output pixels (r0, r1, c0, c1) of an enlargement to ``shape`` (H, W) that
+    may depend on the True pixels of ``active_lo`` (h, w) (bilinear support, ``pad``
+    proxy pixels of margin), or None when none is True: everywhere else the
+    enlargement of a map that is constant outside them is that constant."""
+    rows = np.flatnonzero(active_lo.any(axis=1))
+    if len(rows) == 0:
+        return None
+    cols = np.flatnonzero(active_lo.any(axis=0))
+    h, w = active_lo.shape
+    H, W = shape
+    a, b = max(0, rows[0] - pad), min(h, rows[-1] + 1 + pad)
+    c, d = max(0, cols[0] - pad), min(w, cols[-1] + 1 + pad)
+    return (max(0, int(np.floor(a * H / h))), min(H, int(np.ceil(b * H / h))),
+            max(0, int(np.floor(c * W / w))), min(W, int(np.ceil(d * W / w))))
 
 
 def proxy_soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness=1.0,
@@ -103,5 +128,10 @@ def proxy_soft_shadow(device, mask, fg_height, bg_height, light_samples, thickne
     lit = soft_shadow(device, m, fg, bg, win.light_points(light_samples),
                       max(thickness * win.ky, MIN_PROXY_THICKNESS), progress=progress,
                       check_cancelled=check_cancelled)
-    out = masked_resize(lit, m, mask, (H, W))
-    return np.clip(out, 0.0, 1.0, out=out)      # in place: no second full-size copy
+    out = np.ones((H, W), np.float32)           # fully lit, except where the proxy's shadow reaches
+    box = support_box(lit < 1.0, (H, W))
+    if box is not None:
+        r0, r1, c0, c1 = box
+        part = masked_resize(lit, m, mask, (H, W), box=box)
+        out[r0:r1, c0:c1] = np.clip(part, 0.0, 1.0, out=part)
+    return out
