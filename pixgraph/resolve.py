@@ -116,5 +116,5 @@ def scale_params(spec: NodeSpec, params: dict, relevant: dict, scale: float) -> 
         params[p.name] = tuple(one(p, x) for x in v) if p.kind == "floats" else one(p, v)
         if p.name in relevant:
             relevant[p.name] = list(params[p.name]) if p.kind == "floats" else params[p.name]
-    if getattr(spec.cls, "uses_scale", False):
+    if spec.cls.uses_scale:  # declared on node.Node
         relevant["@scale"] = scale
