@@ -150,9 +150,7 @@ def validate(graph: Graph, registry: Registry) -> Graph:
     for name, ref in graph.outputs.items():
         _check_ref(graph, ref, None, f"outputs.{name}", registry)
     _check_cycles(graph)
-    out = dataclasses.replace(graph, nodes=canonical)
-    object.__setattr__(out, "_dag", dag(graph))  # same connections: the params alone changed
-    return out
+    return dataclasses.replace(graph, nodes=canonical)
 
 
 def _check_params(graph: Graph, nid: str, spec: NodeSpec, values: Mapping[str, Any]) -> dict:
@@ -232,11 +230,11 @@ def _check_cycles(graph: Graph) -> None:
 def dag(graph: Graph):
     """``graph`` as a ``networkx.DiGraph``: one vertex per node id (file order), an
     edge ``src -> dst`` for each connection (attribute ``ports``: the list of
-    ``(output, input)`` pairs it carries). Made once per graph value (graphs are
-    immutable); references to missing nodes are left out (``validate`` reports them)."""
-    cached = graph.__dict__.get("_dag")
-    if cached is not None:
-        return cached
+    ``(output, input)`` pairs it carries). Made on each call and not kept: a
+    networkx graph is thousands of small dicts, and keeping one per graph value
+    made Python's garbage collector several times slower for the whole process
+    (benchmarks/engine_overhead.py). References to missing nodes are left out
+    (``validate`` reports them)."""
     import networkx as nx
 
     ports: dict[tuple[str, str], list] = {}
@@ -248,7 +246,6 @@ def dag(graph: Graph):
     g = nx.DiGraph()
     g.add_nodes_from(nodes)
     g.add_edges_from((a, b, {"ports": p}) for (a, b), p in ports.items())
-    object.__setattr__(graph, "_dag", g)
     return g
 
 
