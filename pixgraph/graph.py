@@ -22,6 +22,7 @@ and, for a graph read from a file, the file and line.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import os
 import re
 from types import MappingProxyType
@@ -259,6 +260,13 @@ def upstream(graph: Graph, roots, stop=()) -> list[str]:
     k = (tuple(roots), frozenset(stop))
     if k in memo:  # a graph is immutable: plan it again (a warm run) without the walk
         return list(memo[k])
+    # an edited graph (new params, same connections) has the same order: remembered by
+    # the digest of its structure, a few strings per process
+    shape = hashlib.sha256(repr((k[0], sorted(k[1]), [(n, sorted((p, r.node) for p, r in i.inputs.items()))
+                                                       for n, i in graph.nodes.items()])).encode()).hexdigest()
+    if shape in _ORDERS:
+        memo[k] = _ORDERS[shape]
+        return list(memo[k])
     g = dag(graph)
     if stop:
         g = g.copy()
@@ -269,10 +277,16 @@ def upstream(graph: Graph, roots, stop=()) -> list[str]:
             needed |= nx.ancestors(g, r)
     sub = g if len(needed) == len(g) else g.subgraph(needed).copy()
     order = list(nx.topological_sort(sub))  # inputs first; ties in file order (insertion order)
-    memo[k] = tuple(order)
+    memo[k] = _ORDERS[shape] = tuple(order)
     if len(memo) > 64:
         memo.pop(next(iter(memo)))
+    while len(_ORDERS) > 32:
+        _ORDERS.pop(next(iter(_ORDERS)))
     return order
+
+
+#: structure digest -> dependency order (``upstream``), the most recent 32
+_ORDERS: dict[str, tuple[str, ...]] = {}
 
 
 def downstream(graph: Graph, node_ids) -> set[str]:
