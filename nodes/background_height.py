@@ -52,6 +52,10 @@ class BackgroundHeight(Node):
 
     impl_version = "1"
     disk_cache = False      # large and cheaper to recompute than to read back from disk
+    #: what a shell's page draws (read by pixgraph_serve): the template's handles, i.e. these
+    #: params by ``kind`` (points ``corner``/``corner2``, slopes, the junction row)
+    handles = {"kind": "background", "params": ("kind", "corner", "corner2", "left_slope", "right_slope",
+                                                "junction_row", "junction_slope")}
 
     def compute(self, ctx, inputs, params):
         cam = inputs.camera

@@ -36,6 +36,8 @@ class Camera(Node):
         camera: T.Camera = port(doc="the camera value (pixgraph_nodes.ops.camera.Camera)")
 
     impl_version = "1"
+    #: what a shell's page draws (read by pixgraph_serve): the image size and the horizon row
+    handles = {"kind": "camera", "size": ("width", "height"), "row": "horizon"}
 
     def infer(self, ctx, inputs, params):
         img = inputs.image

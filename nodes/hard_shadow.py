@@ -30,6 +30,8 @@ class HardShadow(Node):
         darkness: T.Mask = port(doc="1 - lit: 1 = full shadow (what Composite takes)")
 
     impl_version = "1"
+    #: shells may switch this node among the registered types declaring the same handles kind
+    handles = {"kind": "shadow"}
 
     def compute(self, ctx, inputs, params):
         check_inputs(inputs)

@@ -55,6 +55,9 @@ class PlaceCutout(Node):
 
     impl_version = "3"   # 2: jumps found by second differences (steep faces blended); 3: smooth hard edges
     disk_cache = False      # large and cheaper to recompute than to read back from disk
+    #: what a shell's page draws (read by pixgraph_serve): the placed cutout, by the
+    #: box its ``coverage`` output covers, moved by the ``foot`` and ``scale`` params
+    handles = {"kind": "place", "coverage": "alpha", "params": ("foot", "scale")}
 
     def infer(self, ctx, inputs, params):
         """Checks from file headers: alpha or mask, sizes, and a foot that keeps the

@@ -38,6 +38,10 @@ class SoftShadow(Node):
         darkness: T.Mask = port(doc="1 - lit: 1 = full shadow (what Composite takes)")
 
     impl_version = "1"
+    #: a cheaper node type with the same ports that stands in for this one in previews
+    preview = "pixgraph.HardShadow"
+    #: shells may switch this node among the registered types declaring the same handles kind
+    handles = {"kind": "shadow"}
 
     def compute(self, ctx, inputs, params):
         check_inputs(inputs)

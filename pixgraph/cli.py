@@ -95,15 +95,9 @@ def _parser() -> argparse.ArgumentParser:
 
     sv = sub.add_parser("serve", parents=[common],
                         help="serve a graph: browser UI (drag the light) and a local HTTP API")
-    sv.add_argument("graph", help="graph file (YAML); it may read and write only in its folder and --allow folders")
-    sv.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
-    sv.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")
-    sv.add_argument("--allow-path", action="append", default=[], metavar="DIR",
-                    help="another folder the graph may read and write (repeatable)")
-    sv.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
-    sv.add_argument("--max-pixels", type=int, default=None, help="largest image, width x height (default 4096^2)")
-    sv.add_argument("--max-body", type=int, default=None, metavar="BYTES",
-                    help="largest request body (default 32 MiB)")
+    from pixgraph_serve import add_arguments as _serve_arguments
+
+    _serve_arguments(sv)
 
     b = sub.add_parser("batch", parents=[common, graph_opts, cache_opts],
                        help="run a graph over a manifest's rows or a sweep (see docs/batch.md)")
@@ -431,43 +425,9 @@ def _cmd_batch(args, registry) -> int:
 
 
 def _cmd_serve(args, registry) -> int:
-    import dataclasses
+    from pixgraph_serve import cli_serve
 
-    try:
-        from pixgraph_serve.app import serve
-        from pixgraph_serve.state import Limits, ServeError, ServeState
-    except ImportError as e:
-        raise UsageError(f"pixgraph serve needs the 'serve' extra ({e.name} is missing): "
-                         "pip install 'pixgraph[serve]'") from None
-
-    limits = Limits()
-    if args.max_pixels is not None:
-        limits = dataclasses.replace(limits, max_pixels=args.max_pixels)
-    if args.max_body is not None:
-        limits = dataclasses.replace(limits, max_body_bytes=args.max_body)
-    for d in args.allow_path:
-        if not os.path.isdir(d):
-            raise UsageError(f"--allow-path {d}: no such folder")
-    if args.device:
-        from .device import DeviceError, choose
-
-        try:
-            choose(args.device)
-        except DeviceError as e:
-            raise UsageError(str(e)) from None
-    try:
-        state = ServeState(args.graph, allow=args.allow_path, limits=limits, device=args.device, registry=registry)
-    except ServeError as e:
-        raise UsageError(e.message) from None
-
-    def ready(url):
-        print(f"pixgraph: serving {args.graph} at {url}", flush=True)
-
-    try:
-        serve(state, args.host, args.port, on_ready=ready)
-    except OSError as e:
-        raise UsageError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
-    return EXIT_OK
+    return cli_serve(args, registry, UsageError)
 
 
 _COMMANDS = {"run": _cmd_run, "graph": _cmd_graph, "batch": _cmd_batch, "serve": _cmd_serve, "validate": _cmd_validate,
