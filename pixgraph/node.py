@@ -355,6 +355,11 @@ class Node:
         a cheaper stand-in for interactive previews (e.g. the type id of a node
         with the same ports, as the soft shadows name the hard shadow); None: the
         node itself previews. The engine never reads it; shells may.
+    ``handles = None``
+        what an interactive shell may draw and drag for this node: a mapping with
+        a ``kind`` (``"light"``, ``"background"``...) and the names of the params
+        and inputs it moves (``pixgraph_serve.scene`` reads it; the Light node's
+        says its shadow tip and the object's top). The engine never reads it.
     """
 
     spec: ClassVar["NodeSpec"]
@@ -363,6 +368,7 @@ class Node:
     disk_cache: ClassVar[bool] = True
     uses_scale: ClassVar[bool] = False
     preview: ClassVar[Any] = None
+    handles: ClassVar[Any] = None
 
     def compute(self, ctx, inputs: "Namespace", params: "Namespace") -> dict[str, Any]:
         """The node's work: a dict with one value per declared output, each valid
