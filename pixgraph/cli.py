@@ -95,7 +95,7 @@ def _parser() -> argparse.ArgumentParser:
 
     sv = sub.add_parser("serve", parents=[common],
                         help="serve a graph: browser UI (drag the light) and a local HTTP API")
-    from pixgraph_serve import add_arguments as _serve_arguments
+    from pixgraph_serve.cli import add_arguments as _serve_arguments
 
     _serve_arguments(sv)
 
@@ -425,7 +425,7 @@ def _cmd_batch(args, registry) -> int:
 
 
 def _cmd_serve(args, registry) -> int:
-    from pixgraph_serve import cli_serve
+    from pixgraph_serve.cli import cli_serve
 
     return cli_serve(args, registry, UsageError)
 
