@@ -43,7 +43,7 @@ METHODS = {"hard": "pixgraph.HardShadow", "classical soft": "pixgraph.SoftShadow
 def start(graph: str):
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "pixgraph", "serve", graph, "--port", "0"],
+    proc = subprocess.Popen([sys.executable, "-m", "pixgraph", "serve", graph, "--port", "0", "--no-token"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     line = proc.stdout.readline()
     if "http://" not in line:

@@ -1,15 +1,15 @@
 """pixgraph.Camera: the pixel-height camera (no pitch, horizon set by lens shift)."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
-from pixgraph.types import Shape
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
+from pixgraph_nodes.types import Shape
 
 from .ops.camera import Camera as CameraValue
 
 
 @node("pixgraph.Camera", version=1)
-class Camera:
+class Camera(Node):
     """Pixel-height camera: image size, horizontal field of view, horizon row and height.
 
     The size comes from the ``image`` input (the background photo) when ``width`` and
@@ -36,6 +36,8 @@ class Camera:
         camera: T.Camera = port(doc="the camera value (pixgraph_nodes.ops.camera.Camera)")
 
     impl_version = "1"
+    #: what a shell's page draws (read by pixgraph_serve): the image size and the horizon row
+    handles = {"kind": "camera", "size": ("width", "height"), "row": "horizon"}
 
     def infer(self, ctx, inputs, params):
         img = inputs.image

@@ -9,8 +9,8 @@ import pathlib
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
 
 from ._checks import same_size
 from .ops.heightmaps import ContactLinePredictor
@@ -64,15 +64,23 @@ def _weights_version() -> str:
 
 
 @node("pixgraph.CutoutHeight", version=1)
-class CutoutHeight:
+class CutoutHeight(Node):
     """Pixel height of a cutout standing on the ground. ``contact_line`` (default, alpha
     only): distance in rows to one line fitted to the object's lowest pixels, right for
     upright objects; ``column_bottom``: to each column's lowest pixel (see
     pixgraph_nodes.ops.heightmaps.contact_line_height); ``learned``: a small U-Net
-    trained on rendered cutouts (upright, tilted, lying, overhanging objects) reads the
-    colour (``image``) and alpha, any size (pixgraph_nodes.ops.learned_height; needs
-    torch, else falls back to contact_line with a log message). A file-based height map
-    comes from pixgraph.LoadPixelHeight instead.
+    trained on rendered cutouts (people, animals, figurines, furniture, products,
+    vehicles, random shapes) reads the colour (``image``) and alpha, any size
+    (pixgraph_nodes.ops.learned_height; needs torch, else falls back to contact_line with
+    a log message); ``auto``: the learned height where the network's own confidence
+    says it beats the contact line (confidence >= 0.5), else the contact line
+    (docs/height.md, "The contact, confidence and auto"). The contact is a constraint: for
+    ``learned`` and ``auto`` the cutout's lowest pixels are pinned to height 0
+    (``contact: ground``) or to ``lift`` px (``contact: lifted``, an object that does not
+    touch the ground: a held object, a hanging lamp); the heuristics are 0 there by
+    construction and get ``lift`` added. Output ``confidence``: the network's estimate
+    (0-1) that its map is better than the contact line, NaN when it was not run. A
+    file-based height map comes from pixgraph.LoadPixelHeight instead.
     """
 
     class Inputs:
@@ -81,32 +89,63 @@ class CutoutHeight:
                                                  "alpha), same size as mask; needed by method learned")
 
     class Params:
-        method: str = param("contact_line", choices=("contact_line", "column_bottom", "learned"),
+        method: str = param("contact_line", choices=("contact_line", "column_bottom", "learned", "auto"),
                             doc="contact_line / column_bottom: where each column's foot is; "
-                                "learned: the trained predictor")
+                                "learned: the trained predictor; auto: learned where its confidence "
+                                "is >= 0.5, else contact_line")
+        contact: str = param("ground", choices=("ground", "lifted"),
+                             doc="ground: the cutout's lowest pixels touch the ground (height 0); "
+                                 "lifted: they are lift px above it (the object does not touch the ground)")
+        lift: float = param(0.0, min=0.0, unit="px",
+                            doc="contact lifted: pixel height of the cutout's lowest pixels")
         tolerance: float = param(2.0, min=0.0, unit="px",
                                  doc="contact_line: columns whose bottom is this close to the lowest "
                                      "row take part in the fit")
 
     class Outputs:
         height: T.PixelHeight = port(doc="cutout pixel height [px], 0 outside the mask")
+        confidence: T.Scalar = port(doc="learned / auto: the network's estimate (0-1) that its height "
+                                        "beats the contact line; NaN when the network did not run")
 
-    impl_version = "2+" + _weights_version()  # 2: method learned
+    impl_version = "3+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence
 
     def compute(self, ctx, inputs, params):
         mask = np.asarray(inputs.mask, dtype=np.float32)
-        if params.method == "learned":
+        lift = float(params.lift) if params.contact == "lifted" else 0.0
+        if params.method in ("learned", "auto"):
             if inputs.image is None:
-                raise InputError("method 'learned' reads the cutout's colour: connect input 'image' "
+                raise InputError(f"method '{params.method}' reads the cutout's colour: connect input 'image' "
                                  "(e.g. image: cutout.image)")
             same_size(mask=mask, image=inputs.image)
             predictor = learned_predictor()
             if predictor is not None:
-                return {"height": predictor.predict(cutout_rgba(mask, inputs.image))}
+                r = predictor.predict_full(cutout_rgba(mask, inputs.image), contact=params.contact, lift=lift)
+                conf = r["confidence"]
+                if conf is None:
+                    conf = float("nan")
+                    if params.method == "auto":
+                        ctx.log("auto: the shipped weights have no confidence heads; using the learned height")
+                if params.method == "learned" or not conf < 0.5:
+                    ctx.log(f"{params.method}: learned height (confidence {conf:.2f})")
+                    return {"height": r["height"], "confidence": float(conf)}
+                ctx.log(f"auto: contact line (the network's confidence {conf:.2f} < 0.5; estimated MAE "
+                        f"learned {r['est_mae_learned']:.1f} px, contact line {r['est_mae_heuristic']:.1f} px)")
+                h = self._heuristic(mask, "contact_line", params.tolerance)
+                return {"height": self._lift(h, mask, lift), "confidence": float(conf)}
             ctx.log(NO_TORCH)
-            predictor = ContactLinePredictor("contact_line", params.tolerance)
+            h = self._heuristic(mask, "contact_line", params.tolerance)
         else:
-            predictor = ContactLinePredictor(params.method, params.tolerance)
+            h = self._heuristic(mask, params.method, params.tolerance)
+        return {"height": self._lift(h, mask, lift), "confidence": float("nan")}
+
+    @staticmethod
+    def _heuristic(mask, method, tolerance):
         rgba = np.zeros(mask.shape + (4,), np.float32)
         rgba[..., 3] = mask
-        return {"height": predictor.predict(rgba)}
+        return ContactLinePredictor(method, tolerance).predict(rgba)
+
+    @staticmethod
+    def _lift(h, mask, lift):
+        if lift == 0.0:
+            return h
+        return np.where(mask > 0.5, h + np.float32(lift), 0.0).astype(np.float32)

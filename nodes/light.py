@@ -5,14 +5,14 @@ import math
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
 
-from .ops import lights
+from .ops import light_screen, lights
 
 
 @node("pixgraph.Light", version=1)
-class Light:
+class Light(Node):
     """A light placed by azimuth/elevation/distance around the object's foot, or by
     dragging the shadow tip.
 
@@ -53,6 +53,30 @@ class Light:
         light: T.Light = port(doc="the light (pixgraph_nodes.ops.lights.Light)")
 
     impl_version = "1"
+
+    #: what a shell's page draws and drags (read by pixgraph_serve): the light is moved
+    #: by its shadow tip, the ground point where the shadow of the object's top falls.
+    #: ``tip``/``top``/``placement``/``elevation`` name this node's params; ``object``
+    #: names the inputs, on the node this light feeds, that hold the object's mask and
+    #: pixel height; ``camera`` names this node's camera input.
+    handles = {"kind": "light", "tip": "tip_uv", "top": "top_uvh", "placement": "placement",
+               "tip_placement": "shadow_tip", "elevation": "elevation", "object": ("mask", "fg_height"),
+               "camera": "camera"}
+    #: the screen geometry of those handles (ops/light_screen.py), for shells that do not import nodes
+    object_top = staticmethod(light_screen.object_top)
+    shadow_tip = staticmethod(light_screen.shadow_tip)
+    tip_at_elevation = staticmethod(light_screen.tip_at_elevation)
+
+    def affects(self, params):
+        """Only the active placement's handles are in the key: dragging the shadow tip
+        leaves a light placed by azimuth/elevation cached, and the reverse."""
+        names = {"kind", "placement", "radius", "angular_radius", "facing", "camera"}
+        if params.kind != "directional":
+            names.add("distance")
+        if params.placement == "shadow_tip":
+            return names | {"tip_uv", "top_uvh"}
+        names |= {"azimuth", "elevation", "target_mode"}
+        return names | ({"mask"} if params.target_mode == "mask_foot" else {"target_uv"})
 
     def compute(self, ctx, inputs, params):
         cam = inputs.camera

@@ -3,16 +3,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
-from pixgraph.types import Shape
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
+from pixgraph_nodes.types import Shape
 
 from .ops.heightmaps import contact_line_height
 from .ops.placement import place_cutout, resize_map
 
 
 @node("pixgraph.PlaceCutout", version=1)
-class PlaceCutout:
+class PlaceCutout(Node):
     """Place a cutout (an RGBA image of any size) on the background's canvas: its foot
     lands on ``foot`` (background pixels), scaled by ``scale``, optionally mirrored,
     cropped at the canvas border. Everything downstream works on the canvas size.
@@ -55,6 +55,9 @@ class PlaceCutout:
 
     impl_version = "3"   # 2: jumps found by second differences (steep faces blended); 3: smooth hard edges
     disk_cache = False      # large and cheaper to recompute than to read back from disk
+    #: what a shell's page draws (read by pixgraph_serve): the placed cutout, by the
+    #: box its ``coverage`` output covers, moved by the ``foot`` and ``scale`` params
+    handles = {"kind": "place", "coverage": "alpha", "params": ("foot", "scale")}
 
     def infer(self, ctx, inputs, params):
         """Checks from file headers: alpha or mask, sizes, and a foot that keeps the

@@ -1,21 +1,25 @@
 """The HTTP API and the page, as a Starlette application over one ``ServeState``.
 
-Every error is JSON ``{"error": "...", "node": ..., "field": ...}`` with a 4xx
-status (413 for bodies or images over the limits, 403 for paths outside the
-allowed folders, 409 for a render superseded by a newer one); an unexpected
-failure is a 500 with a one-line JSON message, never a traceback.
+Every error is JSON ``{"error": "...", "node": ..., "field": ...}`` with the status
+``errors.STATUS`` gives (400 bad input, 403 a path outside the allowed folders or a
+request ``guard.py`` refuses, 404, 409 a render superseded by a newer one, 413 over
+a limit, 415 a body that is not JSON, 422 a node that failed, 503 a run over the
+time limit or a server shutting down); anything else is a 500 with a one-line
+message, never a traceback.
 
-Runs go through one lock, on a worker thread. Renders from the page carry a
-client id and a sequence number: a render that a newer one of the same client
-has superseded is dropped (409 ``stale``) when it would start, and cancelled
-(through its ``CancelToken``) when it is running, so drags never queue work.
+Runs and edits go through one lock, on a worker thread. Renders from the page carry
+a client id and a sequence number: a render that a newer one of the same client has
+superseded is dropped (409 ``stale``) when it would start, and cancelled (through its
+``CancelToken``) when it is running, so drags never queue work. ``POST /api/run``
+answers a run id; ``GET /api/outputs/NAME.png?run=ID`` is that run's image, encoded
+once however many clients ask (``runs.py``) and streamed in chunks.
 """
 from __future__ import annotations
 
 import asyncio
+import html
 import json
 import logging
-import os
 import re
 import time
 from importlib import resources
@@ -24,291 +28,363 @@ import anyio
 from starlette.applications import Starlette
 from starlette.exceptions import HTTPException
 from starlette.requests import Request
-from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, Response
+from starlette.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse, StreamingResponse
 from starlette.routing import Route
 
 from pixgraph.events import Cancelled, CancelToken
 from . import scene
-from .state import ServeError, ServeState, encode_exr, encode_png
+from .encode import encode_exr, encode_png
+from .errors import STATUS, ServeError, serve_error
+from .guard import COOKIE, Guard, media_type
+from .runs import Encoded, Renders, Runs
+from .state import ServeState, check_depth
 
 log = logging.getLogger("pixgraph.serve")
 STATIC = resources.files("pixgraph_serve") / "static"
 UPLOAD_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,100}\.(png|jpg|jpeg|tif|tiff|exr)$", re.I)
+YAML_TYPES = ("application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml", "application/json")
+#: streamed responses are sent in pieces of this size, each when the client has taken the last [bytes]
+CHUNK = 256 << 10
+NO_STORE = {"Cache-Control": "no-store"}
 
 
-class _Renders:
-    """Per-client newest sequence number and the token of its running render."""
+# -- helpers (each request's state is request.app.state) -----------------------------------
 
-    def __init__(self):
-        self.latest: dict[str, int] = {}
-        self.tokens: dict[str, CancelToken] = {}
-        self.dropped = 0
-
-    def claim(self, client: str, seq: int) -> bool:
-        """Record ``seq`` as the client's newest; False when a newer one came first."""
-        if seq <= self.latest.get(client, -1):
-            return False
-        self.latest[client] = seq
-        token = self.tokens.get(client)
-        if token is not None:
-            token.cancel()  # its result would be stale: stop it
-        return True
-
-    def current(self, client: str, seq: int) -> bool:
-        return self.latest.get(client) == seq
+def _serve(request: Request) -> ServeState:
+    return request.app.state.serve
 
 
-def create_app(state: ServeState) -> Starlette:
-    lock = asyncio.Lock()
-    renders = _Renders()
+async def locked(request: Request, fn, *args):
+    """``fn(*args)`` on a worker thread, holding the run lock."""
+    async with request.app.state.lock:
+        return await anyio.to_thread.run_sync(lambda: fn(*args))
 
-    async def locked(fn, *args, **kw):
-        async with lock:
-            return await anyio.to_thread.run_sync(lambda: fn(*args, **kw))
 
-    async def body(request: Request) -> bytes:
-        limit = state.limits.max_body_bytes
-        declared = request.headers.get("content-length")
-        if declared is not None and declared.isdigit() and int(declared) > limit:
-            raise ServeError(413, f"request body of {declared} bytes is over the limit of {limit}")
-        chunks, size = [], 0
-        async for chunk in request.stream():
-            size += len(chunk)
-            if size > limit:
-                raise ServeError(413, f"request body is over the limit of {limit} bytes")
-            chunks.append(chunk)
-        return b"".join(chunks)
+async def read_body(request: Request) -> bytes:
+    limit = _serve(request).limits.max_body_bytes
+    declared = request.headers.get("content-length")
+    if declared is not None and declared.isdigit() and int(declared) > limit:
+        raise ServeError(413, f"request body of {declared} bytes is over the limit of {limit}")
+    chunks, size = [], 0
+    async for chunk in request.stream():
+        size += len(chunk)
+        if size > limit:
+            raise ServeError(413, f"request body is over the limit of {limit} bytes")
+        chunks.append(chunk)
+    return b"".join(chunks)
 
-    async def json_body(request: Request) -> dict:
-        raw = await body(request)
-        if not raw.strip():
-            return {}
-        try:
-            data = json.loads(raw)
-        except (ValueError, UnicodeDecodeError) as e:
-            raise ServeError(400, f"request body is not valid JSON: {e}") from None
-        if not isinstance(data, dict):
-            raise ServeError(400, "request body must be a JSON object")
-        return data
 
-    def edit(data: dict) -> None:
-        """Apply a request's node type switches, light handle drags and params."""
+async def json_body(request: Request) -> dict:
+    """The request's JSON object ({} for an empty body); 415 unless sent as application/json."""
+    if media_type(request.headers.get("content-type", "")) != "application/json":
+        raise ServeError(415, "the request body must be JSON sent as Content-Type: application/json")
+    raw = await read_body(request)
+    if not raw.strip():
+        return {}
+    try:
+        data = json.loads(raw)
+    except (ValueError, UnicodeDecodeError) as e:
+        raise ServeError(400, f"request body is not valid JSON: {e}") from None
+    except RecursionError:
+        raise ServeError(400, "request body is nested too deeply") from None
+    if not isinstance(data, dict):
+        raise ServeError(400, "request body must be a JSON object")
+    check_depth(data)
+    return data
+
+
+def apply_edits(state: ServeState, data: dict) -> None:
+    """A request's node type switches, light handle drags and params, all or nothing."""
+    def apply():
         types = data.get("types") or {}
         if not isinstance(types, dict):
             raise ServeError(400, "types must be an object of node id: type id", field="types")
         for nid, tid in types.items():
             state.set_type(str(nid), str(tid))
         if "light_tip" in data or "light_elevation" in data:
-            edits = scene.light_edits(state, data.get("light_tip"), data.get("light_elevation"))
-            state.set_params(edits)
+            state.set_params(scene.light_edits(state, data.get("light_tip"), data.get("light_elevation")))
         if data.get("params"):
             state.set_params(data["params"])
 
-    def outputs_of(data: dict) -> list[str] | None:
-        outs = data.get("outputs")
-        if outs is None:
-            return None
-        if isinstance(outs, str):
-            outs = [outs]
-        if not isinstance(outs, list) or not all(isinstance(o, str) for o in outs):
-            raise ServeError(400, "outputs must be a list of output names", field="outputs")
-        return outs
+    state.edit(apply)
 
-    # -- routes -----------------------------------------------------------------
 
-    async def index(request):
-        return FileResponse(str(STATIC / "index.html"), headers={"Cache-Control": "no-store"})
+def outputs_of(data: dict) -> list[str] | None:
+    outs = data.get("outputs")
+    if outs is None:
+        return None
+    if isinstance(outs, str):
+        outs = [outs]
+    if not isinstance(outs, list) or not all(isinstance(o, str) for o in outs):
+        raise ServeError(400, "outputs must be a list of output names", field="outputs")
+    return outs
 
-    async def static(request):
-        name = request.path_params["name"]
-        if name not in ("app.js", "style.css"):
-            raise ServeError(404, f"no static file {name!r}")
-        return FileResponse(str(STATIC / name), headers={"Cache-Control": "no-store"})
 
-    async def graph_info(request):
-        return JSONResponse(state.info())
+def streamed(data: bytes, media: str, headers: dict | None = None) -> StreamingResponse:
+    """``data`` sent in ``CHUNK`` pieces: a slow client holds one piece, not a copy of all."""
+    async def pieces():
+        view = memoryview(data)
+        for i in range(0, len(view), CHUNK):
+            yield bytes(view[i:i + CHUNK])
 
-    async def graph_yaml(request):
-        return PlainTextResponse(state.yaml(), media_type="application/yaml")
+    return StreamingResponse(pieces(), media_type=media,
+                             headers={"Content-Length": str(len(data)), **NO_STORE, **(headers or {})})
 
-    async def post_graph(request):
-        raw = await body(request)
-        try:
-            text = raw.decode("utf-8")
-        except UnicodeDecodeError:
-            raise ServeError(400, "graph text must be UTF-8") from None
-        await locked(state.load_text, text)
-        return JSONResponse(state.info())
 
-    async def nodes(request):
-        from pixgraph.reference import as_dict
+def run_counted(state: ServeState, work):
+    """``work()``'s result and how many graph runs it made."""
+    before = state.runs
+    out = work()
+    return out, state.runs - before
 
-        return JSONResponse({"types": [as_dict(s) for s in state.registry.specs()]})
 
-    async def scene_info(request):
-        return JSONResponse(await locked(scene.describe, state))
+# -- routes ------------------------------------------------------------------------------
 
-    async def post_params(request):
-        data = await json_body(request)
-        await locked(edit, data)
-        return JSONResponse({"ok": True, "yaml": state.yaml()})
+async def index(request: Request):
+    page = (STATIC / "index.html").read_text(encoding="utf-8")
+    token = request.app.state.token
+    if token is not None:
+        page = page.replace("<head>", f'<head>\n<meta name="pixgraph-token" content="{html.escape(token)}">', 1)
+    response = HTMLResponse(page, headers=NO_STORE)
+    if token is not None:
+        response.set_cookie(COOKIE, token, httponly=True, samesite="strict", path="/")
+    return response
 
-    async def post_run(request):
-        data = await json_body(request)
-        outs = outputs_of(data)
-        mode = data.get("mode", "final")
-        async with lock:
-            values, res = await anyio.to_thread.run_sync(lambda: (edit(data), state.run(outs, mode))[1])
-        described = {}
-        for name, v in values.items():
-            shape = list(getattr(v, "shape", ()))
-            described[name] = {"shape": shape, "dtype": str(getattr(v, "dtype", type(v).__name__)),
-                               "png": f"/api/outputs/{name}.png?mode={mode}",
-                               "exr": f"/api/outputs/{name}.exr?mode={mode}"}
-        return JSONResponse({"ran": list(res.ran), "cached": list(res.cached),
-                             "seconds": {k: round(t, 6) for k, t in res.timings.items()},
-                             "outputs": described})
 
-    async def get_output(request):
-        name, _, fmt = request.path_params["name"].rpartition(".")
-        if fmt not in ("png", "exr") or not name:
-            raise ServeError(404, "outputs are fetched as NAME.png or NAME.exr")
-        mode = request.query_params.get("mode", "final")
-        scale = request.query_params.get("scale", "1")
-        if not scale.isdigit() or not 1 <= int(scale) <= 16:
-            raise ServeError(400, f"scale must be an integer 1..16, got {scale!r}", field="scale")
-        values, _ = await locked(state.run, [name], mode)
-        if fmt == "png":
-            data = await anyio.to_thread.run_sync(lambda: encode_png(values[name], name, int(scale)))
-            return Response(data, media_type="image/png")
-        data = await anyio.to_thread.run_sync(lambda: encode_exr(values[name], name))
-        return Response(data, media_type="image/x-exr")
+async def static(request: Request):
+    name = request.path_params["name"]
+    if name not in ("app.js", "style.css"):
+        raise ServeError(404, f"no static file {name!r}")
+    return FileResponse(str(STATIC / name), headers=NO_STORE)
 
-    async def render(request):
-        """Edit and render one output as PNG in one request: what the page sends while dragging."""
-        t0 = time.perf_counter()
-        data = await json_body(request)
-        mode = data.get("mode", "final")
-        name = data.get("output", "final")
-        if not isinstance(name, str):
-            raise ServeError(400, "output must be an output name", field="output")
-        client, seq = data.get("client"), data.get("seq")
-        tracked = client is not None
+
+async def graph_info(request: Request):
+    return JSONResponse(_serve(request).info())
+
+
+async def graph_yaml(request: Request):
+    return PlainTextResponse(_serve(request).yaml(), media_type="application/yaml")
+
+
+async def post_graph(request: Request):
+    if media_type(request.headers.get("content-type", "")) not in YAML_TYPES:
+        raise ServeError(415, "a posted graph is sent as Content-Type: application/yaml")
+    raw = await read_body(request)
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ServeError(400, "graph text must be UTF-8") from None
+    state = _serve(request)
+    await locked(request, state.load_text, text)
+    return JSONResponse(state.info())
+
+
+async def nodes(request: Request):
+    from pixgraph.reference import as_dict
+
+    return JSONResponse({"types": [as_dict(s) for s in _serve(request).registry.specs()]})
+
+
+async def scene_info(request: Request):
+    return JSONResponse(await locked(request, scene.describe, _serve(request)))
+
+
+async def post_params(request: Request):
+    data = await json_body(request)
+    state = _serve(request)
+    await locked(request, apply_edits, state, data)
+    return JSONResponse({"ok": True, "yaml": state.yaml()})
+
+
+async def post_run(request: Request):
+    data = await json_body(request)
+    outs = outputs_of(data)
+    mode = data.get("mode", "final")
+    state = _serve(request)
+
+    def work():
+        apply_edits(state, data)
+        graph = state.graph
+        return graph, state.run(outs, mode)
+
+    (graph, res), _ = await locked(request, run_counted, state, work)
+    run = request.app.state.runs.add(graph, mode, res.outputs)
+    described = {}
+    for name, v in res.outputs.items():
+        described[name] = {"shape": list(getattr(v, "shape", ())),
+                           "dtype": str(getattr(v, "dtype", type(v).__name__)),
+                           "png": f"/api/outputs/{name}.png?run={run.id}",
+                           "exr": f"/api/outputs/{name}.exr?run={run.id}"}
+    return JSONResponse({"run": run.id, "ran": list(res.ran), "cached": list(res.cached),
+                         "seconds": {k: round(t, 6) for k, t in res.timings.items()}, "outputs": described})
+
+
+async def get_output(request: Request):
+    """One output of a run (``?run=ID``), or of the current graph without it (the
+    page's download link); encoded once per run, output, format and scale."""
+    name, _, fmt = request.path_params["name"].rpartition(".")
+    if fmt not in ("png", "exr") or not name:
+        raise ServeError(404, "outputs are fetched as NAME.png or NAME.exr")
+    scale = request.query_params.get("scale", "1")
+    if not scale.isdigit() or not 1 <= int(scale) <= 16:
+        raise ServeError(400, f"scale must be an integer 1..16, got {scale!r}", field="scale")
+    app, state = request.app.state, _serve(request)
+    run_id = request.query_params.get("run")
+
+    def work():
+        if run_id is not None:
+            run = app.runs.get(run_id)
+        else:
+            mode = request.query_params.get("mode", "final")
+            state.graph_for(mode)  # checks the mode
+            cur = app.current.get(mode)
+            if cur is None or cur.graph is not state.graph:
+                cur = app.current[mode] = app.runs.add(state.graph, mode, ())
+            run = cur
+        key = (run.id, name, fmt, int(scale))
+        data = app.encoded.get(key)
+        if data is None:
+            value = state.run([name], run.mode, graph=run.graph)[name]
+            data = (encode_png(value, name, int(scale)) if fmt == "png"
+                    else encode_exr(state.session, state.graph_for(run.mode, run.graph), value, name))
+            del value
+            app.encoded.put(key, data)
+        return data
+
+    data = await locked(request, work)
+    return streamed(data, "image/png" if fmt == "png" else "image/x-exr")
+
+
+async def render(request: Request):
+    """Edit and render one output as PNG in one request: what the page sends while dragging."""
+    t0 = time.perf_counter()
+    data = await json_body(request)
+    mode = data.get("mode", "final")
+    name = data.get("output", "final")
+    if not isinstance(name, str):
+        raise ServeError(400, "output must be an output name", field="output")
+    state = _serve(request)
+    scale = data.get("scale", state.limits.preview_scale if mode == "preview" else 1)
+    if isinstance(scale, bool) or not isinstance(scale, int) or not 1 <= scale <= 16:
+        raise ServeError(400, f"scale must be an integer 1..16, got {scale!r}", field="scale")
+    client, seq = data.get("client"), data.get("seq")
+    tracked = client is not None
+    renders: Renders = request.app.state.renders
+    if tracked:
+        if not isinstance(client, str) or isinstance(seq, bool) or not isinstance(seq, int):
+            raise ServeError(400, "client must be a string and seq an integer", field="seq")
+        if not renders.claim(client, seq):
+            return _stale(renders, seq)
+    async with request.app.state.lock:
+        if tracked and not renders.current(client, seq):
+            return _stale(renders, seq)  # superseded while it waited: never run it
+        token = CancelToken()
         if tracked:
-            if not isinstance(client, str) or isinstance(seq, bool) or not isinstance(seq, int):
-                raise ServeError(400, "client must be a string and seq an integer", field="seq")
-            if not renders.claim(client, seq):
-                return _stale(renders, seq)
-        async with lock:
-            if tracked and not renders.current(client, seq):
-                return _stale(renders, seq)  # superseded while it waited: never run it
-            token = CancelToken()
-            if tracked:
-                renders.tokens[client] = token
+            renders.tokens[client] = token
 
-            def work():
-                edit(data)
-                return state.run([name], mode, cancel=token)
+        def work():
+            apply_edits(state, data)
+            graph = state.graph_for(mode)
+            extra = scene.piggyback(state, graph, [name])
+            res = state.run([name, *extra], mode, cancel=token)
+            scene.note(state, graph, extra, res)
+            return res, encode_png(res[name], name, scale)
 
-            try:
-                values, res = await anyio.to_thread.run_sync(work)
-            except Cancelled:
-                return _stale(renders, seq)
-            finally:
-                if tracked and renders.tokens.get(client) is token:
-                    del renders.tokens[client]
-        scale = state.limits.preview_scale if mode == "preview" else 1
-        png = await anyio.to_thread.run_sync(lambda: encode_png(values[name], name, scale))
-        return Response(png, media_type="image/png", headers={
-            "X-Pixgraph-Seq": str(seq if tracked else ""), "X-Pixgraph-Mode": mode,
-            "X-Pixgraph-Ran": ",".join(res.ran), "X-Pixgraph-Cached": ",".join(res.cached),
-            "X-Pixgraph-Seconds": f"{time.perf_counter() - t0:.4f}", "Cache-Control": "no-store"})
-
-    async def save(request):
-        data = await json_body(request)
-        path = data.get("path")
-        if path is not None and not isinstance(path, str):
-            raise ServeError(400, "path must be a string", field="path")
-        target = await locked(state.save, path)
-        return JSONResponse({"path": target, "yaml": state.yaml()})
-
-    async def upload(request):
-        """Store an uploaded image in the upload folder (an allowed root); returns its path."""
-        fname = request.path_params["name"]
-        if not UPLOAD_NAME.match(fname):
-            raise ServeError(400, f"upload name {fname!r}: letters, digits, '._-' and an image extension",
-                             field="name")
-        raw = await body(request)
-        path = os.path.join(state.upload_dir, fname)
-        tmp = path + ".part"
-        with open(tmp, "wb") as f:
-            f.write(raw)
         try:
-            n = state._image_pixels(tmp)
-            if n > state.limits.max_pixels:
-                raise ServeError(413, f"uploaded image of {n} pixels is over the server's limit of "
-                                      f"{state.limits.max_pixels}")
-        except ServeError:
-            os.unlink(tmp)
+            (res, png), runs = await anyio.to_thread.run_sync(run_counted, state, work)
+        except Cancelled:
+            if tracked and not renders.current(client, seq):
+                return _stale(renders, seq)
             raise
-        os.replace(tmp, path)
-        return JSONResponse({"path": path, "pixels": n})
-
-    routes = [
-        Route("/", index),
-        Route("/static/{name}", static),
-        Route("/api/graph", graph_info, methods=["GET"]),
-        Route("/api/graph", post_graph, methods=["POST"]),
-        Route("/api/graph.yaml", graph_yaml),
-        Route("/api/nodes", nodes),
-        Route("/api/scene", scene_info),
-        Route("/api/params", post_params, methods=["POST"]),
-        Route("/api/run", post_run, methods=["POST"]),
-        Route("/api/outputs/{name}", get_output),
-        Route("/api/render", render, methods=["POST"]),
-        Route("/api/save", save, methods=["POST"]),
-        Route("/api/uploads/{name}", upload, methods=["PUT"]),
-    ]
-
-    async def serve_error(request, exc: ServeError):
-        return JSONResponse(exc.to_json(), status_code=exc.status)
-
-    async def http_error(request, exc: HTTPException):
-        return JSONResponse({"error": exc.detail or "error"}, status_code=exc.status_code)
-
-    async def internal_error(request, exc: Exception):
-        log.error("internal error on %s %s: %s: %s", request.method, request.url.path, type(exc).__name__, exc)
-        msg = f"internal error: {type(exc).__name__}: {exc}".splitlines()[0]
-        return JSONResponse({"error": msg}, status_code=500)
-
-    return Starlette(routes=routes, exception_handlers={
-        ServeError: serve_error, HTTPException: http_error, Exception: internal_error})
+        finally:
+            if tracked and renders.tokens.get(client) is token:
+                del renders.tokens[client]
+    return streamed(png, "image/png", {
+        "X-Pixgraph-Seq": str(seq if tracked else ""), "X-Pixgraph-Mode": mode,
+        "X-Pixgraph-Ran": ",".join(res.ran), "X-Pixgraph-Cached": ",".join(res.cached),
+        "X-Pixgraph-Runs": str(runs), "X-Pixgraph-Seconds": f"{time.perf_counter() - t0:.4f}"})
 
 
-def _stale(renders: _Renders, seq) -> JSONResponse:
+async def save(request: Request):
+    data = await json_body(request)
+    path = data.get("path")
+    if path is not None and not isinstance(path, str):
+        raise ServeError(400, "path must be a string", field="path")
+    state = _serve(request)
+    target = await locked(request, state.save, path)
+    return JSONResponse({"path": target, "yaml": state.yaml()})
+
+
+async def upload(request: Request):
+    """Store an uploaded image in the upload folder (an allowed root); returns its path."""
+    fname = request.path_params["name"]
+    if not UPLOAD_NAME.match(fname):
+        raise ServeError(400, f"upload name {fname!r}: letters, digits, '._-' and an image extension",
+                         field="name")
+    raw = await read_body(request)
+    path, n = await anyio.to_thread.run_sync(_serve(request).store_upload, fname, raw)
+    return JSONResponse({"path": path, "pixels": n})
+
+
+async def status(request: Request):
+    """What the server is doing: runs in progress, graph runs so far, requests the guard
+    refused, output files encoded (a client can wait on these instead of sleeping)."""
+    app = request.app.state
+    return JSONResponse({"running": app.serve.running(), "runs": app.serve.runs,
+                         "refused": app.guard.refused, "encoded": app.encoded.encodes})
+
+
+def _stale(renders: Renders, seq) -> JSONResponse:
     renders.dropped += 1
     return JSONResponse({"error": "stale: a newer render of this client superseded it", "seq": seq},
                         status_code=409)
 
 
-def serve(state: ServeState, host: str = "127.0.0.1", port: int = 8765, on_ready=None) -> None:
-    """Bind ``host:port`` (port 0 picks a free one), call ``on_ready(url)``, serve until Ctrl-C."""
-    import socket
+ROUTES = [
+    Route("/", index),
+    Route("/static/{name}", static),
+    Route("/api/graph", graph_info, methods=["GET"]),
+    Route("/api/graph", post_graph, methods=["POST"]),
+    Route("/api/graph.yaml", graph_yaml),
+    Route("/api/nodes", nodes),
+    Route("/api/scene", scene_info),
+    Route("/api/status", status),
+    Route("/api/params", post_params, methods=["POST"]),
+    Route("/api/run", post_run, methods=["POST"]),
+    Route("/api/outputs/{name}", get_output),
+    Route("/api/render", render, methods=["POST"]),
+    Route("/api/save", save, methods=["POST"]),
+    Route("/api/uploads/{name}", upload, methods=["PUT"]),
+]
 
-    import uvicorn
 
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    # proto IPPROTO_TCP, not 0: asyncio sets TCP_NODELAY only on sockets that say they
-    # are TCP, and without it every keep-alive response waits ~40 ms (Nagle + delayed ACK)
-    sock = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    sock.bind((host, port))
-    sock.listen(64)
-    bound = sock.getsockname()[1]
-    shown = f"[{host}]" if family == socket.AF_INET6 else host
-    config = uvicorn.Config(create_app(state), log_level="warning", access_log=False, lifespan="off",
-                            limit_concurrency=64, timeout_keep_alive=30)
-    server = uvicorn.Server(config)
-    if on_ready is not None:
-        on_ready(f"http://{shown}:{bound}/")
-    server.run(sockets=[sock])
+# -- errors: one table (errors.STATUS) -----------------------------------------------------
+
+async def on_error(request: Request, exc: Exception):
+    if isinstance(exc, HTTPException):
+        return JSONResponse({"error": exc.detail or "error"}, status_code=exc.status_code)
+    err = serve_error(exc)
+    if err.status == 500 and not isinstance(exc, ServeError):
+        log.error("internal error on %s %s: %s: %s", request.method, request.url.path, type(exc).__name__, exc)
+    return JSONResponse(err.to_json(), status_code=err.status)
+
+
+def create_app(state: ServeState, *, token: str | None = None, port: int | None = None,
+               names=()) -> Guard:
+    """The application behind ``Guard``. token: the per-launch token (None: no token);
+    port, names: the bound port and host name a request's Host must name (``serve``
+    always gives them; without ``port``, for an in-process app, the Host is not checked)."""
+    # every class of the table answers through the same handler; Exception (a 500) too,
+    # after which Starlette re-raises it for the server's log
+    handlers = {cls: on_error for cls, _ in STATUS}
+    handlers.update({HTTPException: on_error, ServeError: on_error, Exception: on_error})
+    app = Starlette(routes=ROUTES, exception_handlers=handlers)
+    app.state.serve = state
+    app.state.lock = asyncio.Lock()
+    app.state.renders = Renders()
+    app.state.runs = Runs()
+    app.state.encoded = Encoded()
+    app.state.current = {}
+    app.state.token = token
+    app.state.guard = Guard(app, port=port, names=names, token=token)
+    return app.state.guard

@@ -1,116 +1,170 @@
-"""The UI's handles: where the light's shadow tip, the wall corner and the horizon
-are in the image, and the param edits that a drag of each one means.
+"""The page's handles, from what nodes declare: where they are in the image, and the
+param edits a drag of each means.
 
-This is the one part of the server that knows the built-in shadow nodes
-(``pixgraph.Camera``, ``pixgraph.Light``, ``pixgraph.BackgroundHeight`` and a
-shadow node fed by the light); a graph without them is served all the same, with
-the param panel only.
+Nothing here names a node type. A node type declares ``handles`` (a class
+attribute, a dict with a ``kind``):
 
-The light is dragged by its *shadow tip*: the point on the ground where the
-shadow of the object's top falls (the Light node's ``shadow_tip`` placement, so
-the tip stays under the pointer). The elevation slider then slides the tip along
-the same ground direction, to where the light seen from the object's top has
-that elevation.
+- ``camera``: ``size`` (its width and height params) and ``row`` (the horizon param);
+- ``background``: ``params``, the template params the page draws;
+- ``light``: the light is dragged by its *shadow tip*, the ground point where the
+  shadow of the object's top falls. ``tip``, ``top``, ``placement`` (set to
+  ``tip_placement`` by a drag) and ``elevation`` name its params, ``camera`` its
+  camera input, ``object`` the inputs (mask, pixel height) of the node it feeds that
+  hold the object; the type also carries the geometry (``object_top``,
+  ``shadow_tip``, ``tip_at_elevation``, ops/light_screen.py in the node pack);
+- any other kind (``shadow``): a node the page may switch between the types of
+  that kind (``ServeState.alternatives``).
+
+A graph without such nodes is served all the same, with the param panel only.
+
+**One drag, one run.** A tip drag needs the object's top (from the mask and pixel
+height upstream of the light) and the camera: the *anchors*. Every render that
+runs those nodes anyway also fetches them (``piggyback``), and they are kept with
+the upstream part of the graph they came from; the next drag uses them without a
+run of its own as long as that part is unchanged (a light edit never changes it).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+import weakref
 from typing import Any
 
-import numpy as np
+from pixgraph.graph import Graph
 
-from .state import ServeError, ServeState
+from .errors import ServeError
+from .state import ServeState
 
-CAMERA, LIGHT, BACKGROUND = "pixgraph.Camera", "pixgraph.Light", "pixgraph.BackgroundHeight"
 
-
-def _first(state: ServeState, type_id: str) -> str | None:
-    return next((nid for nid, inst in state.graph.nodes.items() if inst.type == type_id), None)
+def _kind(state: ServeState, type_id: str) -> str | None:
+    h = state.handles(type_id)
+    return h["kind"] if h else None
 
 
 def roles(state: ServeState) -> dict[str, str | None]:
-    """Node ids of the camera, light, background template and shadow (None when absent)."""
+    """Node ids of the camera, light, background and the node the light feeds whose
+    ``object`` inputs are wired (``shadow``); None when absent."""
     g = state.graph
-    light = _first(state, LIGHT)
+    first = {}
+    for nid, inst in g.nodes.items():
+        first.setdefault(_kind(state, inst.type), nid)
+    light = first.get("light")
     shadow = None
     if light is not None:
+        obj = state.handles(g.nodes[light].type).get("object", ())
         shadow = next((nid for nid, inst in g.nodes.items()
-                       if inst.type in state.method_types()
-                       and any(r.node == light for r in inst.inputs.values())), None)
-    return {"camera": _first(state, CAMERA), "light": light, "background": _first(state, BACKGROUND),
-            "shadow": shadow}
-
-
-def _anchors(state: ServeState, r: dict) -> tuple[Any, Any, tuple[float, float, float] | None]:
-    """(camera value, light value, object top (u, v, h)) computed through the session (cached)."""
-    g = state.graph
-    shadow = g.nodes[r["shadow"]] if r["shadow"] else None
-    outs = [f"{r['light']}.light", f"{g.nodes[r['light']].inputs['camera']}"]
-    if shadow is not None and "mask" in shadow.inputs and "fg_height" in shadow.inputs:
-        outs += [str(shadow.inputs["mask"]), str(shadow.inputs["fg_height"])]
-    values, _ = state.run(outs)
-    cam, light = values[outs[1]], values[outs[0]]
-    top = None
-    if len(outs) == 4:
-        top = object_top(values[outs[2]], values[outs[3]])
-    return cam, light, top
-
-
-def object_top(mask: np.ndarray, fg_height: np.ndarray) -> tuple[float, float, float] | None:
-    """(u, v, h) [px] of the object's top: the middle of the mask's highest row, and its pixel height."""
-    m = np.asarray(mask) > 0.5
-    if not m.any():
-        return None
-    row = int(np.nonzero(m.any(axis=1))[0][0])
-    cols = np.nonzero(m[row])[0]
-    col = int(cols[len(cols) // 2])
-    return float(col + 0.5), float(row + 0.5), float(fg_height[row, col])
-
-
-def shadow_tip(cam, light, top) -> tuple[float, float] | None:
-    """Image point (u, v) [px] where the shadow of ``top`` (u, v, h) falls on the
-    ground plane, or None when there is none in front of the camera."""
-    if top is None or top[2] <= 0:
-        return None
-    P, ok = cam.back_project(*top)
-    if not ok:
-        return None
-    if light.kind == "directional":
-        d = np.asarray(light.direction, dtype=np.float64)
-        if d[1] <= 1e-9:
-            return None
-        T = P - d * (P[1] / d[1])
-    else:
-        L = np.asarray(light.position, dtype=np.float64)
-        if L[1] <= P[1] + 1e-9:
-            return None
-        T = L + (P - L) * (L[1] / (L[1] - P[1]))
-    uvh, D = cam.project(T)
-    if not (D > 0 and np.all(np.isfinite(uvh))):
-        return None
-    return float(uvh[0]), float(uvh[1])
-
-
-def describe(state: ServeState) -> dict:
-    """Everything the UI draws handles for, in image pixels."""
-    r = roles(state)
-    out: dict[str, Any] = {"roles": r}
-    g = state.graph
-    if r["camera"]:
-        v = state.registry.get(CAMERA).coerce_params(g.nodes[r["camera"]].params)
-        out["camera"] = {"width": v["width"], "height": v["height"], "horizon": v["horizon"]}
-    if r["background"]:
-        out["background"] = _values(state, r["background"])
-    if r["shadow"]:
-        out["shadow"] = {"type": g.nodes[r["shadow"]].type}
-    if r["light"] and "camera" in g.nodes[r["light"]].inputs:
-        v = _values(state, r["light"])
-        cam, light, top = _anchors(state, r)
-        controls = dict(light.controls)
-        out["light"] = {**v, "azimuth_deg": controls.get("azimuth"), "elevation_deg": controls.get("elevation"),
-                        "top_uvh": list(top) if top else None,
-                        "tip_uv": list(shadow_tip(cam, light, top) or []) or None}
+                       if any(r.node == light for r in inst.inputs.values())
+                       and all(k in inst.inputs for k in obj)), None)
+    out = {"camera": first.get("camera"), "light": light, "background": first.get("background"),
+           "shadow": shadow}
+    if first.get("place") is not None:     # a cutout placed on the photo (own-photo graphs)
+        out["place"] = first["place"]
     return out
+
+
+# -- anchors: the camera and the object's top, kept across requests ----------------------
+
+@dataclasses.dataclass(frozen=True)
+class Anchors:
+    upstream: dict          # node id -> NodeInstance of every node the anchors depend on
+    camera: Any             # the camera value
+    top: tuple[float, float, float] | None   # the object's top (u, v, h) [px]
+    made_from: tuple = ()   # weak references to the mask and pixel height the top came from
+
+
+def _weak(x):
+    try:
+        return weakref.ref(x)
+    except TypeError:
+        return None
+
+
+def _refs(state: ServeState, graph: Graph, r: dict) -> list[str] | None:
+    """[camera ref, mask ref, pixel height ref] of the light's handle, or None."""
+    if r["light"] is None or r["shadow"] is None:
+        return None
+    h = state.handles(graph.nodes[r["light"]].type)
+    cam = graph.nodes[r["light"]].inputs.get(h.get("camera", "camera"))
+    mask_in, height_in = h.get("object", ("mask", "fg_height"))
+    shadow = graph.nodes[r["shadow"]]
+    if cam is None:
+        return None
+    return [str(cam), str(shadow.inputs[mask_in]), str(shadow.inputs[height_in])]
+
+
+def _upstream(graph: Graph, node_ids) -> dict:
+    """Every node that ``node_ids`` depend on (themselves included), id -> instance."""
+    out, stack = {}, list(node_ids)
+    while stack:
+        nid = stack.pop()
+        if nid in out or nid not in graph.nodes:
+            continue
+        out[nid] = graph.nodes[nid]
+        stack.extend(ref.node for ref in graph.nodes[nid].inputs.values())
+    return out
+
+
+def _node_of(ref: str) -> str:
+    return ref.partition(".")[0]
+
+
+def piggyback(state: ServeState, graph: Graph, outputs: list[str] | None) -> list[str]:
+    """The anchor refs to fetch along with a run of ``outputs`` of ``graph``: those whose
+    nodes the run needs anyway (so nothing more runs), always (a file read upstream may
+    have changed on disk with the same params: the session's cache sees it, and so
+    does the next drag)."""
+    r = roles(state)
+    refs = _refs(state, state.graph, r)
+    if not refs or outputs is None:
+        return []
+    needed = _upstream(graph, [_node_of(str(graph.outputs.get(o, o))) for o in outputs])
+    up = _upstream(graph, [_node_of(x) for x in refs])
+    if not set(up) <= set(needed):
+        return []
+    return refs
+
+
+def note(state: ServeState, graph: Graph, refs: list[str], values) -> None:
+    """Keep the anchors a run fetched (``piggyback``'s refs) with the graph they came from."""
+    if refs and all(x in values for x in refs):
+        mask, height = values[refs[1]], values[refs[2]]
+        old = state.anchors
+        if old is not None and len(old.made_from) == 2 and all(
+                w is not None and w() is v for w, v in zip(old.made_from, (mask, height))):
+            top = old.top       # the same arrays as last time (the session's memory cache): same top
+        else:
+            light_cls = state.registry.get(state.graph.nodes[roles(state)["light"]].type).cls
+            top = light_cls.object_top(mask, height)
+        state.anchors = Anchors(_upstream(graph, [_node_of(x) for x in refs]), values[refs[0]], top,
+                                (_weak(mask), _weak(height)))
+
+
+def anchors(state: ServeState, r: dict) -> Anchors:
+    """The camera and object top for the current graph: kept from an earlier run when the
+    nodes they depend on are unchanged, else from a run of those nodes only."""
+    g = state.graph
+    refs = _refs(state, g, r)
+    if refs is None:
+        raise ServeError(400, "the light's handle needs its camera input and a node it feeds with the object's "
+                              "mask and pixel height")
+    up = _upstream(g, [_node_of(x) for x in refs])
+    if state.anchors is None or state.anchors.upstream != up:
+        note(state, g, refs, state.run(refs))
+    return state.anchors
+
+
+# -- what the page draws -------------------------------------------------------------------
+
+def _bbox(coverage) -> list[float] | None:
+    """[u0, v0, u1, v1] [px], pixel edges, of the pixels a coverage covers (> 0.5)."""
+    import numpy as np
+
+    m = np.asarray(coverage)
+    m = (m[:, :, 0] if m.ndim == 3 else m) > 0.5
+    rows, cols = np.nonzero(m.any(axis=1))[0], np.nonzero(m.any(axis=0))[0]
+    if not len(rows):
+        return None
+    return [float(cols[0]), float(rows[0]), float(cols[-1] + 1), float(rows[-1] + 1)]
 
 
 def _values(state: ServeState, nid: str) -> dict:
@@ -119,33 +173,79 @@ def _values(state: ServeState, nid: str) -> dict:
     return {k: list(x) if isinstance(x, tuple) else x for k, x in v.items()}
 
 
+def describe(state: ServeState) -> dict:
+    """Everything the page draws handles for, in image pixels."""
+    r = roles(state)
+    out: dict[str, Any] = {"roles": r}
+    g = state.graph
+    if r["camera"]:
+        h, v = state.handles(g.nodes[r["camera"]].type), _values(state, r["camera"])
+        w_name, h_name = h.get("size", ("width", "height"))
+        w, hh = v.get(w_name), v.get(h_name)
+        if not (w and hh):     # a camera that takes its size from its image: ask the camera value
+            spec = state.registry.get(g.nodes[r["camera"]].type)
+            cam = state.run([f"{r['camera']}.{spec.outputs[0].name}"])
+            cam = next(iter(cam.values()))
+            w, hh = getattr(cam, "width", w), getattr(cam, "height", hh)
+        out["camera"] = {"width": w, "height": hh, "horizon": v.get(h.get("row"))}
+    if r.get("place"):
+        h = state.handles(g.nodes[r["place"]].type)
+        ref = f"{r['place']}.{h.get('coverage', 'alpha')}"
+        out["place"] = {**_values(state, r["place"]), "bbox": _bbox(state.run([ref])[ref])}
+    if r["background"]:
+        h, v = state.handles(g.nodes[r["background"]].type), _values(state, r["background"])
+        names = h.get("params")
+        out["background"] = {k: x for k, x in v.items() if names is None or k in names}
+    if r["shadow"]:
+        out["shadow"] = {"type": g.nodes[r["shadow"]].type,
+                         "alternatives": state.alternatives(g.nodes[r["shadow"]].type)}
+    if r["light"] and _refs(state, g, r):
+        lid = r["light"]
+        light_cls = state.registry.get(g.nodes[lid].type).cls
+        v = _values(state, lid)
+        a = anchors(state, r)
+        light = state.run([f"{lid}.{state.registry.get(g.nodes[lid].type).outputs[0].name}"])
+        light = next(iter(light.values()))
+        controls = dict(getattr(light, "controls", ()))
+        tip = light_cls.shadow_tip(a.camera, light, a.top)
+        out["light"] = {**v, "azimuth_deg": controls.get("azimuth"), "elevation_deg": controls.get("elevation"),
+                        "top_uvh": list(a.top) if a.top else None, "tip_uv": list(tip) if tip else None}
+    return out
+
+
+# -- what a drag means -------------------------------------------------------------------
+
 def light_edits(state: ServeState, tip_uv=None, elevation=None) -> dict:
     """Param edits for a drag of the shadow tip to ``tip_uv`` and/or an elevation [deg]."""
     r = roles(state)
     if r["light"] is None:
-        raise ServeError(400, "the graph has no pixgraph.Light node to drag")
+        raise ServeError(400, "the graph has no light with a draggable handle")
     lid = r["light"]
+    h = state.handles(state.graph.nodes[lid].type)
+    light_cls = state.registry.get(state.graph.nodes[lid].type).cls
+    p_tip, p_top, p_place = (f"{lid}.{h[k]}" for k in ("tip", "top", "placement"))
     edits: dict[str, Any] = {}
     if tip_uv is not None:
         tip = _pair(tip_uv, "light_tip")
-        cam, light, top = _anchors(state, r)
+        top = anchors(state, r).top
         if top is None:
-            raise ServeError(400, "cannot drag the shadow tip: the shadow node has no cutout to find its top")
-        edits = {f"{lid}.placement": "shadow_tip", f"{lid}.tip_uv": list(tip), f"{lid}.top_uvh": list(top)}
+            raise ServeError(400, "cannot drag the shadow tip: the object's mask is empty", field="light_tip")
+        edits = {p_place: h["tip_placement"], p_tip: list(tip), p_top: list(top)}
     if elevation is not None:
         if isinstance(elevation, bool) or not isinstance(elevation, (int, float)) or not math.isfinite(elevation):
             raise ServeError(400, f"light_elevation must be a number of degrees, got {elevation!r}",
                              field="light_elevation")
-        el = float(elevation)
         v = _values(state, lid)
-        if edits or v["placement"] == "shadow_tip":
-            tip = edits.get(f"{lid}.tip_uv", v["tip_uv"])
-            top = edits.get(f"{lid}.top_uvh", v["top_uvh"])
-            cam, _, _ = _anchors(state, r)
-            edits.update({f"{lid}.placement": "shadow_tip", f"{lid}.top_uvh": list(top),
-                          f"{lid}.tip_uv": list(_tip_at_elevation(cam, tip, top, el))})
+        if edits or v[h["placement"]] == h["tip_placement"]:
+            tip = edits.get(p_tip, v[h["tip"]])
+            top = edits.get(p_top, v[h["top"]])
+            try:
+                new = light_cls.tip_at_elevation(anchors(state, r).camera, tip, top, float(elevation))
+            except ValueError as e:
+                raise ServeError(400, f"light_elevation: {e}", field="light_elevation") from None
+            edits.update({p_place: h["tip_placement"], p_top: list(top), p_tip: list(new)})
         else:
-            edits[f"{lid}.elevation"] = el
+            edits[f"{lid}.{h['elevation']}"] = float(elevation)
     return edits
 
 
@@ -154,25 +254,3 @@ def _pair(v, name) -> tuple[float, float]:
             or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)):
         raise ServeError(400, f"{name} must be [u, v] in pixels, got {v!r}", field=name)
     return float(v[0]), float(v[1])
-
-
-def _tip_at_elevation(cam, tip_uv, top_uvh, elevation_deg: float) -> tuple[float, float]:
-    """The ground point, in the direction of ``tip_uv`` from below the top point, from
-    which the top is seen at ``elevation_deg``."""
-    if not 0.5 <= elevation_deg < 90.0:
-        raise ServeError(400, f"light_elevation must be in [0.5, 90) degrees, got {elevation_deg}",
-                         field="light_elevation")
-    P, okp = cam.back_project(*top_uvh)
-    T, okt = cam.back_project(tip_uv[0], tip_uv[1], 0.0)
-    if not (okp and okt):
-        raise ServeError(400, "the shadow tip or the object's top is above the horizon", field="light_elevation")
-    foot = np.array([P[0], 0.0, P[2]])
-    d = T - foot
-    n = math.hypot(d[0], d[2])
-    d = d / n if n > 1e-9 else np.array([0.0, 0.0, -1.0])
-    new = foot + d * (P[1] / math.tan(math.radians(elevation_deg)))
-    uvh, D = cam.project(new)
-    if not (D > 0 and np.all(np.isfinite(uvh))):
-        raise ServeError(400, f"at elevation {elevation_deg} the shadow tip leaves the ground in view",
-                         field="light_elevation")
-    return float(uvh[0]), float(uvh[1])

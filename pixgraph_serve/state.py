@@ -1,60 +1,45 @@
 """What ``pixgraph serve`` holds: one ``Session``, the edited graph, and the limits.
 
 No HTTP here: ``app.py`` turns requests into calls on a ``ServeState`` and its
-``ServeError`` into JSON error responses. Every method that runs the engine must
-be called by one thread at a time (``app.py`` holds a lock around them); edits
-build a new immutable ``Graph`` and swap it in, so a run in progress keeps the
-graph it started with.
+errors into JSON responses (``errors.py``). Every method that runs the engine or
+edits the graph must be called by one thread at a time (``app.py`` holds a lock
+around them); edits build a new immutable ``Graph`` and swap it in, so a run in
+progress keeps the graph it started with, and an edit that fails anywhere leaves
+the graph as it was (``edit`` is all or nothing).
 
 The session keeps its memory cache across requests: a light drag changes one
 param of the light node, so only the nodes downstream of it run again.
+
+Nothing here names a node type: a node declares its cheap preview stand-in
+(``preview = "type id"``) and what the page may draw and drag (``handles``, read
+by ``scene.py``); both are class attributes read through the registry's spec.
 """
 from __future__ import annotations
 
 import dataclasses
 import os
 import tempfile
+import threading
+import time
 from typing import Any, Mapping
 
-import numpy as np
-
 from pixgraph import fileio
-from pixgraph.engine import NodeError, NodeInputError, RunResult
-from pixgraph.events import CancelToken
+from pixgraph.events import Cancelled, CancelToken
 from pixgraph.graph import Graph, GraphError, NodeInstance, validate
 from pixgraph.paths import PathError
 from pixgraph.session import Session
 
-#: previews swap these node types for a cheaper one with the same ports
-PREVIEW_TYPES = {"pixgraph.SoftShadow": "pixgraph.HardShadow",
-                 "pixgraph.SoftShadowSSN": "pixgraph.HardShadow"}
+from .errors import RunTimeout, ServeError, serve_error
+
 #: image file extensions whose header is checked against the pixel limit
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".hdr")
-
-
-class ServeError(Exception):
-    """A request that cannot be served: HTTP ``status`` and a one-line message,
-    with the node, field, file and line when known."""
-
-    def __init__(self, status: int, message: str, **where: Any):
-        super().__init__(message)
-        self.status = status
-        self.message = message
-        self.where = {k: v for k, v in where.items() if v is not None}
-
-    def to_json(self) -> dict:
-        return {"error": self.message, **self.where}
-
-    @classmethod
-    def from_graph_error(cls, e: GraphError) -> "ServeError":
-        """400, or 403 for a path the policy refuses (``PathError`` is a ``GraphError``)."""
-        status = 403 if isinstance(e, PathError) else 400
-        return cls(status, str(e), node=e.node, field=e.field, file=e.file, line=e.line)
+#: deepest nesting of lists/objects accepted in an edit's values
+MAX_DEPTH = 32
 
 
 @dataclasses.dataclass(frozen=True)
 class Limits:
-    """Request and image limits of the server."""
+    """Request, image and time limits of the server."""
 
     #: largest request body (a posted graph, params, an uploaded image) [bytes]
     max_body_bytes: int = 32 << 20
@@ -62,6 +47,53 @@ class Limits:
     max_pixels: int = 4096 * 4096
     #: previews are sent downscaled by this integer factor
     preview_scale: int = 2
+    #: wall-clock limit of one run; a run still going is cancelled (503) [s]
+    run_timeout: float = 120.0
+
+
+class Deadlines:
+    """Cancel runs that pass their deadline, from one watchdog thread (started on first
+    use) rather than a timer thread per run."""
+
+    def __init__(self):
+        self._cv = threading.Condition()
+        self._items: dict[CancelToken, tuple[float, threading.Event]] = {}
+        self._thread: threading.Thread | None = None
+
+    def add(self, token: CancelToken, seconds: float) -> threading.Event:
+        """Cancel ``token`` after ``seconds``; the returned event is set when it did."""
+        expired = threading.Event()
+        with self._cv:
+            self._items[token] = (time.monotonic() + seconds, expired)
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._watch, name="pixgraph-run-deadlines", daemon=True)
+                self._thread.start()
+            self._cv.notify()
+        return expired
+
+    def remove(self, token: CancelToken) -> None:
+        with self._cv:
+            self._items.pop(token, None)
+
+    def _watch(self) -> None:
+        with self._cv:
+            while True:
+                now = time.monotonic()
+                for token, (deadline, expired) in list(self._items.items()):
+                    if deadline <= now:
+                        expired.set()
+                        token.cancel()
+                        del self._items[token]
+                nearest = min((d for d, _ in self._items.values()), default=None)
+                self._cv.wait(None if nearest is None else max(0.0, nearest - now))
+
+
+def _graph_errors(fn):
+    """Run ``fn()``; a GraphError (a PathError is one) becomes its ServeError."""
+    try:
+        return fn()
+    except GraphError as e:
+        raise serve_error(e) from None
 
 
 class ServeState:
@@ -85,27 +117,28 @@ class ServeState:
         self._stash: dict[tuple[str, str], dict] = {}   # (node, type) -> its params before a type swap
         self._preview: tuple[Graph, Graph] | None = None
         self._pixels: dict[tuple[str, int], int] = {}
-        try:
-            graph = self.session.load(self.graph_path)
-        except GraphError as e:
-            raise ServeError.from_graph_error(e) from None
-        self.graph = self._checked(graph)
+        #: runs of the graph made so far (each ``session.run``), e.g. to count a drag's
+        self.runs = 0
+        self._active: set[CancelToken] = set()
+        self._active_lock = threading.Lock()
+        self._closing = False
+        self._deadlines = Deadlines()
+        #: scene.py's cache of what the handles are anchored to (see scene.Anchors)
+        self.anchors = None
+        self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
 
     # -- graph ------------------------------------------------------------------
 
     def _checked(self, graph: Graph) -> Graph:
         """``graph`` after the session's path policy and the image limits; raises ServeError."""
-        try:
-            self.session.check_paths(graph)
-        except GraphError as e:
-            raise ServeError.from_graph_error(e) from None
+        _graph_errors(lambda: self.session.check_paths(graph))
         for nid, inst in graph.nodes.items():
             spec = self.registry.get(inst.type)
             for p in spec.params:
                 if p.kind == "path" and not p.writes and p.name in inst.params:
                     path = graph.resolve_path(inst.params[p.name])
                     if path.lower().endswith(IMAGE_EXTENSIONS):
-                        self._check_pixels(self._image_pixels(path), nid, p.name)
+                        self._check_pixels(self.image_pixels(path), nid, p.name)
             values = spec.coerce_params(inst.params)
             if isinstance(values.get("width"), int) and isinstance(values.get("height"), int):
                 self._check_pixels(values["width"] * values["height"], nid, "width")
@@ -128,19 +161,20 @@ class ServeState:
                 try:
                     (policy.check_write if p.writes else policy.check_read)(path, node=str(nid), param=p.name)
                 except PathError as e:
-                    raise ServeError.from_graph_error(e) from None
+                    raise serve_error(e) from None
 
     def _check_pixels(self, n: int, nid: str, pname: str) -> None:
         if n > self.limits.max_pixels:
             raise ServeError(413, f"node {nid!r}: param {pname!r}: image of {n} pixels is over the "
                                   f"server's limit of {self.limits.max_pixels}", node=nid, field=f"params.{pname}")
 
-    def _image_pixels(self, path: str) -> int:
-        """Pixel count from the file's header (not decoded), cached by path and mtime."""
+    def image_pixels(self, path: str) -> int:
+        """Pixel count from the file's header (not decoded), cached by path and mtime;
+        0 for a missing file (the graph's own validation reports it)."""
         try:
             key = (path, os.stat(path).st_mtime_ns)
         except OSError:
-            return 0  # the graph's own validation reports a missing file
+            return 0
         if key not in self._pixels:
             import OpenImageIO as oiio
 
@@ -152,9 +186,30 @@ class ServeState:
             self._pixels[key] = int(spec.width) * int(spec.height)
         return self._pixels[key]
 
+    def store_upload(self, name: str, raw: bytes) -> tuple[str, int]:
+        """Write an uploaded image (``name`` already checked) into the upload folder,
+        after checking its header against the pixel limit; returns (path, pixels)."""
+        path = os.path.join(self.upload_dir, name)
+        tmp = path + ".part"
+        with open(tmp, "wb") as f:
+            f.write(raw)
+        try:
+            n = self.image_pixels(tmp)
+            if n > self.limits.max_pixels:
+                raise ServeError(413, f"uploaded image of {n} pixels is over the server's limit of "
+                                      f"{self.limits.max_pixels}")
+        except BaseException:
+            os.unlink(tmp)
+            raise
+        os.replace(tmp, path)
+        return path, n
+
     def info(self) -> dict:
         """The graph as the UI and API clients see it: nodes in file order with the
-        params set and their effective values, inputs, outputs, and node types."""
+        params set and their effective values, inputs, outputs, and node types (those
+        used, and those a node may be switched to: ``alternatives``)."""
+        from pixgraph.reference import as_dict
+
         g = self.graph
         nodes = []
         for nid, inst in g.nodes.items():
@@ -164,23 +219,47 @@ class ServeState:
                           "params": _jsonable(dict(inst.params)), "values": _jsonable(values),
                           "inputs": {k: str(v) for k, v in inst.inputs.items()}})
         used = {inst.type for inst in g.nodes.values()}
-        used |= {t for t in self.method_types() if t in self.registry}
-        from pixgraph.reference import as_dict
-
+        for t in list(used):
+            used.update(self.alternatives(t))
         return {"file": self.graph_path, "nodes": nodes,
                 "outputs": {k: str(v) for k, v in g.outputs.items()},
                 "types": {t: as_dict(self.registry.get(t)) for t in sorted(used)},
                 "limits": dataclasses.asdict(self.limits)}
 
-    @staticmethod
-    def method_types() -> tuple[str, ...]:
-        """Node types a shadow node may be switched between (hard, classical soft, SSN++)."""
-        return ("pixgraph.HardShadow", "pixgraph.SoftShadow", "pixgraph.SoftShadowSSN")
+    def handles(self, type_id: str) -> dict | None:
+        """The ``handles`` a node type declares (a dict with a ``kind``), or None."""
+        h = getattr(self.registry.get(type_id).cls, "handles", None)
+        return h if isinstance(h, Mapping) and "kind" in h else None
+
+    def alternatives(self, type_id: str) -> list[str]:
+        """Registered types a node of ``type_id`` may be switched to: those declaring the
+        same handles ``kind`` with the same input port names (e.g. the shadow methods)."""
+        h = self.handles(type_id)
+        if h is None:
+            return []
+        ports = [p.name for p in self.registry.get(type_id).inputs]
+        return sorted(t for t in self.registry
+                      if (self.handles(t) or {}).get("kind") == h["kind"]
+                      and [p.name for p in self.registry.get(t).inputs] == ports)
+
+    # -- edits (all or nothing) ---------------------------------------------------
+
+    def edit(self, apply) -> Graph:
+        """Call ``apply()`` (any number of ``set_*`` calls); if it raises, the graph and
+        the stashed params are restored and the error propagates: nothing is half-applied."""
+        graph, stash = self.graph, dict(self._stash)
+        try:
+            apply()
+        except BaseException:
+            self.graph, self._stash = graph, stash
+            raise
+        return self.graph
 
     def set_params(self, params: Mapping[str, Any]) -> Graph:
         """Apply ``{"node.param": value}`` (or ``{"node": {"param": value}}``) edits."""
         if not isinstance(params, Mapping):
-            raise ServeError(400, "params must be an object of 'node.param': value")
+            raise ServeError(400, "params must be an object of 'node.param': value", field="params")
+        check_depth(params)
         edits = []
         for name, value in params.items():
             if isinstance(value, Mapping) and "." not in str(name):
@@ -193,9 +272,9 @@ class ServeState:
         try:
             graph = self.session.graph(self.graph, dict(params))
         except GraphError as e:
-            raise ServeError.from_graph_error(e) from None
+            raise serve_error(e) from None
         except (TypeError, ValueError, OverflowError) as e:  # e.g. a number too large for a float
-            raise ServeError(400, f"bad params: {e}".splitlines()[0], field="params") from None
+            raise ServeError(400, f"bad params: {e}", field="params") from None
         self.graph = self._checked(graph)
         return self.graph
 
@@ -215,29 +294,23 @@ class ServeState:
         params.update(self._stash.get((node_id, type_id), {}))
         nodes = dict(self.graph.nodes)
         nodes[node_id] = NodeInstance(node_id, type_id, params, inst.inputs)
-        try:
-            graph = validate(dataclasses.replace(self.graph, nodes=nodes), self.registry)
-        except GraphError as e:
-            raise ServeError.from_graph_error(e) from None
+        graph = _graph_errors(lambda: validate(dataclasses.replace(self.graph, nodes=nodes), self.registry))
         self.graph = self._checked(graph)
         return self.graph
 
     def load_text(self, text: str) -> Graph:
         """Replace the served graph by posted YAML; its paths resolve in the graph's folder."""
-        _refuse_aliases(text)
-        try:
-            import yaml
+        import yaml
 
-            doc = yaml.safe_load(text)
+        _precheck_yaml(text)
+        try:
+            doc = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
         except yaml.YAMLError:
             doc = None  # the loader below reports it with its line
         if isinstance(doc, dict) and isinstance(doc.get("nodes"), dict):
             self._paths_first(self.root, [(nid, n.get("type"), n.get("params")) for nid, n in doc["nodes"].items()
                                           if isinstance(n, dict) and isinstance(n.get("params"), dict)])
-        try:
-            graph = fileio.loads(text, self.registry, file="<posted graph>", base_dir=self.root)
-        except GraphError as e:
-            raise ServeError.from_graph_error(e) from None
+        graph = _graph_errors(lambda: fileio.loads(text, self.registry, file="<posted graph>", base_dir=self.root))
         self.graph = self._checked(graph)
         return self.graph
 
@@ -253,60 +326,140 @@ class ServeState:
             self.session.policy_for(self.graph).check_write(target)
         except PathError as e:
             raise ServeError(403, str(e), field="path") from None
+        tmp = os.path.join(os.path.dirname(target), f".{os.path.basename(target)}.tmp-{os.getpid()}")
         try:
-            fileio.dump(self.graph, target, self.registry)
+            fileio.dump(self.graph, tmp, self.registry)
+            os.replace(tmp, target)      # a reader (or a killed server) never sees half a file
         except OSError as e:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
             raise ServeError(400, f"save: cannot write {path or target}: {e.strerror or e}", field="path") from None
         return target
 
     # -- run ----------------------------------------------------------------------
 
-    def preview_graph(self) -> Graph:
-        """The current graph with soft shadows swapped for hard ones (cached per graph)."""
-        if self._preview is None or self._preview[0] is not self.graph:
-            nodes = dict(self.graph.nodes)
-            for nid, inst in nodes.items():
-                cheap = PREVIEW_TYPES.get(inst.type)
-                if cheap is not None and cheap in self.registry:
-                    spec = self.registry.get(cheap)
-                    keep = {k: v for k, v in inst.params.items() if spec.param(k) is not None}
-                    nodes[nid] = NodeInstance(nid, cheap, keep, inst.inputs)
-            self._preview = (self.graph, validate(dataclasses.replace(self.graph, nodes=nodes), self.registry))
-        return self._preview[1]
+    def preview_graph(self, graph: Graph | None = None) -> Graph:
+        """``graph`` (default the current one) with every node whose type declares a
+        ``preview`` stand-in swapped for it (cached for the current graph)."""
+        graph = self.graph if graph is None else graph
+        if self._preview is not None and self._preview[0] is graph:
+            return self._preview[1]
+        nodes = dict(graph.nodes)
+        for nid, inst in nodes.items():
+            cheap = getattr(self.registry.get(inst.type).cls, "preview", None)
+            if isinstance(cheap, str) and cheap in self.registry:
+                spec = self.registry.get(cheap)
+                keep = {k: v for k, v in inst.params.items() if spec.param(k) is not None}
+                nodes[nid] = NodeInstance(nid, cheap, keep, inst.inputs)
+        preview = _graph_errors(lambda: validate(dataclasses.replace(graph, nodes=nodes), self.registry))
+        if graph is self.graph:
+            self._preview = (graph, preview)
+        return preview
 
-    def run(self, outputs: list[str] | None = None, mode: str = "final",
-            cancel: CancelToken | None = None) -> tuple[dict, RunResult]:
-        """Run the current graph (or its preview) for ``outputs``; ``Cancelled``
-        propagates. Returns ``(values, run result)``."""
+    def graph_for(self, mode: str, graph: Graph | None = None) -> Graph:
         if mode not in ("final", "preview"):
             raise ServeError(400, f"mode must be 'final' or 'preview', got {mode!r}", field="mode")
-        graph = self.graph if mode == "final" else self.preview_graph()
+        graph = self.graph if graph is None else graph
+        return graph if mode == "final" else self.preview_graph(graph)
+
+    def run(self, outputs: list[str] | None = None, mode: str = "final", cancel: CancelToken | None = None,
+            graph: Graph | None = None):
+        """Run ``graph`` (default the current one; its preview for ``mode="preview"``)
+        for ``outputs`` within the time limit. Returns the session's ``RunResult``.
+        Raises ServeError (the table in errors.py); a run cancelled through ``cancel``
+        raises ``Cancelled``, one over the time limit ``RunTimeout``."""
+        graph = self.graph_for(mode, graph)
+        token = cancel or CancelToken()
+        with self._active_lock:
+            if self._closing:
+                raise Cancelled("the server is shutting down")
+            self._active.add(token)
+        timed_out = self._deadlines.add(token, self.limits.run_timeout)
         try:
-            res = self.session.run(graph, outputs=outputs, cancel=cancel)
-        except GraphError as e:
-            raise ServeError.from_graph_error(e) from None
-        except PathError as e:
-            raise ServeError(403, str(e)) from None
-        except NodeInputError as e:
-            raise ServeError(400, str(e), node=e.node_id) from None
-        except NodeError as e:
-            raise ServeError(422, str(e), node=e.node_id) from None
-        return res.outputs, res
+            self.runs += 1
+            return self.session.run(graph, outputs=outputs, cancel=token)
+        except Cancelled:
+            if timed_out.is_set():
+                raise RunTimeout(f"the run was stopped after the server's limit of {self.limits.run_timeout:g} s "
+                                 "(pixgraph serve --run-timeout)") from None
+            if self._closing:
+                raise Cancelled("the server is shutting down") from None
+            raise
+        except Exception as e:
+            se = serve_error(e)
+            if se.status == 500:
+                raise
+            raise se from None
+        finally:
+            self._deadlines.remove(token)
+            with self._active_lock:
+                self._active.discard(token)
+
+    def running(self) -> int:
+        """How many runs are in progress."""
+        with self._active_lock:
+            return len(self._active)
+
+    def cancel_all(self) -> int:
+        """Cancel every run in progress and refuse new ones (the server is stopping);
+        returns how many were running."""
+        with self._active_lock:
+            self._closing = True
+            tokens = list(self._active)
+        for t in tokens:
+            t.cancel()
+        return len(tokens)
 
 
-def _refuse_aliases(text: str) -> None:
-    """Posted YAML may not use anchors or aliases: a few hundred bytes of nested
-    aliases expand to gigabytes (the "billion laughs"), and graphs never need them."""
+def check_depth(value: Any, limit: int = MAX_DEPTH) -> None:
+    """Refuse values nested deeper than ``limit`` (checked without recursion)."""
+    stack = [(value, 1)]
+    while stack:
+        v, d = stack.pop()
+        if isinstance(v, Mapping):
+            children = v.values()
+        elif isinstance(v, (list, tuple)):
+            children = v
+        else:
+            continue
+        if d > limit:
+            raise ServeError(400, f"request nested deeper than {limit} levels")
+        stack.extend((c, d + 1) for c in children)
+
+
+def _precheck_yaml(text: str) -> None:
+    """Refuse, in linear time and before the (pure-Python, line-recording) graph loader
+    sees it, posted YAML that uses anchors or aliases (a few hundred bytes of nested
+    aliases expand to gigabytes, the "billion laughs"; graphs never need them) or
+    nests deeper than ``MAX_DEPTH`` (``[`` x 100000 would take that loader minutes).
+    Uses libyaml when PyYAML has it; a YAML syntax error is left to the loader."""
     import yaml
 
+    fast = getattr(yaml, "CSafeLoader", None)
+    loader = fast(text) if fast is not None else yaml.SafeLoader(text)
+    depth = 0
     try:
-        for token in yaml.scan(text):
+        while loader.check_token():
+            token = loader.get_token()
             if isinstance(token, (yaml.AliasToken, yaml.AnchorToken)):
                 line = token.start_mark.line + 1
                 raise ServeError(400, f"<posted graph>:{line}: YAML anchors and aliases are not accepted "
                                       "by the server", line=line)
-    except yaml.YAMLError:
-        pass  # the loader reports the syntax error with its line
+            if isinstance(token, (yaml.FlowSequenceStartToken, yaml.FlowMappingStartToken,
+                                  yaml.BlockSequenceStartToken, yaml.BlockMappingStartToken)):
+                depth += 1
+            elif isinstance(token, (yaml.FlowSequenceEndToken, yaml.FlowMappingEndToken, yaml.BlockEndToken)):
+                depth -= 1
+            if depth > MAX_DEPTH:
+                line = token.start_mark.line + 1
+                raise ServeError(400, f"<posted graph>:{line}: nested deeper than {MAX_DEPTH} levels", line=line)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        line = mark.line + 1 if mark is not None else None
+        raise ServeError(400, f"<posted graph>{f':{line}' if line else ''}: not valid YAML: "
+                              f"{getattr(e, 'problem', None) or e}", line=line) from None
+    finally:
+        loader.dispose()
 
 
 def _jsonable(v: Any) -> Any:
@@ -315,58 +468,3 @@ def _jsonable(v: Any) -> Any:
     if isinstance(v, (list, tuple)):
         return [_jsonable(x) for x in v]
     return v
-
-
-# -- encoding ---------------------------------------------------------------------
-
-def _image(value: Any, name: str) -> np.ndarray:
-    if not isinstance(value, np.ndarray) or value.ndim not in (2, 3) or value.dtype.kind != "f":
-        raise ServeError(400, f"output {name!r} is a {type(value).__name__}, not an image", field="output")
-    return value
-
-
-def downscale(img: np.ndarray, s: int) -> np.ndarray:
-    """Box-filter downscale by an integer factor, in linear light (edges cropped)."""
-    if s <= 1:
-        return img
-    h, w = (img.shape[0] // s) * s, (img.shape[1] // s) * s
-    x = img[:h, :w].reshape(h // s, s, w // s, s, *img.shape[2:])
-    return x.mean(axis=(1, 3), dtype=np.float32)
-
-
-def encode_png(value: Any, name: str = "image", scale: int = 1, compress: int = 1) -> bytes:
-    """An 8-bit sRGB PNG of a linear (premultiplied) image or mask."""
-    import io
-
-    from PIL import Image
-
-    from pixgraph_nodes.ops.imageio import linear_to_srgb
-
-    img = downscale(_image(value, name), scale)
-    if img.ndim == 3 and img.shape[2] == 1:
-        img = img[:, :, 0]
-    if img.ndim == 3 and img.shape[2] in (2, 4):
-        a = np.clip(img[:, :, -1:], 0.0, 1.0)
-        colour = np.where(a > 0, img[:, :, :-1] / np.where(a > 0, a, 1.0), 0.0)
-        img = np.concatenate([linear_to_srgb(np.clip(colour, 0.0, 1.0)), a], axis=2)
-    else:
-        img = linear_to_srgb(np.clip(img, 0.0, 1.0))
-    u8 = (img * 255.0 + 0.5).astype(np.uint8)
-    if u8.ndim == 3 and u8.shape[2] == 2:
-        mode = "LA"
-    else:
-        mode = {2: "L"}.get(u8.ndim) or {3: "RGB", 4: "RGBA"}[u8.shape[2]]
-    buf = io.BytesIO()
-    Image.fromarray(u8, mode).save(buf, format="PNG", compress_level=compress)
-    return buf.getvalue()
-
-
-def encode_exr(value: Any, name: str = "image") -> bytes:
-    """A float EXR (linear, premultiplied) of an image or mask."""
-    from pixgraph_nodes.ops.imageio import write_image
-
-    img = _image(value, name)
-    with tempfile.TemporaryDirectory(prefix="pixgraph-exr-") as d:
-        path = write_image(os.path.join(d, "out.exr"), img)
-        with open(path, "rb") as f:
-            return f.read()

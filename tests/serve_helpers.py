@@ -7,6 +7,7 @@ import shutil
 import subprocess
 import sys
 import time
+from urllib.parse import parse_qs, urlsplit
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 GRAPHS = os.path.join(REPO, "graphs")
@@ -22,9 +23,10 @@ def copy_scene(dest: str, graph: str = "wall_corner_shadow.yaml") -> str:
 
 
 @contextlib.contextmanager
-def running_server(graph: str, *args: str, timeout: float = 120.0):
-    """``pixgraph serve GRAPH --port 0 ARGS`` in a subprocess; yields (base URL, process)."""
-    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1")
+def start_server(graph: str, *args: str, timeout: float = 120.0, env: dict | None = None):
+    """``pixgraph serve GRAPH --port 0 ARGS`` in a subprocess; yields (base URL, token or
+    None, process). The base URL has no ``?token=``."""
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1", **(env or {}))
     proc = subprocess.Popen([sys.executable, "-m", "pixgraph", "serve", graph, "--port", "0", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
@@ -33,13 +35,24 @@ def running_server(graph: str, *args: str, timeout: float = 120.0):
         if "http://" not in line:
             proc.kill()
             raise RuntimeError(f"pixgraph serve did not start: {line!r} {proc.stderr.read()[-2000:]}")
-        url = line.split(" at ", 1)[1].strip().rstrip("/")
+        printed = urlsplit(line.split(" at ", 1)[1].strip())
+        token = (parse_qs(printed.query).get("token") or [None])[0]
         assert time.monotonic() < deadline
-        yield url, proc
+        yield f"{printed.scheme}://{printed.netloc}", token, proc
     finally:
-        proc.terminate()
+        if proc.poll() is None:
+            proc.terminate()
         try:
             proc.wait(timeout=10)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+
+
+@contextlib.contextmanager
+def running_server(graph: str, *args: str, timeout: float = 120.0):
+    """``pixgraph serve GRAPH --port 0 --no-token ARGS``; yields (base URL, process).
+    Without the token (for clients that do not carry it); the token is tested with
+    ``start_server``."""
+    with start_server(graph, "--no-token", *args, timeout=timeout) as (url, _, proc):
+        yield url, proc

@@ -18,6 +18,7 @@ CAM = Camera(320, 240, hfov=60.0, horizon=60.0, cam_height=1.5)
 class Ctx:
     device = None
     graph_dir = None
+    scale = 1.0
 
     def progress(self, *a):
         pass

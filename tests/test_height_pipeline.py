@@ -108,3 +108,63 @@ def test_benchmark_renders_become_height_samples(tmp_path):
     splits = sorted({p.parent.name for p in written})
     both = train.load_splits(str(d), splits, 32)
     assert len(both["x"]) == 3 and len(both["meta"]) == 3 and both["x"].shape[1:] == (6, 32, 32)
+
+
+def test_real_mix_test_objects_are_only_the_named_meshes_and_heights_are_true():
+    from pixgraph_lab.height import real
+    seen = set()
+    for i in range(3):
+        arrays, meta = generate.make_sample("test", i, seed=0, res=64, mix="real")
+        assert meta["object"] in real.NAMED and meta["category"] == meta["object"]
+        seen.add(meta["object"])
+        cam, m = meta["camera"], arrays["mask"]
+        h = arrays["height"].astype(np.float32)
+        v = np.arange(64, dtype=np.float64)[:, None] + 0.5
+        Y = (cam["cam_height"] * h / (v + h - cam["horizon"]))[m]
+        # back-projected heights lie between the ground and the object's top
+        assert Y.min() > -1e-3 and Y.max() < 1.01 * meta["object_height"]
+        assert Y.max() > 0.5 * meta["object_height"]
+    for i in range(4):
+        arrays, meta = generate.make_sample("train", i, seed=0, res=64, mix="real")
+        assert not str(meta["object"]).startswith("named:")
+        assert meta["category"] in real.CATEGORY_P or meta["category"] == "v2"
+        # matting-like alpha: soft edge values exist, colour is a photo (uint8)
+        assert arrays["rgb"].dtype == np.uint8
+    a2, m2 = generate.make_sample("train", 3, seed=0, res=64, mix="real")
+    np.testing.assert_array_equal(a2["height"], arrays["height"])
+
+
+def test_category_meshes_rest_on_the_ground_with_a_slot_per_face():
+    from pixgraph_lab.datagen.categories import CATEGORIES, make_object
+    for c in CATEGORIES:
+        for s in range(3):
+            V, F, slots, names, kind = make_object(c, np.random.default_rng([s, 5]))
+            assert kind.split("/")[0] == c or c == "figurine"
+            assert V[:, 1].min() == 0.0 and np.isfinite(V).all()
+            assert len(slots) == len(F) and slots.max() < len(names) and F.max() < len(V)
+
+
+def test_confidence_heads_pin_and_real_evaluation(tmp_path):
+    d = tmp_path / "data"
+    for split, n in (("train", 3), ("val", 2), ("test", 2)):
+        assert generate.main(["--split", split, "--n", str(n), "--res", "64", "--mix", "real",
+                              "--out", str(d / split)]) == 0
+    run = tmp_path / "run"
+    assert train.main(["--data", str(d), "--out", str(run), "--size", "32", "--base", "4", "--levels", "2",
+                       "--batch", "2", "--val-every", "2", "--steps", "4", "--outputs", "3", "--pin"]) == 0
+    from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor
+    p = LearnedHeightPredictor(run / "best.pt")
+    assert p.outputs == 3
+    with np.load(sorted((d / "test").glob("0*.npz"))[0]) as z:
+        a = z["alpha"].astype(np.float32) / 255
+        rgba = np.concatenate([z["rgb"].astype(np.float32) / 255 * a[..., None], a[..., None]], 2)
+    r = p.predict_full(rgba)
+    assert 0.0 < r["confidence"] < 1.0 and r["est_mae_learned"] > 0 and r["est_mae_heuristic"] > 0
+    from pixgraph_lab.height import evaluate_real, pin_study
+    assert evaluate_real.main(["--heights", str(d / "test"), "--weights", str(run / "best.pt"),
+                               "--out", str(tmp_path / "ev")]) == 0
+    rep = (tmp_path / "ev" / "report.md").read_text()
+    assert "learned < heuristic" in rep and "named:" in rep
+    assert pin_study.main(["--weights", str(run / "best.pt"), "--heights", str(d / "val"),
+                           "--out", str(tmp_path / "pin"), "--write"]) == 0
+    assert "pin_fade" in LearnedHeightPredictor(run / "best.pt").config["inference"]

@@ -1,8 +1,8 @@
 """``pixgraph serve``'s HTTP API, with a real client (httpx) against a real server
-process on 127.0.0.1, serving a copy of graphs/wall_corner_shadow.yaml."""
+process on 127.0.0.1, serving a copy of graphs/wall_corner_shadow.yaml (started
+``--no-token``; the token, Host and Origin checks are in test_serve_security.py)."""
 import io
 import os
-import threading
 
 import httpx
 import numpy as np
@@ -16,6 +16,8 @@ from serve_helpers import copy_scene, running_server
 
 MAX_PIXELS = 300_000      # 512^2 = 262,144 fits; 600^2 does not
 MAX_BODY = 2_000_000
+YAML = {"Content-Type": "application/yaml"}
+JSON = {"Content-Type": "application/json"}
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +34,7 @@ def server(tmp_path_factory):
 def api(server):
     """A client on the server, whose graph is reset to the file's text first."""
     with httpx.Client(base_url=server["url"], timeout=120) as c:
-        r = c.post("/api/graph", content=server["text"])
+        r = c.post("/api/graph", content=server["text"], headers=YAML)
         assert r.status_code == 200, r.text
         yield c
 
@@ -75,8 +77,9 @@ def test_run_then_param_change_reruns_only_downstream(api):
 
 
 def test_png_is_the_srgb_of_the_exr(api):
-    png = api.get("/api/outputs/final.png")
-    exr = api.get("/api/outputs/final.exr")
+    run = api.post("/api/run", json={}).json()
+    png = api.get(run["outputs"]["final"]["png"])
+    exr = api.get(run["outputs"]["final"]["exr"])
     assert png.headers["content-type"] == "image/png" and exr.headers["content-type"] == "image/x-exr"
     shown = np.asarray(Image.open(io.BytesIO(png.content)), dtype=np.float32) / 255.0
     path = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"pixgraph-serve-test-{os.getpid()}.exr")
@@ -102,6 +105,8 @@ def test_preview_is_a_hard_shadow_at_half_resolution(api):
     assert ((soft > 10) & (soft < 245)).sum() > 1000          # the final one has a penumbra
     png = api.post("/api/render", json={"mode": "preview"})
     assert Image.open(io.BytesIO(png.content)).size == (256, 256)
+    assert Image.open(io.BytesIO(api.post("/api/render", json={"mode": "preview", "scale": 4}).content)).size \
+        == (128, 128)
     assert png.headers["x-pixgraph-mode"] == "preview"
 
 
@@ -154,10 +159,22 @@ def test_errors_unknown_node_and_bad_values(api):
     _error(api.post("/api/run", json={"outputs": ["nothing"]}), 400)
     _error(api.post("/api/run", json={"mode": "fast"}), 400)
     _error(api.get("/api/outputs/light.light.png"), 400)       # not an image
-    _error(api.post("/api/params", content=b"{not json"), 400)
-    _error(api.post("/api/params", content=b"[1, 2]"), 400)
-    _error(api.post("/api/graph", content=b"pixgraph: 1\nnodes: {a: {type: x.Y}}\n"), 400)
-    _error(api.post("/api/graph", content=b"!!python/object/apply:os.system ['touch /tmp/x']\n"), 400)
+    _error(api.post("/api/params", content=b"{not json", headers=JSON), 400)
+    _error(api.post("/api/params", content=b"[1, 2]", headers=JSON), 400)
+    _error(api.post("/api/params", content=b"[" * 100_000, headers=JSON), 400)      # not a RecursionError 500
+    _error(api.post("/api/params", json={"params": {"light.tip_uv": [[[[[[[[0]]]]]]]] * 1}}), 400)
+    deep = {"params": {"light.tip_uv": 0}}
+    for _ in range(40):
+        deep = {"params": {"light.tip_uv": [deep]}}
+    _error(api.post("/api/params", json=deep), 400)
+    _error(api.post("/api/graph", content=b"[" * 100_000, headers=YAML), 400)
+    _error(api.post("/api/graph", content=b"pixgraph: 1\nnodes: {a: {type: x.Y}}\n", headers=YAML), 400)
+    _error(api.post("/api/graph", content=b"!!python/object/apply:os.system ['touch /tmp/x']\n", headers=YAML), 400)
+    # a body without its JSON content type (what a page can send cross-site unasked) is refused
+    _error(api.post("/api/params", content=b'{"params": {"light.azimuth": 3}}'), 415)
+    _error(api.post("/api/params", content=b'{"params": {"light.azimuth": 3}}',
+                    headers={"Content-Type": "text/plain"}), 415)
+    _error(api.post("/api/graph", content=server_text(api).encode(), headers={"Content-Type": "text/plain"}), 415)
     _error(api.get("/api/no-such-thing"), 404)
     _error(api.delete("/api/graph"), 405)
     # the graph is unchanged by the rejected edits
@@ -176,7 +193,7 @@ def test_paths_outside_the_roots_are_refused(api, server):
         e = _error(api.post("/api/params", json={"params": {"cutout.path": path}}), 403)
         assert e["node"] == "cutout" and e["field"] == "params.path", path
     for path in ("/etc/hostname", "/etc/no-such-file.png"):
-        e = _error(api.post("/api/graph", content=server["text"].replace("assets/figure.png", path)), 403)
+        e = _error(api.post("/api/graph", content=server["text"].replace("assets/figure.png", path), headers=YAML), 403)
         assert e["node"] == "cutout"
     assert "not found" in _error(api.post("/api/params", json={"params": {"cutout.path": "assets/nope.png"}}),
                                  400)["error"]
@@ -195,38 +212,48 @@ def _png(w, h):
 
 
 def test_image_and_request_size_limits(api):
-    r = api.put("/api/uploads/small.png", content=_png(64, 48))
+    png = {"Content-Type": "image/png"}
+    r = api.put("/api/uploads/small.png", content=_png(64, 48), headers=png)
     assert r.status_code == 200 and r.json()["pixels"] == 64 * 48
-    e = _error(api.put("/api/uploads/big.png", content=_png(600, 600)), 413)
+    # a file the browser knows no type for (an .exr) comes without one: fine for a PUT
+    assert api.put("/api/uploads/untyped.png", content=_png(8, 8)).status_code == 200
+    e = _error(api.put("/api/uploads/big.png", content=_png(600, 600), headers=png), 413)
     assert "360000 pixels" in e["error"]
-    _error(api.put("/api/uploads/../x.png", content=_png(8, 8)), 404)
-    _error(api.put("/api/uploads/evil.sh", content=b"echo"), 400)
-    _error(api.put("/api/uploads/junk.png", content=b"not a png"), 400)
-    _error(api.put("/api/uploads/huge.png", content=b"\0" * (MAX_BODY + 1)), 413)
+    _error(api.put("/api/uploads/../x.png", content=_png(8, 8), headers=png), 404)
+    _error(api.put("/api/uploads/evil.sh", content=b"echo", headers=png), 400)
+    _error(api.put("/api/uploads/junk.png", content=b"not a png", headers=png), 400)
+    _error(api.put("/api/uploads/huge.png", content=b"\0" * (MAX_BODY + 1), headers=png), 413)
     e = _error(api.post("/api/params", json={"params": {"cam.width": 2048}}), 413)
     assert e["node"] == "cam"
 
 
-def test_stale_renders_are_dropped_and_running_ones_cancelled(api):
+def test_stale_renders_are_dropped(api):
     assert api.post("/api/render", json={"client": "t", "seq": 5, "mode": "preview"}).status_code == 200
     _error(api.post("/api/render", json={"client": "t", "seq": 3, "mode": "preview"}), 409)
-    # a slow final render is cancelled by a newer preview of the same client
-    api.post("/api/params", json={"params": {"shadow.samples": 1000}}).raise_for_status()
-    results = {}
+    _error(api.post("/api/render", json={"client": "t", "seq": 5, "mode": "preview"}), 409)
+    # (a running render cancelled by a newer one: test_serve_runs.py, with a render it controls)
 
-    def slow():
-        with httpx.Client(base_url=str(api.base_url), timeout=120) as c:
-            results["final"] = c.post("/api/render", json={"client": "t", "seq": 10, "mode": "final",
-                                                           "params": {"light.azimuth": 5}})
 
-    t = threading.Thread(target=slow)
-    t.start()
-    import time
-    time.sleep(0.5)
-    newer = api.post("/api/render", json={"client": "t", "seq": 11, "mode": "preview"})
-    t.join()
-    assert newer.status_code == 200
-    assert results["final"].status_code == 409
+def test_outputs_are_fetched_by_run_id_whatever_others_edit(api, server):
+    a = api.post("/api/run", json={"params": {"light.azimuth": -10}}).json()
+    with httpx.Client(base_url=server["url"], timeout=120) as other:     # another client edits and runs
+        b = other.post("/api/run", json={"params": {"light.azimuth": 40}}).json()
+    assert a["run"] != b["run"]
+    png_a, png_b = (_decoded(api.get(r["outputs"]["final"]["png"]).content) for r in (a, b))
+    assert np.abs(png_a - png_b).max() > 50                     # the shadow moved between the two
+    again = api.post("/api/run", json={"params": {"light.azimuth": -10}}).json()
+    np.testing.assert_array_equal(_decoded(api.get(again["outputs"]["final"]["png"]).content), png_a)
+    # without a run id: the current graph (the page's download link)
+    np.testing.assert_array_equal(_decoded(api.get("/api/outputs/final.png").content), png_a)
+    _error(api.get("/api/outputs/final.png?run=nope"), 404)
+
+
+def _decoded(data: bytes) -> np.ndarray:
+    return np.asarray(Image.open(io.BytesIO(data)), dtype=np.int16)
+
+
+def server_text(api) -> str:
+    return api.get("/api/graph.yaml").text
 
 
 def test_nodes_json_is_what_the_page_is_built_from(capsys):
@@ -251,6 +278,9 @@ BAD_EDITS = [
     {"types": "x"}, {"types": {"light": "pixgraph.HardShadow"}}, {"types": {"ghost": "pixgraph.HardShadow"}},
     {"light_elevation": "high"}, {"light_elevation": 95}, {"light_tip": [float("nan"), 3]},
     {"light_tip": "here"},
+    # all or nothing: the valid type switch before the bad param is not applied either
+    {"types": {"shadow": "pixgraph.HardShadow"}, "params": {"light.elevation": 500}},
+    {"light_tip": [150, 420], "params": {"light.kind": "laser"}},
 ]
 BAD_RUNS = [{"outputs": 5}, {"outputs": ["comp.nope"]}, {"mode": 5}]   # bad for /api/run only
 
@@ -261,7 +291,7 @@ def test_every_bad_edit_is_a_4xx_json_error(api, server, data):
 
     raw = json.dumps(data).encode()     # NaN as the JSON extension Python writes
     for path in ("/api/params", "/api/run") if data in BAD_EDITS else ("/api/run",):
-        r = api.post(path, content=raw)
+        r = api.post(path, content=raw, headers=JSON)
         assert 400 <= r.status_code < 500 and r.json()["error"], (path, r.status_code, r.text)
     assert api.get("/api/graph.yaml").text == fileio.dumps(fileio.loads(server["text"], Registry.discover(),
                                                                   base_dir=os.path.dirname(server["graph"])))
@@ -269,11 +299,11 @@ def test_every_bad_edit_is_a_4xx_json_error(api, server, data):
 
 def test_bad_render_requests_and_posted_graphs(api):
     for data in ({"client": 5, "seq": 1}, {"client": "c", "seq": "1"}, {"output": ["final"]},
-                 {"output": "light.light"}, {"mode": "draft"}):
+                 {"output": "light.light"}, {"mode": "draft"}, {"scale": 0}, {"scale": True}, {"scale": 1.5}):
         _error(api.post("/api/render", json=data), 400)
     laughs = "pixgraph: 1\na: &a [1, 1, 1, 1, 1, 1, 1, 1, 1]\nb: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a]\n"
-    assert "anchors" in _error(api.post("/api/graph", content=laughs.encode()), 400)["error"]
-    _error(api.post("/api/graph", content=b"\xff\xfe"), 400)
+    assert "anchors" in _error(api.post("/api/graph", content=laughs.encode(), headers=YAML), 400)["error"]
+    _error(api.post("/api/graph", content=b"\xff\xfe", headers=YAML), 400)
     _error(api.post("/api/save", json={"path": 5}), 400)
     _error(api.post("/api/save", json={"path": "no/such/folder/x.yaml"}), 400)
     _error(api.get("/api/outputs/final.gif"), 404)

@@ -1,4 +1,5 @@
-"""docs/server.md's Python client example runs against a real ``pixgraph serve``."""
+"""docs/server.md's Python client example runs against a real ``pixgraph serve``
+(with its per-launch token), and its option list matches ``pixgraph serve --help``."""
 import os
 import re
 
@@ -6,22 +7,39 @@ from PIL import Image
 
 from pixgraph import fileio
 from pixgraph.registry import Registry
-from serve_helpers import REPO, copy_scene, running_server
+from serve_helpers import REPO, copy_scene, start_server
+
+DOC = os.path.join(REPO, "docs", "server.md")
 
 
 def test_server_md_client_example(tmp_path, monkeypatch, capsys):
-    text = open(os.path.join(REPO, "docs", "server.md")).read()
+    text = open(DOC).read()
     (code,) = re.findall(r"```python\n(.*?)```", text, re.S)
     (expected,) = re.findall(r"It prints\n\n```text\n(.*?)```", text, re.S)
     graph = copy_scene(str(tmp_path / "scene"))
     monkeypatch.chdir(tmp_path)
-    with running_server(graph) as (url, _):
+    with start_server(graph) as (url, token, _):
         import httpx
 
-        httpx.post(url + "/api/run", json={}, timeout=120).raise_for_status()   # "after a first run"
-        assert 'URL = "http://127.0.0.1:8765"' in code
-        exec(compile(code.replace("http://127.0.0.1:8765", url), "server.md", "exec"), {})
+        httpx.post(url + "/api/run", json={}, headers={"X-Pixgraph-Token": token},
+                   timeout=120).raise_for_status()   # "after a first run"
+        assert 'URL = "http://127.0.0.1:8765"' in code and 'TOKEN = "3kX...Q"' in code
+        code = code.replace("http://127.0.0.1:8765", url).replace("3kX...Q", token)
+        exec(compile(code, "server.md", "exec"), {})
     assert capsys.readouterr().out == expected
     assert Image.open(tmp_path / "final.png").size == (512, 512)
     saved = fileio.load(tmp_path / "scene" / "wall_corner_edited.yaml", Registry.discover())
     assert saved.nodes["light"].params["azimuth"] == 40
+
+
+def test_server_md_names_every_option():
+    import argparse
+
+    from pixgraph_serve.cli import add_arguments
+
+    text = open(DOC).read()
+    start = text[text.index("## Start it"):text.index("## The page")]
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    options = {o for a in parser._actions for o in a.option_strings if o.startswith("--")} - {"--help"}
+    assert len(options) == 8 and options <= set(re.findall(r"`(--[a-z][a-z-]+)", start)), options

@@ -1,16 +1,94 @@
-"""The UI's light handle: the shadow tip the server reports is where the hard shadow
-of the object's top ends (no HTTP: ``ServeState`` in-process)."""
+"""The page's handles, found from what nodes declare, and the light's screen geometry
+(``pixgraph_nodes.ops.light_screen``); in-process ``ServeState``, no HTTP."""
+import ast
+import math
+import os
+import re
+
 import numpy as np
 import pytest
 
+from pixgraph_nodes.ops import light_screen as LS
+from pixgraph_nodes.ops import lights as L
+from pixgraph_nodes.ops.camera import Camera
+from pixgraph_serve import app as serve_app
 from pixgraph_serve import scene
+from pixgraph_serve.errors import ServeError
 from pixgraph_serve.state import ServeState
-from serve_helpers import copy_scene
+from serve_helpers import REPO, copy_scene
+
+CAM = Camera(512, 512, hfov=50.0, horizon=120.0, cam_height=1.0)
 
 
 @pytest.fixture(scope="module")
 def state(tmp_path_factory):
     return ServeState(copy_scene(str(tmp_path_factory.mktemp("scene"))))
+
+
+# -- the geometry (no server) ---------------------------------------------------------------
+
+def test_object_top_is_the_middle_of_the_highest_covered_row():
+    mask = np.zeros((40, 30), np.float32)
+    mask[12, 5:10] = 1.0            # highest row: columns 5..9, middle 7
+    mask[13:30, 3:20] = 1.0
+    mask[11, 25] = 0.4              # under half covered: not the object
+    height = np.arange(40 * 30, dtype=np.float32).reshape(40, 30)
+    assert LS.object_top(mask, height) == (7.5, 12.5, float(height[12, 7]))
+    assert LS.object_top(np.zeros((4, 4)), height[:4, :4]) is None
+
+
+@pytest.mark.parametrize("kind,distance", [("directional", math.inf), ("point", 3.0)])
+def test_shadow_tip_inverts_from_shadow_tip(kind, distance):
+    top = (260.0, 180.0, 150.0)
+    for tip in [(150.0, 420.0), (400.0, 300.0), (255.0, 500.0)]:
+        light = L.from_shadow_tip(CAM, tip, top, distance=distance, kind=kind)
+        assert LS.shadow_tip(CAM, light, top) == pytest.approx(tip, abs=1e-6)
+
+
+def test_tip_at_elevation_gives_that_elevation_on_the_same_ground_direction():
+    top, tip = (260.0, 180.0, 150.0), (150.0, 420.0)
+    P, _ = CAM.back_project(*top)
+    T0, _ = CAM.back_project(*tip, 0.0)
+    for el in (30.0, 45.0, 60.0):
+        new = LS.tip_at_elevation(CAM, tip, top, el)
+        light = L.from_shadow_tip(CAM, new, top)
+        assert dict(light.controls)["elevation"] == pytest.approx(el, abs=1e-6)
+        T, _ = CAM.back_project(*new, 0.0)
+        a, b = T0 - [P[0], 0, P[2]], T - [P[0], 0, P[2]]     # same direction from the top's foot
+        assert abs(a[0] * b[2] - a[2] * b[0]) < 1e-9 * np.linalg.norm(a) * np.linalg.norm(b) + 1e-12
+        assert a[0] * b[0] + a[2] * b[2] > 0
+    with pytest.raises(ValueError, match="0.5, 90"):
+        LS.tip_at_elevation(CAM, tip, top, 90.0)
+
+
+# -- the server reads declarations, never type ids -----------------------------------------
+
+def test_no_node_type_ids_or_plugin_imports_in_pixgraph_serve():
+    folder = os.path.join(REPO, "pixgraph_serve")
+    for name in sorted(os.listdir(folder)):
+        if not name.endswith(".py"):
+            continue
+        text = open(os.path.join(folder, name)).read()
+        assert not re.search(r"pixgraph\.[A-Z]\w+", text), name
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                mods = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+                assert not any(m.startswith("pixgraph_nodes") for m in mods), (name, mods)
+        if name == "app.py":     # the routes use the state's public API only
+            assert not re.search(r"\b(state|session|engine)\._\w", text) and ".engine" not in text
+
+
+def test_roles_preview_and_alternatives_come_from_declarations(state):
+    assert scene.roles(state) == {"camera": "cam", "light": "light", "background": "bg_h", "shadow": "shadow"}
+    assert state.alternatives("pixgraph.SoftShadow") == ["pixgraph.HardShadow", "pixgraph.Shadow",
+                                                        "pixgraph.SoftShadow", "pixgraph.SoftShadowSSN"]
+    assert state.alternatives("pixgraph.Light") == ["pixgraph.Light"]
+    assert state.alternatives("pixgraph.Composite") == []
+    prev = state.preview_graph()
+    assert prev.nodes["shadow"].type == "pixgraph.HardShadow"           # SoftShadow.preview
+    assert prev.nodes["shadow"].params == {"thickness": 6}              # only the params it declares
+    assert {n: i.type for n, i in prev.nodes.items() if n != "shadow"} == \
+        {n: i.type for n, i in state.graph.nodes.items() if n != "shadow"}
 
 
 @pytest.mark.parametrize("kind,azimuth", [("directional", 120.0), ("point", 240.0)])
@@ -20,7 +98,7 @@ def test_reported_tip_is_the_end_of_the_hard_shadow(state, kind, azimuth):
                       "light.elevation": 70.0, "light.distance": 6.0})
     light = scene.describe(state)["light"]
     (u, v), top = light["tip_uv"], light["top_uvh"]
-    dark = state.run(["shadow.darkness"])[0]["shadow.darkness"]
+    dark = state.run(["shadow.darkness"])["shadow.darkness"]
     d = np.array([u - top[0], v - top[1] - top[2]])          # from the top's foot toward the tip
     d /= np.linalg.norm(d)
 
@@ -42,3 +120,85 @@ def test_elevation_edit_keeps_the_tip_direction(state):
     foot = np.array([before["top_uvh"][0], before["top_uvh"][1] + before["top_uvh"][2]])
     # a lower light: a longer shadow, the tip farther from the top's foot
     assert np.linalg.norm(np.subtract(after["tip_uv"], foot)) > np.linalg.norm(np.subtract(before["tip_uv"], foot)) + 20
+
+
+def _drag(state, tip, mode="preview"):
+    """What POST /api/render does for a drag step; returns the number of graph runs."""
+    def work():
+        serve_app.apply_edits(state, {"light_tip": tip})
+        graph = state.graph_for(mode)
+        extra = scene.piggyback(state, graph, ["final"])
+        res = state.run(["final", *extra], mode)
+        scene.note(state, graph, extra, res)
+        return res
+    return serve_app.run_counted(state, work)[1]
+
+
+def test_a_drag_runs_the_graph_once(state):
+    state.set_type("shadow", "pixgraph.SoftShadow")
+    state.set_params({"cutout.path": "assets/figure.png"})
+    state.anchors = None
+    assert _drag(state, [150, 420]) == 2          # the first one finds the object's top with a run of its own
+    runs = [_drag(state, [150 + 7 * i, 420 - 3 * i]) for i in range(1, 6)]
+    assert runs == [1] * 5                        # then one run per drag step
+    assert list(state.graph.nodes["light"].params["tip_uv"]) == [185.0, 405.0]
+    # an edit upstream of the object's top or the camera costs one more run, once
+    state.set_params({"cam.horizon": 121})
+    assert _drag(state, [160, 430]) == 2
+    assert _drag(state, [161, 431]) == 1
+    state.set_params({"cam.horizon": 120})
+
+
+def test_a_refused_edit_changes_nothing(state):
+    before = state.yaml()
+    with pytest.raises(ServeError) as e:
+        serve_app.apply_edits(state, {"types": {"shadow": "pixgraph.HardShadow"},
+                                      "params": {"light.elevation": 500}})
+    assert e.value.status == 400 and e.value.where["field"] == "params.elevation"
+    assert state.yaml() == before and state.graph.nodes["shadow"].type == "pixgraph.SoftShadow"
+    with pytest.raises(ServeError):
+        serve_app.apply_edits(state, {"light_tip": [150, 420], "params": {"light.kind": "laser"}})
+    assert state.yaml() == before
+
+
+def test_own_photo_graph_camera_size_from_its_image_and_the_placed_cutout(tmp_path):
+    import shutil
+
+    from serve_helpers import GRAPHS
+
+    os.makedirs(tmp_path / "assets")
+    for name in ("own_cutout.png", "own_photo.jpg"):
+        shutil.copy(os.path.join(GRAPHS, "assets", name), tmp_path / "assets" / name)
+    shutil.copy(os.path.join(GRAPHS, "own_photo.yaml"), tmp_path / "own_photo.yaml")
+    st = ServeState(str(tmp_path / "own_photo.yaml"))
+    r = scene.roles(st)
+    assert r == {"camera": "cam", "light": "light", "background": "bg_h", "shadow": "shadow", "place": "place"}
+    d = scene.describe(st)
+    photo = st.run(["photo.image"])["photo.image"]
+    assert [d["camera"]["width"], d["camera"]["height"]] == [photo.shape[1], photo.shape[0]]
+    alpha = st.run(["place.alpha"])["place.alpha"]
+    rows, cols = np.nonzero(alpha > 0.5)
+    assert d["place"]["bbox"] == [cols.min(), rows.min(), cols.max() + 1, rows.max() + 1]
+    assert d["place"]["foot"] == [270, 345] and d["place"]["scale"] == 0.8
+    u0, _, u1, v1 = d["place"]["bbox"]
+    assert u0 < 270 < u1 and abs(v1 - 345) < 3            # the foot is on the box's bottom edge
+
+
+def test_a_cutout_changed_on_disk_moves_the_top_from_the_next_render(tmp_path):
+    from PIL import Image
+
+    st = ServeState(copy_scene(str(tmp_path / "scene")))
+    path = tmp_path / "scene" / "assets" / "figure.png"
+    _drag(st, [150, 420])
+    top = st.anchors.top
+    assert _drag(st, [151, 421]) == 1 and st.anchors.top == top
+    img = Image.open(path)
+    lowered = Image.new(img.mode, img.size)
+    lowered.paste(img.crop((0, 0, img.width, img.height - 20)), (0, 20))    # the figure 20 px lower
+    lowered.save(path)
+    os.utime(path, ns=(os.stat(path).st_atime_ns, os.stat(path).st_mtime_ns + 10**9))
+    assert _drag(st, [152, 422]) == 1                  # this step still uses the old top; its run sees the file
+    assert st.anchors.top[1] == top[1] + 20 and st.anchors.top[0] == top[0]
+    assert list(st.graph.nodes["light"].params["top_uvh"]) == list(top)
+    _drag(st, [153, 423])
+    assert list(st.graph.nodes["light"].params["top_uvh"]) == list(st.anchors.top)

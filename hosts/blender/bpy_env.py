@@ -3,7 +3,7 @@ testing the add-on headless: python hosts/blender/bpy_env.py [--print-python]
 
 bpy 5.0.x runs on Python 3.11 and needs numpy < 2, so it cannot share the project's
 environment. The venv lives in ``$PIXGRAPH_BPY_VENV`` or
-``$XDG_CACHE_HOME/pixgraph/bpy-venv`` (``~/.cache`` without XDG_CACHE_HOME) and is
+``$XDG_CACHE_HOME/pixgraph-bpy-venv`` (``~/.cache`` without XDG_CACHE_HOME; beside, not inside, the disk cache folder, which pixgraph refuses to share with other files) and is
 reused while its stamp (the requirements and pyproject.toml) is unchanged; pixgraph
 is installed editable from this working tree, so code changes need no rebuild.
 The first build downloads bpy (a few hundred MB); about 1.2 GB on disk.
@@ -27,7 +27,7 @@ def venv_dir() -> pathlib.Path:
     if os.environ.get("PIXGRAPH_BPY_VENV"):
         return pathlib.Path(os.environ["PIXGRAPH_BPY_VENV"])
     cache = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return pathlib.Path(cache) / "pixgraph" / "bpy-venv"
+    return pathlib.Path(cache) / "pixgraph-bpy-venv"
 
 
 def _stamp() -> str:

@@ -24,6 +24,11 @@ def main(argv=None) -> int:
     ap.add_argument("--data", required=True)
     ap.add_argument("--eval", default=None, help="folder with report.md of pixgraph_lab.height.evaluate")
     ap.add_argument("--command", default=None, help="the training command, when train.json is missing")
+    ap.add_argument("--splits", default="train,train_bench,val,val_bench,test",
+                    help="sub-folders of --data to record (sample counts, generator commands)")
+    ap.add_argument("--previous-run", action="append", default=[],
+                    help="a run this one was initialised from (--init): its command, steps and time "
+                         "are recorded too (repeatable, oldest first)")
     a = ap.parse_args(argv)
     import torch
     from pixgraph_nodes.ops.learned_height import WEIGHTS
@@ -34,7 +39,7 @@ def main(argv=None) -> int:
     if os.path.exists(tj):
         info = json.load(open(tj))
     data = {}
-    for split in ("train", "train_bench", "val", "val_bench", "test"):
+    for split in a.splits.split(","):
         cfgs = [json.load(open(p)) for p in sorted(glob.glob(os.path.join(a.data, split, "config_*.json")))]
         data[split] = {"samples": len(glob.glob(os.path.join(a.data, split, "[0-9]" * 5 + ".npz"))),
                        "generator": [c["command"] for c in cfgs],
@@ -51,6 +56,12 @@ def main(argv=None) -> int:
         "train_device": info.get("device", "cpu"), "threads": info.get("threads", 1),
         "dtype": "float16 state dict (loaded as float32)",
     }
+    prev = []
+    for r in a.previous_run:
+        pj = json.load(open(os.path.join(r, "train.json")))
+        prev.append({k: pj.get(k) for k in ("command", "steps", "seconds", "best_val_mae_px", "train_samples")})
+    if prev:
+        prov["previous_runs"] = prev
     if a.eval:
         prov["evaluation"] = pathlib.Path(a.eval, "report.md").read_text()
     WEIGHTS.parent.mkdir(parents=True, exist_ok=True)

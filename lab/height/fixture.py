@@ -29,15 +29,24 @@ def main(argv=None) -> int:
     ap.add_argument("--data", required=True)
     ap.add_argument("--out", required=True)
     ap.add_argument("--per-pose", type=int, default=2)
+    ap.add_argument("--first", type=int, default=0,
+                    help="instead: the first N samples in index order, whatever their pose "
+                         "(tests/fixtures/height_real_heldout.npz: the real-cutout test split)")
     a = ap.parse_args(argv)
     want = {p: a.per_pose for p in ("upright", "tilted", "lying", "random")}
+    first = a.first
     out = {}
     for f in sorted(glob.glob(os.path.join(a.data, "[0-9]" * 5 + ".npz"))):
         with np.load(f) as z:
             meta = json.loads(str(z["meta"]))
-            if want.get(meta["pose"], 0) == 0:
+            if first:
+                first -= 1
+                if first == 0:
+                    want = {}
+            elif want.get(meta["pose"], 0) == 0:
                 continue
-            want[meta["pose"]] -= 1
+            else:
+                want[meta["pose"]] -= 1
             rows, cols = np.nonzero(z["mask"])
             r0, r1 = max(rows.min() - 6, 0), rows.max() + 7
             c0, c1 = max(cols.min() - 6, 0), cols.max() + 7
@@ -56,6 +65,7 @@ def main(argv=None) -> int:
         out[k + "_mask"] = m2 > 0.99                      # fully covered half-res pixels
         out[k + "_height"] = (shrink(h) / np.maximum(m2, 1e-6) * 0.5 * (m2 > 0.99)).astype(np.float16)
         out[k + "_meta"] = np.array(json.dumps({"object": meta["object"], "pose": meta["pose"],
+                                                "category": meta.get("category"),
                                                 "index": meta["index"], "source": f}))
         if not any(want.values()):
             break

@@ -113,6 +113,28 @@ def augment(x, t, w, gen):
     return torch.cat([col, x2[:, 3:]], 1), t2, w2
 
 
+def contact_pin(p, x, band: float = 1.5):
+    """``p`` shifted per sample so its mean over the crop's contact pixels (alpha >
+    0.5 and within ``band`` crop pixels of the cutout's bottom edge, read from the
+    row channel) is 0: the training-time twin of ``learned_height.pin_contact``."""
+    import torch
+    step = (x[:, 5, 0, 0] - x[:, 5, 1, 0]).abs().clamp(min=1e-6)[:, None, None]
+    c = ((x[:, 3] > 0.5) & (x[:, 5] < band * step)).float()
+    n = c.sum((1, 2))
+    off = torch.where(n > 0, (p * c).sum((1, 2)) / n.clamp(min=1), torch.zeros_like(n))
+    return p - off[:, None, None]
+
+
+def error_head_loss(e, p, x, t, w, floor: float = 0.005):
+    """L1 between the error heads (log |error| / bh) and the actual log errors of the
+    (pinned, detached) learned height and of the contact-line channel, mask-weighted."""
+    import torch
+    tl = torch.log((p.detach() - t).abs() + floor)
+    th = torch.log((contact_pin(x[:, 4], x) - t).abs() + floor)
+    ws = w.sum().clamp(min=1.0)
+    return ((w * (e[:, 0] - tl).abs()).sum() + (w * (e[:, 1] - th).abs()).sum()) / ws
+
+
 def masked_loss(p, t, w):
     wsum = w.sum().clamp(min=1.0)
     l0 = (w * (p - t).abs()).sum() / wsum
@@ -127,6 +149,8 @@ def evaluate(model, val, device, batch=32):
     """Validation MAE of height/bh, in crop pixels x bh ~ px of the original, and of the
     heuristic (channel 4), mean over samples of the per-sample mask-weighted mean."""
     import torch
+
+    from pixgraph_nodes.ops.learned_height import split_output
     model.eval()
     maes, heur = [], []
     with torch.inference_mode():
@@ -134,7 +158,7 @@ def evaluate(model, val, device, batch=32):
             x = torch.from_numpy(val["x"][i:i + batch].astype(np.float32)).to(device)
             t = torch.from_numpy(val["t"][i:i + batch].astype(np.float32)).to(device)
             w = torch.from_numpy(val["w"][i:i + batch].astype(np.float32)).to(device)
-            p = model(x)
+            p = contact_pin(split_output(model(x))[0], x)
             bh = torch.from_numpy(val["bh"][i:i + batch]).to(device)
             ws = w.sum((1, 2)).clamp(min=1)
             maes.append(((w * (p - t).abs()).sum((1, 2)) / ws * bh).cpu().numpy())
@@ -164,6 +188,14 @@ def main(argv=None) -> int:
                     help="comma-separated sub-folders of --data to train on, e.g. train,train_bench "
                          "(train_bench: pixgraph_lab.height.from_benchmark)")
     ap.add_argument("--val-splits", default="val", help="comma-separated validation sub-folders")
+    ap.add_argument("--outputs", type=int, choices=(1, 3), default=1,
+                    help="3: also the two confidence heads (learned_height.build_model)")
+    ap.add_argument("--init", default=None,
+                    help="start from this checkpoint's weights (e.g. the shipped one; a 1-output "
+                         "head is copied into the height channel of a 3-output one)")
+    ap.add_argument("--pin", action="store_true",
+                    help="train the contact-pinned height (the contact pixels' mean shifted to 0, "
+                         "as predict does with contact='ground')")
     a = ap.parse_args(argv)
     import torch
     torch.set_num_threads(a.threads)
@@ -176,13 +208,27 @@ def main(argv=None) -> int:
     val = load_splits(a.data, a.val_splits.split(","), a.size)
     print(f"data: {len(train['x'])} train, {len(val['x'])} val ({time.perf_counter() - t_load:.0f} s to load)",
           flush=True)
-    model = build_model(a.base, a.levels).to(device)
+    model = build_model(a.base, a.levels, a.outputs).to(device)
+    if a.init and not os.path.exists(os.path.join(a.out, "last.pt")):
+        ck0 = torch.load(a.init, map_location="cpu", weights_only=True)
+        sd = {k: v.float() for k, v in ck0["model"].items()}
+        own = model.state_dict()
+        for k in ("head.weight", "head.bias"):
+            if k in sd and sd[k].shape != own[k].shape:
+                v = torch.zeros_like(own[k])
+                v[:1] = sd[k]
+                if k == "head.bias":
+                    v[1:] = float(np.log(0.05))
+                sd[k] = v
+        model.load_state_dict(sd)
+        print(f"initialised from {a.init}", flush=True)
     opt = torch.optim.AdamW(model.parameters(), lr=a.lr, weight_decay=1e-4)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=a.lr, total_steps=a.steps,
                                                 pct_start=min(0.5, max(0.05, 3.0 / a.steps)))
     gen = torch.Generator().manual_seed(a.seed)
     rng = np.random.default_rng(a.seed)
-    config = {"size": a.size, "base": a.base, "levels": a.levels, "in_channels": 6,
+    config = {"size": a.size, "base": a.base, "levels": a.levels, "in_channels": 6, "outputs": a.outputs,
+              "pin": bool(a.pin), "init": a.init,
               "target": "pixel height / cutout bounding-box height"}
     state = {"step": 0, "curve": [], "best": float("inf"), "seconds": 0.0}
     last = os.path.join(a.out, "last.pt")
@@ -234,7 +280,13 @@ def main(argv=None) -> int:
         t = torch.from_numpy(train["t"][idx].astype(np.float32)).to(device)
         w = torch.from_numpy(train["w"][idx].astype(np.float32)).to(device)
         x, t, w = augment(x, t, w, gen)
-        loss = masked_loss(model(x), t, w)
+        from pixgraph_nodes.ops.learned_height import split_output
+        p, e = split_output(model(x))
+        if a.pin:
+            p = contact_pin(p, x)
+        loss = masked_loss(p, t, w)
+        if e is not None:
+            loss = loss + 0.1 * error_head_loss(e, p, x, t, w)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step(); sched.step()

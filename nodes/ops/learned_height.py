@@ -150,10 +150,67 @@ def paste(pred: np.ndarray, box, bh: float, mask: np.ndarray, clip: bool = True)
     return np.where(mask, (np.maximum(out, 0.0) if clip else out) * bh, 0.0).astype(np.float32)
 
 
-def build_model(base: int = 8, levels: int = 4):
+def contact_band(mask: np.ndarray, band: float = 1.5) -> np.ndarray:
+    """The cutout's contact pixels: mask pixels in its lowest rows, those whose
+    row centre ``r + 0.5`` is within ``band`` px of the mask's bottom edge ``r1``
+    (the row below its lowest row): the lowest row for band 1, two rows for 1.5."""
+    rows = np.nonzero(np.asarray(mask).any(1))[0]
+    out = np.zeros(np.shape(mask), bool)
+    if len(rows) == 0:
+        return out
+    r1 = int(rows.max()) + 1
+    lo = max(int(math.ceil(r1 - band - 0.5)), 0)
+    out[lo:r1] = np.asarray(mask, bool)[lo:r1]
+    return out
+
+
+def pin_contact(height: np.ndarray, mask: np.ndarray, lift: float = 0.0, band: float = 1.5,
+                fade: float | None = None) -> np.ndarray:
+    """The contact as a constraint: shift a pixel-height map [px] so the mean
+    over the cutout's contact pixels (``contact_band``) is ``lift`` [px] before
+    clipping at 0 (0: the
+    object stands on the ground; > 0: it floats that high above its foot, e.g. a
+    held object or a hanging lamp). Heights stay >= 0 (clipped after the shift),
+    and 0 outside ``mask``. Shifting by a constant keeps the shape above the
+    contact: the predictor supplies the shape, the constraint supplies the level.
+    ``fade`` (a fraction of the cutout's box height, or None): instead of a
+    constant, the shift fades linearly from full at the bottom edge to 0 at
+    ``fade`` box heights above it (the foot is fixed, the upper part kept where
+    the predictor put it)."""
+    m = np.asarray(mask, bool)
+    h = np.asarray(height, np.float32)
+    c = contact_band(m, band)
+    if not c.any():
+        return np.where(m, h, 0.0).astype(np.float32)
+    off = float(h[c].mean()) - float(lift)
+    if fade is not None:
+        rows = np.nonzero(m.any(1))[0]
+        r0, r1 = int(rows.min()), int(rows.max()) + 1
+        v = np.arange(m.shape[0], dtype=np.float64)[:, None] + 0.5
+        w = np.clip(1.0 - (r1 - v) / (float(fade) * (r1 - r0)), 0.0, 1.0)
+        # the band's own weights are < 1: scale so the band's mean still lands on lift
+        wb = float(np.broadcast_to(w, m.shape)[c].mean())
+        return np.where(m, np.maximum(h - off * w / max(wb, 1e-6), 0.0), 0.0).astype(np.float32)
+    return np.where(m, np.maximum(h - off, 0.0), 0.0).astype(np.float32)
+
+
+def split_output(y):
+    """(height / bh (N, S, S), error heads (N, 2, S, S) or None) of a model output:
+    a 1-output model returns the height alone; a 3-output one also returns the
+    log of its predicted absolute errors of the learned and the contact-line
+    height (in units of bh), ``build_model``."""
+    if y.ndim == 4:
+        return y[:, 0], y[:, 1:]
+    return y, None
+
+
+def build_model(base: int = 8, levels: int = 4, outputs: int = 1):
     """The U-Net: per level two conv3x3-BatchNorm-ReLU, max-pool down, bilinear up
     + skip concat; 6 input channels, 1 output (height / bh), added to the
-    heuristic's channel (the network learns the correction)."""
+    heuristic's channel (the network learns the correction). ``outputs=3`` adds
+    two confidence heads (``split_output``): log |learned - true| / bh and
+    log |contact line - true| / bh per pixel, and the model returns (N, 3, S, S)
+    with the height in channel 0."""
     import torch
     from torch import nn
     import torch.nn.functional as F
@@ -171,7 +228,7 @@ def build_model(base: int = 8, levels: int = 4):
             self.down = nn.ModuleList([block(IN_CHANNELS, ch[0])] +
                                       [block(ch[k - 1], ch[k]) for k in range(1, levels + 1)])
             self.up = nn.ModuleList([block(ch[k + 1] + ch[k], ch[k]) for k in range(levels)])
-            self.head = nn.Conv2d(ch[0], 1, 1)
+            self.head = nn.Conv2d(ch[0], outputs, 1)
 
         def forward(self, x):
             heur = x[:, 4]
@@ -184,7 +241,10 @@ def build_model(base: int = 8, levels: int = 4):
                 x = F.interpolate(x, scale_factor=2, mode="bilinear", align_corners=False)
                 x = self.up[k](torch.cat([x, skips.pop()], 1))
             # a residual over the heuristic channel: right from the start for upright objects
-            return self.head(x)[:, 0] + heur
+            y = self.head(x)
+            if outputs == 1:
+                return y[:, 0] + heur
+            return torch.cat([(y[:, 0] + heur)[:, None], y[:, 1:]], 1)
 
     return UNet()
 
@@ -196,12 +256,14 @@ class LearnedHeightPredictor:
     """
 
     def __init__(self, path: str | pathlib.Path = WEIGHTS, threads: int | None = 1,
-                 flip_average: bool | None = None, heuristic_detail: bool | None = None):
+                 flip_average: bool | None = None, heuristic_detail: bool | None = None,
+                 pin_fade: float | None | str = "checkpoint"):
         import torch
         ck = torch.load(path, map_location="cpu", weights_only=True)
         cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else ck["config"]
         self.size = int(cfg["size"])
-        self.model = build_model(int(cfg["base"]), int(cfg["levels"]))
+        self.outputs = int(cfg.get("outputs", 1))
+        self.model = build_model(int(cfg["base"]), int(cfg["levels"]), self.outputs)
         self.model.load_state_dict({k: v.float() for k, v in ck["model"].items()})
         self.model.eval()
         self.device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -216,12 +278,19 @@ class LearnedHeightPredictor:
         self.flip_average = bool(inf.get("flip_average", False) if flip_average is None else flip_average)
         self.heuristic_detail = bool(inf.get("heuristic_detail", False) if heuristic_detail is None
                                      else heuristic_detail)
+        # how the contact pin shifts the map (pin_contact's fade): the checkpoint's choice
+        # (lab/height/inference_study.py --pin), else a constant shift
+        self.pin_fade = inf.get("pin_fade", None) if pin_fade == "checkpoint" else pin_fade
 
-    def predict_normalised(self, x: np.ndarray) -> np.ndarray:
-        """(N, 6, S, S) inputs -> (N, S, S) height / bh."""
+    def predict_normalised(self, x: np.ndarray, aux: bool = False):
+        """(N, 6, S, S) inputs -> (N, S, S) height / bh; with ``aux`` also the
+        error heads (N, 2, S, S) (None for a 1-output model)."""
         import torch
         with self._threads(), torch.inference_mode():
-            return self.model(torch.from_numpy(x).to(self.device)).float().cpu().numpy()
+            h, e = split_output(self.model(torch.from_numpy(x).to(self.device)).float())
+            h = h.cpu().numpy()
+            e = None if e is None else e.cpu().numpy()
+        return (h, e) if aux else h
 
     @contextlib.contextmanager
     def _threads(self):
@@ -234,8 +303,27 @@ class LearnedHeightPredictor:
         finally:
             torch.set_num_threads(before)
 
-    def predict(self, rgba: np.ndarray, threshold: float = 0.5) -> np.ndarray:
+    def predict(self, rgba: np.ndarray, threshold: float = 0.5, contact: str = "ground",
+                lift: float = 0.0) -> np.ndarray:
         """(H, W) pixel height [px], 0 outside the cutout (alpha > threshold).
+
+        ``contact``: ``ground`` (the object stands on the ground: its contact
+        pixels are pinned to height 0, ``pin_contact``), ``lifted`` (pinned to
+        ``lift`` px: an object that does not touch the ground) or ``free`` (the
+        network's raw output, no constraint). See ``predict_full``.
+        """
+        return self.predict_full(rgba, threshold, contact, lift)["height"]
+
+    def predict_full(self, rgba: np.ndarray, threshold: float = 0.5, contact: str = "ground",
+                     lift: float = 0.0) -> dict:
+        """``predict`` plus the confidence: a dict with ``height`` (H, W) [px],
+        ``heuristic`` (the contact-line height under the same contact
+        constraint), and, for a checkpoint with confidence heads (``outputs``
+        3), ``est_mae_learned`` / ``est_mae_heuristic`` [px] (the network's
+        estimate of each map's mean absolute error over the cutout) and
+        ``confidence`` = est_mae_heuristic / (est_mae_learned + est_mae_heuristic)
+        in (0, 1): above 0.5 the learned map is expected to be the better one
+        (None without heads).
 
         ``flip_average``: the network also reads the mirrored crop and the two
         outputs (the second mirrored back) are averaged; training saw mirrored
@@ -246,20 +334,39 @@ class LearnedHeightPredictor:
         heuristic's detail (steps between columns, the silhouette's edge) wherever
         the network does not correct it.
         """
+        if contact not in ("ground", "lifted", "free"):
+            raise ValueError(f"contact must be 'ground', 'lifted' or 'free', not {contact!r}")
         rgba = np.asarray(rgba, np.float32)
         colour, alpha = straight_srgb(rgba)
         mask = alpha > threshold
+        heur = contact_line_height(mask)
+        out = {"height": np.zeros(alpha.shape, np.float32), "heuristic": heur.astype(np.float32),
+               "confidence": None, "est_mae_learned": None, "est_mae_heuristic": None}
         with self._threads():
             x, box, bh = prepare(colour, alpha, self.size, threshold)
             if box is None:
-                return np.zeros(alpha.shape, np.float32)
+                return out
             if self.flip_average:
-                both = self.predict_normalised(np.stack([x, x[:, :, ::-1]]).copy())
+                both, e = self.predict_normalised(np.stack([x, x[:, :, ::-1]]).copy(), aux=True)
                 pred = 0.5 * (both[0] + both[1][:, ::-1])
             else:
-                pred = self.predict_normalised(x[None])[0]
+                p1, e = self.predict_normalised(x[None], aux=True)
+                pred = p1[0]
             if not self.heuristic_detail:
-                return paste(pred, box, bh, mask)
-            # paste is linear in its input for one mask: paste(pred) - paste(x[4]) in one call
-            h = paste(pred - x[4], box, bh, mask, clip=False) + contact_line_height(mask)
-            return np.where(mask, np.maximum(h, 0.0), 0.0).astype(np.float32)
+                h = paste(pred, box, bh, mask)
+            else:
+                # paste is linear in its input for one mask: paste(pred) - paste(x[4]) in one call
+                h = paste(pred - x[4], box, bh, mask, clip=False) + heur
+                h = np.where(mask, np.maximum(h, 0.0), 0.0).astype(np.float32)
+        if e is not None:
+            w = np.clip(x[3], 0, 1)
+            ws = max(float(w.sum()), 1e-6)
+            el = float((np.exp(e[0, 0]) * w).sum() / ws * bh)
+            eh = float((np.exp(e[0, 1]) * w).sum() / ws * bh)
+            out.update(est_mae_learned=el, est_mae_heuristic=eh, confidence=eh / max(el + eh, 1e-9))
+        if contact != "free":
+            lv = float(lift) if contact == "lifted" else 0.0
+            h = pin_contact(h, mask, lv, fade=self.pin_fade)
+            out["heuristic"] = pin_contact(heur, mask, lv)
+        out["height"] = h
+        return out

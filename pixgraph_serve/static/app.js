@@ -7,6 +7,12 @@
 // by a newer seq (409), and the page never shows an image older than the one shown.
 "use strict";
 
+// The server's per-launch token (written into the page it serves) goes with every request.
+function withToken(fetch, token) {
+  return token ? (url, opts = {}) => fetch(url, {...opts, headers: {...opts.headers, "X-Pixgraph-Token": token}}) : fetch;
+}
+window.fetch = withToken(window.fetch.bind(window), document.querySelector("meta[name=pixgraph-token]")?.content);
+
 window.pixgraphShown = [];
 
 const SVG = "http://www.w3.org/2000/svg";

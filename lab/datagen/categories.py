@@ -1,0 +1,636 @@
+"""Procedural objects like the things people cut out of photos (for the pixel-height predictor).
+
+Categories (``CATEGORIES``), each a generator of a random articulated or
+assembled mesh built from trimesh primitives (capsules, ellipsoids, boxes,
+cylinders, cones, tori, surfaces of revolution, convex prisms):
+
+* ``person``: an articulated body (pelvis, chest, neck, head, upper/lower arms
+  and legs, feet; optional skirt, hat, hair, bag) in a ``standing``,
+  ``walking``, ``sitting`` (on a stool, chair or box that is part of the
+  cutout) or ``sitting_ground`` pose;
+* ``animal``: quadrupeds (dog/cat/horse/cow-like proportions: standing,
+  walking, sitting, lying) and birds;
+* ``figurine``: a small person or animal on a base (cylinder or plinth),
+  or a bust on a column;
+* ``furniture``: chairs, stools, armchairs, office chairs, tables, floor and
+  desk lamps, potted plants, sofas, shelves;
+* ``product``: bottles, vases, shoes, handbags, backpacks, parcels, cans,
+  jars, open laptops;
+* ``vehicle``: cars, vans, trucks, bicycles, motorbikes.
+
+None of pybullet_data's named meshes (duck, teddy, bunny, mug, table, lego,
+soccer ball, ...) is used: they are the held-out test objects.
+
+``make_object(category, rng)`` returns ``(V, F, labels, part_names, kind)``:
+vertices (n, 3) float64 y up, faces (m, 3) int64, a material slot per *face*
+(int, indexes ``part_names``) for colouring, and the kind drawn (e.g.
+``"person/walking"``). Units are arbitrary (the height generator rescales);
+every object rests on Y = 0 as built (its lowest vertex at Y = 0).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+CATEGORIES = ("person", "animal", "figurine", "furniture", "product", "vehicle")
+
+
+class Parts:
+    """A list of meshes with material slots (names) per part."""
+
+    def __init__(self):
+        self.meshes, self.slots, self.names = [], [], []
+
+    def add(self, mesh, slot: str):
+        if slot not in self.names:
+            self.names.append(slot)
+        self.meshes.append(mesh)
+        self.slots.append(self.names.index(slot))
+        return mesh
+
+    def build(self):
+        V, F, L, off = [], [], [], 0
+        for m, s in zip(self.meshes, self.slots):
+            v = np.asarray(m.vertices, np.float64)
+            f = np.asarray(m.faces, np.int64)
+            V.append(v)
+            F.append(f + off)
+            L.append(np.full(len(f), s, np.int64))
+            off += len(v)
+        V = np.concatenate(V)
+        V[:, 1] -= V[:, 1].min()
+        return V, np.concatenate(F), np.concatenate(L), list(self.names)
+
+
+def _tm():
+    import trimesh
+    return trimesh
+
+
+def capsule(p, q, r, count=8):
+    """Capsule of radius r around the segment p-q."""
+    tm = _tm()
+    p, q = np.asarray(p, float), np.asarray(q, float)
+    d = q - p
+    L = float(np.linalg.norm(d))
+    m = tm.creation.capsule(height=max(L, 1e-4), radius=r, count=[count, count])
+    if L > 1e-6:
+        m.apply_transform(tm.geometry.align_vectors([0, 0, 1], d / L))
+    m.apply_translation((p + q) / 2)
+    return m
+
+
+def cylinder(p, q, r, sections=12):
+    tm = _tm()
+    p, q = np.asarray(p, float), np.asarray(q, float)
+    d = q - p
+    L = float(np.linalg.norm(d))
+    m = tm.creation.cylinder(radius=r, height=max(L, 1e-4), sections=sections)
+    m.apply_transform(tm.geometry.align_vectors([0, 0, 1], d / max(L, 1e-9)))
+    m.apply_translation((p + q) / 2)
+    return m
+
+
+def ellipsoid(c, radii, subdiv=2, R=None):
+    tm = _tm()
+    m = tm.creation.icosphere(subdivisions=subdiv, radius=1.0)
+    m.apply_scale(1.0)
+    v = np.asarray(m.vertices) * np.asarray(radii, float)
+    if R is not None:
+        v = v @ np.asarray(R).T
+    m.vertices = v + np.asarray(c, float)
+    return m
+
+
+def box(c, ext, R=None):
+    tm = _tm()
+    m = tm.creation.box(extents=ext)
+    if R is not None:
+        M = np.eye(4)
+        M[:3, :3] = R
+        m.apply_transform(M)
+    m.apply_translation(c)
+    return m
+
+
+def revolve(profile, sections=16, at=(0, 0, 0)):
+    """Surface of revolution about the vertical axis: profile [(r, y), ...] bottom to top."""
+    tm = _tm()
+    prof = np.asarray(profile, float)
+    m = tm.creation.revolve(prof, sections=sections)
+    m.vertices = np.asarray(m.vertices)[:, [0, 2, 1]] + np.asarray(at, float)   # z-up -> y-up
+    m.faces = np.asarray(m.faces)[:, ::-1]
+    return m
+
+
+def prism(poly_zy, x0, x1):
+    """Convex prism: the convex polygon [(z, y), ...] extruded from x0 to x1."""
+    tm = _tm()
+    P = np.asarray(poly_zy, float)
+    pts = np.concatenate([np.c_[np.full(len(P), x0), P[:, 1], P[:, 0]],
+                          np.c_[np.full(len(P), x1), P[:, 1], P[:, 0]]])
+    return tm.convex.convex_hull(pts)
+
+
+def torus(c, R, r, axis=(1, 0, 0)):
+    tm = _tm()
+    m = tm.creation.torus(major_radius=R, minor_radius=r, major_sections=20, minor_sections=6)
+    a = np.asarray(axis, float)
+    m.apply_transform(tm.geometry.align_vectors([0, 0, 1], a / np.linalg.norm(a)))
+    m.apply_translation(c)
+    return m
+
+
+def rot_x(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def rot_y(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def rot_z(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def limb_dir(flex, abd=0.0, side=1.0):
+    """Unit direction of a limb hanging down (0, -1, 0), swung forward (+z) by
+    ``flex`` and out sideways (x = side) by ``abd`` [rad]."""
+    return rot_z(side * abd) @ rot_x(-flex) @ np.array([0.0, -1.0, 0.0])
+
+
+# ---------------------------------------------------------------- people
+def person(rng, pose=None, parts=None, at=(0.0, 0.0, 0.0), scale=1.0):
+    """An articulated person (module doc); returns the kind string."""
+    u = rng.uniform
+    P = Parts() if parts is None else parts
+    at = np.asarray(at, float)
+    pose = pose or str(rng.choice(["standing", "walking", "sitting", "sitting_ground"], p=[0.4, 0.3, 0.2, 0.1]))
+    H = 1.7 * scale * u(0.85, 1.1)
+    thigh, shin = H * u(0.23, 0.26), H * u(0.23, 0.26)
+    foot_h, foot_l = H * 0.035, H * u(0.12, 0.15)
+    torso = H * u(0.28, 0.32)
+    neck = H * 0.05
+    head_r = H * u(0.055, 0.068)
+    sw, hw = H * u(0.09, 0.125), H * u(0.045, 0.07)
+    ua, fa = H * u(0.16, 0.19), H * u(0.15, 0.17)
+    limb_r, arm_r = H * u(0.03, 0.05), H * u(0.022, 0.035)
+    build = u(0.8, 1.4)
+    lean = math.radians(rng.normal(0, 4))
+    seat_h = 0.0
+    # joint angles [rad]: (hip flex, knee flex, hip abd) per leg; (shoulder flex, abd, elbow) per arm
+    legs, arms = [], []
+    if pose == "standing":
+        for s in (-1, 1):
+            legs.append((math.radians(rng.normal(0, 5)), math.radians(u(0, 8)), math.radians(u(0, 8))))
+    elif pose == "walking":
+        A = math.radians(u(12, 32))
+        ph = u(0.4, 1.0)
+        legs = [(A * ph, math.radians(u(0, 15)), 0.03), (-A * ph, math.radians(u(10, 45)), 0.03)]
+    elif pose == "sitting":
+        seat_h = thigh * u(0.0, 0.15) + shin + foot_h
+        for s in (-1, 1):
+            legs.append((math.radians(u(70, 100)), math.radians(u(60, 110)), math.radians(u(0, 15))))
+        lean = math.radians(u(-15, 10))
+    else:  # sitting_ground
+        seat_h = limb_r
+        kn = u(0, 110)
+        for s in (-1, 1):
+            legs.append((math.radians(u(75, 95)), math.radians(kn + u(-10, 10)), math.radians(u(0, 25))))
+        lean = math.radians(u(-25, 5))
+    for s in (-1, 1):
+        r = rng.random()
+        if pose == "walking":
+            sf = -legs[0 if s < 0 else 1][0] * u(0.6, 1.2)
+            arms.append((sf, math.radians(u(3, 12)), math.radians(u(5, 40))))
+        elif r < 0.15:
+            arms.append((math.radians(u(60, 170)), math.radians(u(0, 40)), math.radians(u(0, 60))))
+        elif r < 0.3:
+            arms.append((math.radians(u(-20, 10)), math.radians(u(30, 50)), math.radians(u(90, 120))))
+        elif r < 0.45:
+            arms.append((math.radians(u(30, 80)), math.radians(u(0, 20)), math.radians(u(30, 110))))
+        else:
+            arms.append((math.radians(rng.normal(0, 10)), math.radians(u(3, 20)), math.radians(u(0, 30))))
+    # standing height of the hip joint: lowest foot on the ground
+    if pose in ("standing", "walking"):
+        hip_y = max(thigh * math.cos(hf) + shin * math.cos(hf - kf) for hf, kf, _ in legs) + foot_h
+    else:
+        hip_y = seat_h
+    hip = at + np.array([0.0, hip_y, 0.0])
+    Rl = rot_x(-lean)
+    up = Rl @ np.array([0.0, 1.0, 0.0])
+    top = hip + up * torso
+    skin, top_slot, bottom_slot, shoe_slot = "skin", "top", "bottom", "shoes"
+    P.add(ellipsoid(hip + up * torso * 0.1, [hw + limb_r * 1.1, H * 0.07, H * 0.07 * build], R=Rl), bottom_slot)
+    P.add(ellipsoid(hip + up * torso * 0.58, [sw * 0.95, torso * 0.5, H * 0.065 * build], R=Rl), top_slot)
+    neck_top = top + up * neck
+    P.add(capsule(top - up * neck * 0.5, neck_top, H * 0.025), skin)
+    head_c = neck_top + up * head_r * 0.9 + Rl @ np.array([0, 0, head_r * 0.15])
+    P.add(ellipsoid(head_c, [head_r * 0.85, head_r, head_r * 0.95]), skin)
+    if rng.random() < 0.7:
+        P.add(ellipsoid(head_c + up * head_r * 0.25 - Rl @ np.array([0, 0, head_r * 0.15]),
+                        [head_r * 0.92, head_r * 0.85, head_r * 1.0]), "hair")
+    if rng.random() < 0.15:
+        P.add(cylinder(head_c + up * head_r * 0.6, head_c + up * head_r * u(1.0, 1.8), head_r * u(0.8, 1.0)), "hat")
+        P.add(cylinder(head_c + up * head_r * 0.6, head_c + up * head_r * 0.7, head_r * u(1.2, 2.0)), "hat")
+    feet = []
+    for (hf, kf, ab), s in zip(legs, (-1, 1)):
+        h0 = hip + np.array([s * hw, 0, 0])
+        d1 = Rl @ limb_dir(hf, ab, s) if pose not in ("standing", "walking") else limb_dir(hf, ab, s)
+        knee = h0 + d1 * thigh
+        d2 = limb_dir(hf - kf, ab * 0.5, s)
+        if pose in ("sitting", "sitting_ground"):
+            d2 = limb_dir(hf - kf, ab * 0.5, s)
+        ankle = knee + d2 * shin
+        P.add(capsule(h0, knee, limb_r * 1.1), bottom_slot)
+        P.add(capsule(knee, ankle, limb_r * 0.85), bottom_slot)
+        fd = np.array([0.0, 0.0, 1.0])
+        P.add(box(ankle + np.array([0, -foot_h * 0.5, foot_l * 0.3]), [limb_r * 2.0, foot_h * 1.4, foot_l]), shoe_slot)
+        feet.append(ankle)
+    if rng.random() < 0.3 and pose in ("standing", "walking"):
+        # skirt / coat: a frustum from the waist
+        y0 = hip_y + torso * 0.15
+        yl = u(0.25, 0.85) * (hip_y - foot_h)
+        P.add(revolve([(0, y0 - yl), (hw * u(1.8, 3.2), y0 - yl), (hw * 1.6, y0), (0, y0)], 14, at=(at[0], 0, at[2])),
+              "skirt")
+    for (sf, ab, el), s in zip(arms, (-1, 1)):
+        sh = top - up * H * 0.03 + np.array([s * sw, 0, 0])
+        d1 = Rl @ limb_dir(sf, ab, s)
+        elbow = sh + d1 * ua
+        d2 = Rl @ limb_dir(sf + el, ab * 0.6, s)
+        wrist = elbow + d2 * fa
+        P.add(capsule(sh, elbow, arm_r * 1.15), top_slot if rng.random() < 0.7 else skin)
+        P.add(capsule(elbow, wrist, arm_r), skin)
+        P.add(ellipsoid(wrist + d2 * arm_r * 1.5, [arm_r * 1.2, arm_r * 1.8, arm_r * 0.8]), skin)
+        if s == 1 and rng.random() < 0.12:
+            P.add(box(wrist + d2 * H * 0.12, [H * 0.05, H * 0.16, H * 0.2]), "bag")
+    if pose == "sitting":
+        kind = rng.integers(3)
+        sx, sz = hw * 2 + u(0.1, 0.3) * H, thigh * u(0.8, 1.2)
+        c = hip + np.array([0, -limb_r - seat_h / 2, sz * 0.25])
+        if kind == 0:      # box / bench
+            P.add(box(c, [sx, seat_h - limb_r, sz]), "seat")
+        else:              # stool or chair: a slab on legs
+            t = H * 0.03
+            P.add(box(c + np.array([0, seat_h / 2 - t / 2, 0]), [sx, t, sz]), "seat")
+            for ix in (-1, 1):
+                for iz in (-1, 1):
+                    x, z = ix * (sx / 2 - t), iz * (sz / 2 - t)
+                    P.add(box(c + np.array([x, -t / 2, z]), [t, seat_h - limb_r - t, t]), "seat")
+            if kind == 2:
+                P.add(box(c + np.array([0, seat_h / 2 + torso * 0.5, -sz / 2]), [sx, torso, t]), "seat")
+    return f"person/{pose}"
+
+
+# ---------------------------------------------------------------- animals
+def animal(rng, pose=None, parts=None, at=(0.0, 0.0, 0.0), scale=1.0):
+    u = rng.uniform
+    P = Parts() if parts is None else parts
+    at = np.asarray(at, float)
+    if rng.random() < 0.2:
+        return _bird(rng, P, at, scale)
+    pose = pose or str(rng.choice(["standing", "walking", "sitting", "lying"], p=[0.4, 0.25, 0.15, 0.2]))
+    Lb = scale * u(0.6, 1.4)
+    ry, rx = Lb * u(0.18, 0.3), Lb * u(0.14, 0.24)
+    leg = Lb * u(0.35, 1.0)
+    lr = Lb * u(0.04, 0.08)
+    body_slot = "fur"
+    R = np.eye(3)
+    if pose == "sitting":
+        R = rot_x(math.radians(-u(30, 50)))   # front up
+    if pose == "lying":
+        cy = ry * 0.9
+    elif pose == "sitting":
+        cy = ry + leg * 0.35
+    else:
+        cy = leg + ry * 0.6
+    c = at + np.array([0, cy, 0])
+    P.add(ellipsoid(c, [rx, ry, Lb / 2], R=R), body_slot)
+    fz, bz = R @ np.array([0, 0, Lb * 0.38]), R @ np.array([0, 0, -Lb * 0.38])
+    for zoff, front in ((fz, True), (bz, False)):
+        for s in (-1, 1):
+            h0 = c + zoff + np.array([s * rx * 0.6, -ry * 0.4, 0])
+            if pose == "lying":
+                a = h0 + np.array([0, -ry * 0.4, 0])
+                e = a + np.array([s * lr * 0.5, 0, leg * 0.6 * (1 if front else -0.3)])
+                e[1] = lr
+                a[1] = max(a[1], lr)
+                P.add(capsule(a, e, lr), body_slot)
+                continue
+            if pose == "sitting" and not front:
+                e = h0 + np.array([0, 0, leg * 0.5])
+                e[1] = lr
+                P.add(capsule(h0, e, lr * 1.3), body_slot)
+                continue
+            sw = math.radians(u(-25, 25)) if pose == "walking" else math.radians(rng.normal(0, 4))
+            knee_l = (h0[1] - lr) * 0.5
+            d1 = limb_dir(sw, 0, s)
+            k = h0 + d1 * knee_l
+            bend = math.radians(u(0, 25)) * (1 if front else -1)
+            d2 = limb_dir(sw - bend, 0, s)
+            f = k + d2 * (knee_l * 1.05)
+            P.add(capsule(h0, k, lr * 1.2), body_slot)
+            P.add(capsule(k, f, lr), body_slot)
+            P.add(ellipsoid(f + np.array([0, 0, lr * 0.6]), [lr * 1.1, lr * 0.7, lr * 1.6]), "paws")
+    # neck and head
+    nb = c + R @ np.array([0, ry * 0.3, Lb * 0.42])
+    na = math.radians(u(20, 75))
+    nl = Lb * u(0.15, 0.55)
+    nt = nb + np.array([0, math.sin(na), math.cos(na)]) * nl
+    P.add(capsule(nb, nt, rx * u(0.35, 0.6)), body_slot)
+    hr = Lb * u(0.1, 0.17)
+    hc = nt + np.array([0, hr * 0.3, hr * 0.3])
+    P.add(ellipsoid(hc, [hr * 0.8, hr * 0.85, hr * 1.0]), body_slot)
+    P.add(capsule(hc, hc + np.array([0, -hr * 0.3, hr * u(0.8, 1.6)]), hr * u(0.35, 0.6)), "snout")
+    for s in (-1, 1):
+        e0 = hc + np.array([s * hr * 0.5, hr * 0.6, -hr * 0.1])
+        P.add(capsule(e0, e0 + np.array([s * hr * 0.2, hr * u(0.3, 0.9), -hr * 0.2]), hr * 0.18, 6), body_slot)
+    tb = c + R @ np.array([0, ry * 0.3, -Lb * 0.48])
+    ta = math.radians(u(-60, 60))
+    P.add(capsule(tb, tb + np.array([0, math.sin(ta), -math.cos(ta)]) * Lb * u(0.1, 0.6), lr * u(0.5, 1.0), 6),
+          body_slot)
+    return f"animal/{pose}"
+
+
+def _bird(rng, P, at, scale):
+    u = rng.uniform
+    L = scale * u(0.4, 0.9)
+    leg = L * u(0.2, 0.9)
+    c = at + np.array([0, leg + L * 0.2, 0])
+    tilt = rot_x(math.radians(u(-40, 10)))
+    P.add(ellipsoid(c, [L * 0.2, L * 0.22, L * 0.45], R=tilt), "feathers")
+    hc = c + np.array([0, L * u(0.25, 0.5), L * 0.35])
+    P.add(ellipsoid(hc, [L * 0.12] * 3), "feathers")
+    P.add(capsule(c + np.array([0, L * 0.1, L * 0.25]), hc, L * 0.08), "feathers")
+    b0 = hc + np.array([0, 0, L * 0.1])
+    P.add(capsule(b0, b0 + np.array([0, -L * 0.03, L * u(0.1, 0.25)]), L * 0.03, 6), "beak")
+    P.add(box(c + np.array([0, 0, -L * 0.55]) , [L * 0.2, L * 0.03, L * 0.3], R=tilt), "feathers")
+    for s in (-1, 1):
+        h0 = c + np.array([s * L * 0.08, -L * 0.15, 0])
+        f = np.array([h0[0], 0.0, h0[2] + u(-0.1, 0.1) * L])
+        P.add(capsule(h0, f, L * 0.015, 6), "beak")
+        P.add(box(f + np.array([0, L * 0.005, L * 0.05]), [L * 0.06, L * 0.01, L * 0.14]), "beak")
+    return "animal/bird"
+
+
+# ---------------------------------------------------------------- figurines
+def figurine(rng):
+    u = rng.uniform
+    P = Parts()
+    kind = rng.integers(3)
+    base_h = u(0.03, 0.25)
+    if rng.random() < 0.6:
+        r = u(0.25, 0.55)
+        P.add(cylinder([0, 0, 0], [0, base_h, 0], r, 24), "base")
+        if rng.random() < 0.4:
+            P.add(cylinder([0, base_h, 0], [0, base_h + 0.02, 0], r * 0.9, 24), "base")
+            base_h += 0.02
+    else:
+        w, d = u(0.4, 1.0), u(0.3, 0.8)
+        P.add(box([0, base_h / 2, 0], [w, base_h, d]), "base")
+    if kind == 0:
+        k = person(rng, pose=str(rng.choice(["standing", "walking"])), parts=P, at=(0, base_h, 0), scale=0.55)
+    elif kind == 1:
+        k = animal(rng, parts=P, at=(0, base_h, 0), scale=0.7)
+    else:   # bust on a column
+        ch = u(0.3, 1.2)
+        P.add(cylinder([0, base_h, 0], [0, base_h + ch, 0], u(0.08, 0.18), 16), "base")
+        y = base_h + ch
+        P.add(ellipsoid([0, y + 0.08, 0], [u(0.15, 0.25), 0.1, 0.1]), "statue")
+        P.add(capsule([0, y + 0.15, 0], [0, y + 0.22, 0], 0.04), "statue")
+        P.add(ellipsoid([0, y + 0.32, 0.01], [0.08, 0.1, 0.09]), "statue")
+        k = "bust"
+    return P, "figurine/" + k.split("/")[0]
+
+
+# ---------------------------------------------------------------- furniture
+def furniture(rng):
+    u = rng.uniform
+    P = Parts()
+    kind = str(rng.choice(["chair", "stool", "armchair", "office_chair", "table", "round_table", "floor_lamp",
+                           "desk_lamp", "plant", "tree", "sofa", "shelf"]))
+    wood = "wood"
+    if kind in ("chair", "stool", "table"):
+        w, d = u(0.35, 0.6), u(0.35, 0.6)
+        h = u(0.4, 0.5) if kind != "table" else u(0.6, 0.8)
+        if kind == "table":
+            w, d = u(0.6, 1.6), u(0.5, 1.0)
+        t, leg = u(0.02, 0.05), u(0.02, 0.05)
+        P.add(box([0, h - t / 2, 0], [w, t, d]), wood)
+        splay = u(0, 0.08) if kind == "stool" else 0.0
+        for sx in (-1, 1):
+            for sz in (-1, 1):
+                x, z = sx * (w / 2 - leg), sz * (d / 2 - leg)
+                P.add(cylinder([x * (1 + splay * 3), 0, z * (1 + splay * 3)], [x, h - t, z], leg / 2, 8)
+                      if rng.random() < 0.5 else box([x, (h - t) / 2, z], [leg, h - t, leg]), wood)
+        if kind == "chair":
+            hb = u(0.3, 0.55)
+            P.add(box([0, h + hb / 2, -d / 2 + leg / 2], [w, hb, leg]) if rng.random() < 0.5 else
+                  box([0, h + hb * 0.75, -d / 2 + leg / 2], [w, hb * 0.5, leg]), wood)
+            for sx in (-1, 1):
+                P.add(box([sx * (w / 2 - leg), h + hb / 2, -d / 2 + leg / 2], [leg, hb, leg]), wood)
+    elif kind == "armchair" or kind == "sofa":
+        w = u(0.7, 1.0) if kind == "armchair" else u(1.4, 2.4)
+        d, h = u(0.7, 1.0), u(0.35, 0.5)
+        fl = u(0.0, 0.12)
+        P.add(box([0, fl + h / 2, 0], [w, h - fl, d]), "fabric")
+        P.add(box([0, fl + h + u(0.25, 0.45) / 2, -d / 2 + 0.1], [w, u(0.3, 0.5), 0.2]), "fabric")
+        for sx in (-1, 1):
+            P.add(box([sx * (w / 2 - 0.08), fl + h * 0.75 + 0.05, 0], [0.16, h * 0.5 + 0.2, d]), "fabric")
+            if fl > 0.01:
+                for sz in (-1, 1):
+                    P.add(box([sx * (w / 2 - 0.06), fl / 2, sz * (d / 2 - 0.06)], [0.04, fl, 0.04]), wood)
+    elif kind == "office_chair":
+        h = u(0.42, 0.55)
+        for k in range(5):
+            a = 2 * math.pi * k / 5
+            e = np.array([math.cos(a), 0, math.sin(a)]) * u(0.28, 0.34)
+            P.add(box(e / 2 + [0, 0.05, 0], [0.05, 0.03, 0.3], R=rot_y(-a + math.pi / 2)), "metal")
+            P.add(ellipsoid(e + [0, 0.03, 0], [0.03, 0.03, 0.03]), "plastic")
+        P.add(cylinder([0, 0.05, 0], [0, h - 0.05, 0], 0.025), "metal")
+        P.add(box([0, h - 0.03, 0], [0.48, 0.07, 0.46]), "fabric")
+        P.add(box([0, h + 0.32, -0.22], [0.44, u(0.4, 0.6), 0.06], R=rot_x(math.radians(u(-15, 0)))), "fabric")
+    elif kind == "round_table":
+        h, r = u(0.55, 0.8), u(0.3, 0.6)
+        P.add(cylinder([0, h - 0.03, 0], [0, h, 0], r, 24), wood)
+        P.add(cylinder([0, 0.02, 0], [0, h - 0.03, 0], u(0.03, 0.06), 10), wood)
+        P.add(cylinder([0, 0, 0], [0, 0.03, 0], r * u(0.4, 0.7), 16), wood)
+    elif kind == "floor_lamp":
+        h = u(1.2, 1.8)
+        P.add(cylinder([0, 0, 0], [0, 0.03, 0], u(0.12, 0.2), 16), "metal")
+        top = np.array([u(-0.3, 0.3), h, 0]) if rng.random() < 0.3 else np.array([0, h, 0])
+        P.add(cylinder([0, 0.03, 0], top, 0.015, 8), "metal")
+        sr, sh = u(0.12, 0.25), u(0.15, 0.35)
+        P.add(revolve([(0, top[1] - sh * 0.6), (sr, top[1] - sh * 0.6), (sr * u(0.5, 0.9), top[1] + sh * 0.4),
+                       (0, top[1] + sh * 0.4)], 16, at=(top[0], 0, top[2])), "shade")
+    elif kind == "desk_lamp":
+        P.add(cylinder([0, 0, 0], [0, 0.03, 0], u(0.08, 0.12), 16), "metal")
+        a = np.array([0, 0.03, 0])
+        b = a + np.array([0, u(0.25, 0.4), u(-0.15, 0.05)])
+        c = b + np.array([0, u(-0.05, 0.15), u(0.2, 0.35)])
+        P.add(capsule(a, b, 0.012, 6), "metal")
+        P.add(capsule(b, c, 0.012, 6), "metal")
+        head = revolve([(0, -0.1), (0.08, -0.1), (0.03, 0.02), (0, 0.02)], 12, at=c)
+        P.add(head, "shade")
+    elif kind == "plant":
+        ph, pr = u(0.15, 0.45), u(0.1, 0.25)
+        P.add(revolve([(0, 0), (pr * 0.75, 0), (pr, ph), (0, ph)], 16), "pot")
+        n = int(rng.integers(6, 16))
+        for k in range(n):
+            a = u(0, 2 * math.pi)
+            el = math.radians(u(25, 85))
+            L = u(0.2, 0.8) * (ph + 0.3)
+            d = np.array([math.cos(el) * math.cos(a), math.sin(el), math.cos(el) * math.sin(a)])
+            p0 = np.array([0, ph, 0])
+            tip = p0 + d * L
+            P.add(capsule(p0, tip, 0.008, 5), "leaf")
+            P.add(ellipsoid(tip - d * L * 0.2, [u(0.03, 0.08), 0.01, L * 0.25],
+                            R=rot_y(-a + math.pi / 2) @ rot_x(-el)), "leaf")
+    elif kind == "tree":
+        th = u(0.5, 1.5)
+        P.add(revolve([(0, 0), (u(0.1, 0.2), 0), (0.12, 0.08), (0.12, 0.3), (0, 0.3)], 12), "pot")
+        P.add(cylinder([0, 0.3, 0], [0, 0.3 + th, 0], u(0.02, 0.05), 8), "wood")
+        for k in range(int(rng.integers(1, 5))):
+            P.add(ellipsoid([u(-0.15, 0.15), 0.3 + th + u(-0.1, 0.2), u(-0.15, 0.15)],
+                            u(0.15, 0.35, 3)), "leaf")
+    else:  # shelf
+        w, d, h = u(0.5, 1.2), u(0.25, 0.45), u(0.6, 2.0)
+        t = 0.025
+        for sx in (-1, 1):
+            P.add(box([sx * (w / 2 - t / 2), h / 2, 0], [t, h, d]), wood)
+        n = int(rng.integers(2, 6))
+        for k in range(n + 1):
+            P.add(box([0, k * (h - t) / n + t / 2, 0], [w, t, d]), wood)
+        if rng.random() < 0.5:
+            P.add(box([0, h / 2, -d / 2 + 0.005], [w, h, 0.01]), wood)
+    return P, "furniture/" + kind
+
+
+# ---------------------------------------------------------------- products
+def product(rng):
+    u = rng.uniform
+    P = Parts()
+    kind = str(rng.choice(["bottle", "vase", "shoe", "boot", "handbag", "backpack", "parcel", "can", "jar",
+                           "laptop"]))
+    if kind == "bottle":
+        r, h = u(0.03, 0.06), u(0.15, 0.35)
+        nr = r * u(0.25, 0.45)
+        P.add(revolve([(0, 0), (r, 0), (r, h * 0.6), (nr, h * 0.8), (nr, h * 0.95), (0, h * 0.95)], 16), "glass")
+        P.add(cylinder([0, h * 0.93, 0], [0, h, 0], nr * 1.1), "cap")
+    elif kind == "vase":
+        h = u(0.2, 0.6)
+        r = [u(0.04, 0.15) for _ in range(4)]
+        P.add(revolve([(0, 0), (r[0], 0), (r[1], h * 0.35), (r[2], h * 0.75), (r[3], h), (0, h)], 20), "ceramic")
+    elif kind in ("shoe", "boot"):
+        L = u(0.25, 0.32)
+        P.add(box([0, 0.012, 0], [L * 0.36, 0.025, L]), "sole")
+        hh = u(0.06, 0.1) if kind == "shoe" else u(0.15, 0.3)
+        P.add(ellipsoid([0, 0.025 + 0.03, L * 0.1], [L * 0.17, 0.04, L * 0.42]), "leather")
+        P.add(capsule([0, 0.04, -L * 0.3], [0, hh, -L * 0.32], L * 0.15), "leather")
+        if rng.random() < 0.3:   # heel
+            P.add(box([0, 0.04, -L * 0.45], [0.03, 0.08, 0.03]), "sole")
+    elif kind == "handbag":
+        w, h, d = u(0.2, 0.4), u(0.15, 0.3), u(0.06, 0.14)
+        P.add(box([0, h / 2, 0], [w, h, d]), "leather")
+        P.add(torus([0, h, 0], w * u(0.2, 0.35), 0.008, axis=(0, 0, 1)), "strap")
+    elif kind == "backpack":
+        w, h, d = u(0.25, 0.35), u(0.35, 0.5), u(0.12, 0.2)
+        P.add(ellipsoid([0, h / 2, 0], [w / 2, h / 2, d / 2]), "fabric")
+        P.add(ellipsoid([0, h * 0.3, d * 0.45], [w * 0.35, h * 0.2, d * 0.3]), "fabric2")
+        P.add(torus([0, h, 0], 0.04, 0.01, axis=(1, 0, 0)), "strap")
+    elif kind == "parcel":
+        P.add(box([0, 0, 0], u(0.1, 0.6, 3)), "cardboard")
+    elif kind == "can":
+        r, h = u(0.03, 0.06), u(0.08, 0.2)
+        P.add(cylinder([0, 0, 0], [0, h, 0], r, 20), "metal")
+    elif kind == "jar":
+        r, h = u(0.04, 0.1), u(0.08, 0.2)
+        P.add(revolve([(0, 0), (r, 0), (r, h * 0.85), (r * 0.8, h * 0.9), (0, h * 0.9)], 16), "glass")
+        P.add(cylinder([0, h * 0.88, 0], [0, h, 0], r * 0.85, 16), "cap")
+    else:  # laptop
+        w, d = u(0.3, 0.4), u(0.2, 0.28)
+        P.add(box([0, 0.01, 0], [w, 0.02, d]), "plastic")
+        a = math.radians(u(95, 130))
+        R = rot_x(-(a - math.pi / 2))
+        P.add(box(np.array([0, 0.02, -d / 2]) + R @ np.array([0, d / 2, 0]), [w, d, 0.01], R=R), "screen")
+    return P, "product/" + kind
+
+
+# ---------------------------------------------------------------- vehicles
+def vehicle(rng):
+    u = rng.uniform
+    P = Parts()
+    kind = str(rng.choice(["car", "van", "truck", "bicycle", "motorbike"], p=[0.35, 0.15, 0.15, 0.2, 0.15]))
+    if kind in ("car", "van", "truck"):
+        L, W = u(3.6, 5.0), u(1.6, 1.9)
+        wr = u(0.28, 0.38)
+        cl = wr * u(0.5, 0.9)
+        if kind == "car":
+            hb = u(0.45, 0.65)
+            P.add(prism([(-L / 2, cl), (L / 2, cl), (L / 2, cl + hb * 0.8), (L / 2 - 0.3, cl + hb),
+                         (-L / 2 + 0.2, cl + hb), (-L / 2, cl + hb * 0.8)], -W / 2, W / 2), "paint")
+            c0, c1 = u(-0.5, -0.2) * L / 2, u(0.05, 0.4) * L / 2
+            ch = u(0.4, 0.55)
+            P.add(prism([(c0 - 0.5, cl + hb), (c1 + 0.7, cl + hb), (c1, cl + hb + ch), (c0, cl + hb + ch)],
+                        -W / 2 + 0.1, W / 2 - 0.1), "glass")
+        elif kind == "van":
+            hb = u(1.4, 1.9)
+            P.add(prism([(-L / 2, cl), (L / 2, cl), (L / 2, cl + 0.6), (L / 2 - 0.9, cl + hb), (-L / 2, cl + hb)],
+                        -W / 2, W / 2), "paint")
+        else:
+            L = u(5, 8)
+            cab = u(1.6, 2.2)
+            P.add(box([L / 2 - cab / 2, cl + 1.1, 0], [cab, 2.2 - cl, W]), "paint")
+            P.add(box([-cab / 2, cl + 1.3, 0], [L - cab - 0.2, 2.6, W]), "cargo")
+        xs = [L / 2 - 0.8, -L / 2 + 0.8] + ([-L / 2 + 1.9] if kind == "truck" else [])
+        for x in xs:
+            for s in (-1, 1):
+                P.add(cylinder([s * (W / 2 - 0.12), wr, x], [s * (W / 2 + 0.02), wr, x], wr, 16), "tyre")
+    else:
+        wr = u(0.3, 0.36)
+        wb = u(1.0, 1.15) if kind == "bicycle" else u(1.3, 1.5)
+        for z in (-wb / 2, wb / 2):
+            P.add(torus([0, wr, z], wr, u(0.015, 0.03) * (1 if kind == "bicycle" else 2.5)), "tyre")
+        seat = np.array([0, wr + u(0.5, 0.7), -wb * 0.15])
+        head = np.array([0, wr + u(0.6, 0.8), wb * 0.32])
+        bb = np.array([0, wr, 0])
+        fr = "paint"
+        if kind == "bicycle":
+            for a, b in ((bb, seat), (seat, head), (bb, head - [0, 0.1, 0]), (bb, [0, wr, -wb / 2]),
+                         (seat, [0, wr, -wb / 2]), (head, [0, wr, wb / 2])):
+                P.add(capsule(a, b, 0.015, 6), fr)
+            P.add(capsule(head + [-0.25, 0.05, 0], head + [0.25, 0.05, 0], 0.012, 6), "metal")
+            P.add(ellipsoid(seat + [0, 0.03, 0], [0.07, 0.025, 0.13]), "seat")
+        else:
+            P.add(ellipsoid([0, wr + 0.35, 0.05], [0.2, 0.2, wb * 0.35]), fr)
+            P.add(ellipsoid(seat + [0, 0.02, 0], [0.15, 0.06, 0.3]), "seat")
+            P.add(capsule(head, [0, wr, wb / 2], 0.03, 6), "metal")
+            P.add(capsule([0, wr, -wb / 2], [0, wr + 0.3, -0.1], 0.03, 6), "metal")
+            P.add(capsule(head + [-0.35, 0.1, 0], head + [0.35, 0.1, 0], 0.02, 6), "metal")
+    return P, "vehicle/" + kind
+
+
+def make_object(category: str, rng: np.random.Generator):
+    """(V, F, face material slot, slot names, kind) of a random object of ``category`` (module doc)."""
+    if category == "person":
+        P = Parts()
+        kind = person(rng, parts=P)
+    elif category == "animal":
+        P = Parts()
+        kind = animal(rng, parts=P)
+    elif category == "figurine":
+        P, kind = figurine(rng)
+    elif category == "furniture":
+        P, kind = furniture(rng)
+    elif category == "product":
+        P, kind = product(rng)
+    elif category == "vehicle":
+        P, kind = vehicle(rng)
+    else:
+        raise ValueError(f"unknown category {category!r}; known: {', '.join(CATEGORIES)}")
+    V, F, L, names = P.build()
+    return V, F, L, names, kind

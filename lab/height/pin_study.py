@@ -1,0 +1,80 @@
+"""Choose the contact pin's fade on the validation split (docs/height.md, "Pin rule").
+
+    python -m pixgraph_lab.height.pin_study --weights runs/height4/best.pt --heights data/hreal/val \
+        --out runs/pin_study [--write]
+
+For each candidate (``constant``, fade 0.25, fade 0.5) and for no pin at all
+(``free``, reported only), the mean full-size pixel-height MAE of
+``LearnedHeightPredictor.predict`` over the split's samples, and the median
+foot error (mean |predicted - true| over the contact pixels). The candidate with
+the lowest MAE wins; ``--write`` stores it in the checkpoint's
+``config["inference"]["pin_fade"]`` (None = constant) in place.
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import os
+
+import numpy as np
+
+CANDIDATES = {"constant": None, "fade 0.25": 0.25, "fade 0.5": 0.5}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m pixgraph_lab.height.pin_study", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--weights", required=True)
+    ap.add_argument("--heights", required=True)
+    ap.add_argument("--limit", type=int, default=0)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--write", action="store_true")
+    a = ap.parse_args(argv)
+    import torch
+    torch.set_num_threads(1)
+    from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, contact_band, pin_contact
+
+    from .evaluate import _rgba_from_height_sample
+    pred = LearnedHeightPredictor(a.weights, pin_fade=None)
+    res = {k: [] for k in ["free", *CANDIDATES]}
+    foot = {k: [] for k in res}
+    files = sorted(glob.glob(os.path.join(a.heights, "[0-9]" * 5 + ".npz")))[: a.limit or None]
+    for f in files:
+        with np.load(f, allow_pickle=False) as z:
+            rgba = _rgba_from_height_sample(z)
+            true = z["height"].astype(np.float32)
+            mask = z["mask"]
+        m = rgba[..., 3] > 0.5
+        free = pred.predict(rgba, contact="free")
+        band = contact_band(m) & mask
+        maps = {"free": free} | {k: pin_contact(free, m, fade=v) for k, v in CANDIDATES.items()}
+        for k, h in maps.items():
+            res[k].append(float(np.abs(h[mask] - true[mask]).mean()))
+            if band.any():
+                foot[k].append(float(np.abs(h[band] - true[band]).mean()))
+    lines = [f"weights {a.weights}, {len(files)} samples of {a.heights}", "",
+             "| pin | MAE px | median foot error px |", "|---|---|---|"]
+    for k in res:
+        lines.append(f"| {k} | {np.mean(res[k]):.3f} | {np.median(foot[k]):.3f} |")
+    best = min(CANDIDATES, key=lambda k: np.mean(res[k]))
+    lines += ["", f"chosen: {best}"]
+    text = "\n".join(lines) + "\n"
+    os.makedirs(a.out, exist_ok=True)
+    with open(os.path.join(a.out, "pin_study.md"), "w") as fh:
+        fh.write(text)
+    print(text)
+    if a.write:
+        ck = torch.load(a.weights, map_location="cpu", weights_only=True)
+        cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else dict(ck["config"])
+        cfg.setdefault("inference", {})["pin_fade"] = CANDIDATES[best]
+        cfg["inference"]["pin_study"] = {k: float(np.mean(v)) for k, v in res.items()}
+        ck["config"] = json.dumps(cfg)
+        torch.save(ck, a.weights + ".tmp")
+        os.replace(a.weights + ".tmp", a.weights)
+        print(f"wrote pin_fade={CANDIDATES[best]} into {a.weights}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

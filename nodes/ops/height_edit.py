@@ -1,0 +1,154 @@
+"""Editing a cutout's pixel height by hand: contact points, tilt, lying down, lift.
+
+Plain numpy; the node is ``pixgraph.PixelHeightEdit`` (nodes/pixel_height_edit.py).
+Pixel coordinates: ``u`` to the right, ``v`` down, pixel (row r, column c) has its
+centre at ``(u, v) = (c + 0.5, r + 0.5)``; heights are in pixels (the vertical
+image distance from an object point down to its foot on the ground).
+
+``edit_pixel_height(height, mask, ...)`` applies, in this order:
+
+1. **Contact points** ``[(u1, v1), ...]`` (where the object touches the ground:
+   one point, two for a line, three or more for several feet):
+
+   * ``contact_mode="shift"`` keeps the map's shape and subtracts the affine
+     correction ``c(u, v)`` that makes the height 0 at every contact point: a
+     constant for one point (its height), a ramp along the line for two (the
+     least-norm affine function through both: constant across the line), the
+     least-squares plane ``a + b u + d v`` through the points' heights for three
+     or more (exact when they are not collinear and there are three).
+   * ``contact_mode="upright"`` replaces the map by the height above the
+     ground line through the points (the contact-line model of an upright object
+     facing the camera): ``h = v_line(u) - v`` with ``v_line`` the row of the
+     line at column ``u`` — horizontal through one point, through two, the
+     least-squares line ``v = a + b u`` through three or more.
+
+2. **Lying down** (``lying=True``): an object lying on the ground has each
+   column's lowest pixel on the ground and is nowhere higher than its thickness:
+   ``h = min(v_bottom(u) - v, thickness)``, ``v_bottom(u)`` the bottom edge of the
+   column's lowest mask pixel; ``thickness`` [px] <= 0 means half the median
+   column extent of the silhouette. Replaces steps 1's result (contact points
+   are ignored: every column touches the ground).
+
+3. **Tilt** ``tilt_deg`` (leaning away from the camera > 0, toward it < 0) about
+   the contact, for a camera looking down by ``elevation_deg``: a point of an
+   upright object that leans back by phi is farther away the higher it is, so the
+   same image row above the contact is a smaller height. With an orthographic
+   view from elevation alpha a point at height y and depth offset y tan(phi) is
+   ``r = y cos(alpha) + y tan(phi) sin(alpha)`` rows above its contact and its
+   pixel height is ``y cos(alpha)``, so heights scale by
+   ``g = 1 / (1 + tan(phi) tan(alpha))``. (A sideways lean, in the image plane,
+   changes no pixel height: a point's foot is straight below it in the image
+   whatever the lean, at the contact's row for an object facing the camera.)
+
+4. **Lift** ``lift`` [px]: added to every pixel (the object floats; its former
+   contact is ``lift`` px above the ground).
+
+Finally heights are clipped to >= 0 and set to 0 outside ``mask``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def _points(points) -> np.ndarray:
+    P = np.asarray(points, np.float64).reshape(-1, 2) if len(points) else np.zeros((0, 2))
+    if not np.isfinite(P).all():
+        raise ValueError("contact points must be finite")
+    return P
+
+
+def sample_height(height: np.ndarray, u: float, v: float) -> float:
+    """Bilinear sample of a pixel-height map at pixel coordinates (u, v) (module doc)."""
+    H, W = height.shape
+    x = min(max(u - 0.5, 0.0), W - 1.0)
+    y = min(max(v - 0.5, 0.0), H - 1.0)
+    x0, y0 = int(math.floor(x)), int(math.floor(y))
+    x1, y1 = min(x0 + 1, W - 1), min(y0 + 1, H - 1)
+    fx, fy = x - x0, y - y0
+    return float((1 - fy) * ((1 - fx) * height[y0, x0] + fx * height[y0, x1])
+                 + fy * ((1 - fx) * height[y1, x0] + fx * height[y1, x1]))
+
+
+def contact_correction(height: np.ndarray, points) -> np.ndarray:
+    """The affine map c(u, v) (H, W) that ``contact_mode="shift"`` subtracts (module doc)."""
+    P = _points(points)
+    H, W = height.shape
+    v, u = np.mgrid[0:H, 0:W] + 0.5
+    if len(P) == 0:
+        return np.zeros((H, W))
+    hs = np.array([sample_height(height, pu, pv) for pu, pv in P])
+    if len(P) == 1:
+        return np.full((H, W), hs[0])
+    if len(P) == 2:
+        # the ramp along the line p1 -> p2, constant across it (the smallest gradient through both)
+        d = P[1] - P[0]
+        n2 = float(d @ d)
+        if n2 < 1e-12:
+            return np.full((H, W), hs.mean())
+        s = ((u - P[0, 0]) * d[0] + (v - P[0, 1]) * d[1]) / n2
+        return hs[0] + (hs[1] - hs[0]) * s
+    A = np.c_[np.ones(len(P)), P]
+    coef = np.linalg.lstsq(A, hs, rcond=None)[0]
+    return coef[0] + coef[1] * u + coef[2] * v
+
+
+def ground_line(points) -> tuple[float, float]:
+    """(a, b) of the ground line ``v = a + b u`` through the contact points (module doc)."""
+    P = _points(points)
+    if len(P) == 0:
+        raise ValueError("contact_mode 'upright' needs at least one contact point")
+    if len(P) == 1 or np.ptp(P[:, 0]) < 1e-9:
+        return float(P[:, 1].mean()), 0.0
+    b, a = np.polyfit(P[:, 0], P[:, 1], 1)
+    return float(a), float(b)
+
+
+def lying_height(mask: np.ndarray, thickness: float = 0.0) -> np.ndarray:
+    """``min(v_bottom(u) - v, thickness)`` over the mask (module doc, step 2) [px]."""
+    m = np.asarray(mask, bool)
+    H, W = m.shape
+    cols = m.any(0)
+    out = np.zeros((H, W))
+    if not cols.any():
+        return out
+    bottom = H - np.argmax(m[::-1], axis=0)          # bottom edge row of each column's lowest pixel
+    top = np.argmax(m, axis=0)
+    if thickness <= 0:
+        thickness = 0.5 * float(np.median((bottom - top)[cols]))
+    v = np.arange(H)[:, None] + 0.5
+    return np.where(m, np.minimum(np.maximum(bottom[None, :] - v, 0.0), thickness), 0.0)
+
+
+def tilt_gain(tilt_deg: float, elevation_deg: float) -> float:
+    """``1 / (1 + tan(tilt) tan(elevation))`` (module doc, step 3)."""
+    d = 1.0 + math.tan(math.radians(tilt_deg)) * math.tan(math.radians(elevation_deg))
+    if d <= 1e-6:
+        raise ValueError(f"tilt {tilt_deg} deg toward a camera looking down {elevation_deg} deg: "
+                         "the object would lie in the view ray (need tan(tilt) tan(elevation) > -1)")
+    return 1.0 / d
+
+
+def edit_pixel_height(height: np.ndarray, mask: np.ndarray, points=(), contact_mode: str = "shift",
+                      tilt_deg: float = 0.0, elevation_deg: float = 20.0, lying: bool = False,
+                      thickness: float = 0.0, lift: float = 0.0) -> np.ndarray:
+    """The edited pixel height (H, W) float32 [px] (module doc)."""
+    h = np.asarray(height, np.float64)
+    m = np.asarray(mask) > 0.5 if np.asarray(mask).dtype != bool else np.asarray(mask)
+    if h.shape != m.shape:
+        raise ValueError(f"height {h.shape} and mask {m.shape} differ in size")
+    if contact_mode not in ("shift", "upright"):
+        raise ValueError(f"contact_mode must be 'shift' or 'upright', not {contact_mode!r}")
+    P = _points(points)
+    H, W = h.shape
+    v, u = np.mgrid[0:H, 0:W] + 0.5
+    if lying:
+        h = lying_height(m, thickness)
+    elif len(P) and contact_mode == "upright":
+        a, b = ground_line(P)
+        h = a + b * u - v
+    elif len(P):
+        h = h - contact_correction(h, P)
+    h = tilt_gain(tilt_deg, elevation_deg) * h + float(lift)
+    return np.where(m, np.maximum(h, 0.0), 0.0).astype(np.float32)

@@ -1,0 +1,74 @@
+"""pixgraph.PixelHeightEdit: fix a cutout's pixel height by hand (contact points, tilt, lying down, lift)."""
+from __future__ import annotations
+
+import numpy as np
+
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
+
+from ._checks import same_size
+from .ops.height_edit import edit_pixel_height
+
+
+@node("pixgraph.PixelHeightEdit", version=1)
+class PixelHeightEdit(Node):
+    """Edit a cutout's pixel height where a predictor got it wrong (the math and its
+    derivations: pixgraph_nodes.ops.height_edit). ``contact_points`` (flat list u1, v1,
+    u2, v2, ... in the cutout's pixels, u right, v down): where the object touches the
+    ground — one point, two for a line, three or more for several feet. ``contact_mode``
+    ``shift`` keeps the input's shape and subtracts the affine ramp that puts every
+    contact point at height 0; ``upright`` replaces it by the height above the ground
+    line through the points. ``lying``: the object lies on the ground (each column's
+    lowest pixel on it, nowhere higher than ``thickness`` px; 0 = half the silhouette's
+    median column extent). ``tilt`` leans it away from (> 0) or toward (< 0) the camera
+    about its contact, for a camera looking down by ``elevation``; a sideways lean needs
+    no edit. ``lift`` raises it off the ground. For the page: draw each contact point
+    as a draggable handle on the cutout (in its pixels), ``tilt`` as a rotation handle
+    at the contact, ``lying`` as a toggle.
+    """
+
+    class Inputs:
+        height: T.PixelHeight = port(doc="pixel height to edit [px] (e.g. CutoutHeight.height)")
+        mask: T.Mask = port(doc="cutout coverage (heights are 0 outside it)")
+
+    class Params:
+        contact_points: list[float] = param([], unit="px",
+                                            doc="u1, v1, u2, v2, ...: where the object touches the ground "
+                                                "(cutout pixels; empty: keep the input's contact)")
+        contact_mode: str = param("shift", choices=("shift", "upright"),
+                                  doc="shift: keep the shape, put the contact points at 0; upright: "
+                                      "height above the ground line through the points")
+        tilt: float = param(0.0, min=-80.0, max=80.0, unit="deg",
+                            doc="lean away from (> 0) or toward (< 0) the camera about the contact")
+        elevation: float = param(20.0, min=0.0, max=89.0, unit="deg",
+                                 doc="how far the camera looks down (for tilt)")
+        lying: bool = param(False, doc="the object lies on the ground")
+        thickness: float = param(0.0, min=0.0, unit="px",
+                                 doc="lying: the object's height above the ground (0: half the median "
+                                     "column extent)")
+        lift: float = param(0.0, min=0.0, unit="px", doc="raise the object this far off the ground")
+
+    class Outputs:
+        height: T.PixelHeight = port(doc="edited pixel height [px], 0 outside the mask")
+
+    impl_version = "1"
+
+    def compute(self, ctx, inputs, params):
+        h = np.asarray(inputs.height, np.float32)
+        m = np.asarray(inputs.mask, np.float32)
+        if m.ndim == 3:
+            m = m[..., 0]
+        same_size(height=h, mask=m)
+        pts = params.contact_points
+        if len(pts) % 2:
+            raise InputError(f"param 'contact_points': expected pairs u, v (an even count), got {len(pts)} numbers")
+        H, W = h.shape
+        P = np.asarray(pts, np.float64).reshape(-1, 2)
+        out = P[(P[:, 0] < 0) | (P[:, 0] > W) | (P[:, 1] < 0) | (P[:, 1] > H)]
+        if len(out):
+            raise InputError(f"param 'contact_points': point(s) {out.tolist()} outside the {W}x{H} cutout")
+        try:
+            return {"height": edit_pixel_height(h, m > 0.5, P, params.contact_mode, params.tilt,
+                                                params.elevation, params.lying, params.thickness, params.lift)}
+        except ValueError as e:
+            raise InputError(f"param 'tilt': {e}") from None

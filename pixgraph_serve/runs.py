@@ -1,0 +1,109 @@
+"""Runs by id, their encoded outputs, and the renders of each page.
+
+``POST /api/run`` records what it ran (the immutable ``Graph``, the mode and the
+output names) under a new run id; ``GET /api/outputs/NAME.png?run=ID`` asks the
+session for that graph's output again (the memory cache answers, or it is
+recomputed: the engine is deterministic) and so returns that run's image even
+when another client has edited the graph since. A record holds no pixels; the
+newest ``max_runs`` are kept.
+
+Encoded files are kept in a small cache bounded in bytes, keyed by run id, output,
+format and scale, and made once: requests for the same file wait for the first one
+to encode it (under the run lock) and then share the same bytes.
+"""
+from __future__ import annotations
+
+import collections
+import dataclasses
+import secrets
+import threading
+
+from pixgraph.events import CancelToken
+from pixgraph.graph import Graph
+
+from .errors import ServeError
+
+
+@dataclasses.dataclass(frozen=True)
+class Run:
+    id: str
+    graph: Graph            # the graph as it was run (the edited graph, not its preview)
+    mode: str               # "final" or "preview"
+    outputs: tuple[str, ...]
+
+
+class Runs:
+    """The newest ``max_runs`` run records, by id."""
+
+    def __init__(self, max_runs: int = 256):
+        self.max_runs = max_runs
+        self._runs: collections.OrderedDict[str, Run] = collections.OrderedDict()
+        self._lock = threading.Lock()
+
+    def add(self, graph: Graph, mode: str, outputs) -> Run:
+        run = Run(secrets.token_hex(8), graph, mode, tuple(outputs))
+        with self._lock:
+            self._runs[run.id] = run
+            while len(self._runs) > self.max_runs:
+                self._runs.popitem(last=False)
+        return run
+
+    def get(self, run_id: str) -> Run:
+        with self._lock:
+            run = self._runs.get(run_id)
+        if run is None:
+            raise ServeError(404, f"no run {run_id!r} (the server keeps the newest {self.max_runs} runs)",
+                             field="run")
+        return run
+
+
+class Encoded:
+    """Encoded output files, least recently used first out, at most ``max_bytes`` in all
+    (the newest file is kept even when it alone is larger)."""
+
+    def __init__(self, max_bytes: int = 64 << 20):
+        self.max_bytes = max_bytes
+        self._files: collections.OrderedDict[tuple, bytes] = collections.OrderedDict()
+        self._size = 0
+        self.encodes = 0      # files encoded so far (each miss)
+
+    def get(self, key: tuple) -> bytes | None:
+        data = self._files.get(key)
+        if data is not None:
+            self._files.move_to_end(key)
+        return data
+
+    def put(self, key: tuple, data: bytes) -> bytes:
+        self.encodes += 1
+        old = self._files.pop(key, None)
+        self._size -= len(old) if old is not None else 0
+        self._files[key] = data
+        self._size += len(data)
+        while self._size > self.max_bytes and len(self._files) > 1:
+            _, dropped = self._files.popitem(last=False)
+            self._size -= len(dropped)
+        return data
+
+
+class Renders:
+    """Per-client newest sequence number and the token of its running render: a render
+    that a newer one of the same client superseded is dropped before it starts and
+    cancelled while it runs, so drags never queue work."""
+
+    def __init__(self):
+        self.latest: dict[str, int] = {}
+        self.tokens: dict[str, CancelToken] = {}
+        self.dropped = 0
+
+    def claim(self, client: str, seq: int) -> bool:
+        """Record ``seq`` as the client's newest; False when a newer one came first."""
+        if seq <= self.latest.get(client, -1):
+            return False
+        self.latest[client] = seq
+        token = self.tokens.get(client)
+        if token is not None:
+            token.cancel()  # its result would be stale: stop it
+        return True
+
+    def current(self, client: str, seq: int) -> bool:
+        return self.latest.get(client) == seq
