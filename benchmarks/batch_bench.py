@@ -189,8 +189,8 @@ def photo_bench(args) -> None:
 def photo_profile(args) -> None:
     """Where a 20 MP light sweep's time goes: per node and per write, one session, the
     rows of a batch (the first row also computes the shared upstream), medians."""
-    import pixgraph_batch
     from pixgraph.events import NodeFinished
+    from pixgraph_batch.files import write_atomic
     from pixgraph.session import Session
 
     tmp = tempfile.mkdtemp(prefix="batch_profile_")
@@ -209,8 +209,8 @@ def photo_profile(args) -> None:
             res = s.run_plan(plan, on_event=lambda e: isinstance(e, NodeFinished) and
                              timings.__setitem__(e.node_id, e.seconds))
             t2 = time.perf_counter()
-            digest = pixgraph_batch.files.write_atomic(os.path.join(tmp, f"{i}.png"),
-                                                        lambda p: s.write_output(g, "final", res["final"], p))
+            digest = write_atomic(os.path.join(tmp, f"{i}.png"),
+                                  lambda p: s.write_output(g, "final", res["final"], p))
             t3 = time.perf_counter()
             rows.append({"plan": t1 - t0, "run": t2 - t1, "write_png": t3 - t2, "nodes": timings, "sha": digest[:8]})
             print(f"row {i}: plan {t1 - t0:.2f} s, run {t2 - t1:.2f} s "

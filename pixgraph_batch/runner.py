@@ -29,7 +29,7 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from pixgraph.graph import Graph
 
-from . import files as F
+from .files import FolderLock, remove_temporaries
 from .executors import EXECUTORS, PixgraphWorkerPlugin, WorkerConfig, init_worker, limit_threads, run_dask, run_pool
 from .items import DEFAULT_TEMPLATE, Item, make_items, output_folders, parse_output_options, user_files
 from .rows import (DEFAULT_MAX_MANIFEST_BYTES, DEFAULT_MAX_ROWS, BatchError, Row, make_row,
@@ -110,8 +110,8 @@ def run_batch(session, graph: Graph | str | os.PathLike, items: Sequence[Item], 
             on_result(r)
 
     t0 = time.perf_counter()
-    with F.FolderLock(output_folders(items), wait=wait_lock):
-        F.remove_temporaries(p for it in items for p in it.outputs.values())
+    with FolderLock(output_folders(items), wait=wait_lock):
+        remove_temporaries(p for it in items for p in it.outputs.values())
         if progress:
             from tqdm import tqdm
 
@@ -141,7 +141,7 @@ def run_batch(session, graph: Graph | str | os.PathLike, items: Sequence[Item], 
             if executor != "dask" or not scheduler:
                 # local writers are all gone now (workers killed on Ctrl-C): none of
                 # their temporaries may stay behind
-                F.remove_temporaries(p for it in items for p in it.outputs.values())
+                remove_temporaries(p for it in items for p in it.outputs.values())
     results.sort(key=lambda r: r.index)
     return BatchResult(results, time.perf_counter() - t0, executor, n, len(groups))
 

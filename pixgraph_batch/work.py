@@ -22,7 +22,7 @@ from pixgraph.events import NodeCached, NodeFinished
 from pixgraph.graph import Graph, GraphError, split_param
 from pixgraph.types import nbytes
 
-from . import files as F
+from .files import content_key, file_sha256, is_done, open_folder, sidecar_path, write_atomic, write_json_atomic
 from .items import Item
 from .rows import BatchError
 
@@ -190,9 +190,9 @@ def run_item(session, graph: Graph, item: Item, force: bool = False, pins: Pins 
     try:
         g = session.graph(graph, item.params)
         plan = session.plan(g, list(item.outputs))
-        keys = {name: F.content_key(plan.keys[ref.node], ref.output, item.outputs[name])
+        keys = {name: content_key(plan.keys[ref.node], ref.output, item.outputs[name])
                 for name, ref in plan.outputs.items()}
-        if not force and all(F.is_done(item.outputs[n], k) for n, k in keys.items()):
+        if not force and all(is_done(item.outputs[n], k) for n, k in keys.items()):
             return ItemResult(item.index, item.row, "skipped", dict(item.outputs), time.perf_counter() - t0,
                               worker=worker)
         _check_outputs(session, g, item)
@@ -203,11 +203,11 @@ def run_item(session, graph: Graph, item: Item, force: bool = False, pins: Pins 
         try:  # each output's folder held open from its image to its sidecar (no symlink swapped in between)
             digests = {}
             for name, path in item.outputs.items():
-                folders[name] = F.open_folder(path)[0]
+                folders[name] = open_folder(path)[0]
                 digests[name] = _write_output(session, g, name, res.outputs[name], path, folders[name])
             seconds = time.perf_counter() - t0
             for name, path in item.outputs.items():
-                F.write_json_atomic(F.sidecar_path(path), sidecar(session, g, plan, res, item, name, keys[name],
+                write_json_atomic(sidecar_path(path), sidecar(session, g, plan, res, item, name, keys[name],
                                                                   digests[name], seconds), folders[name])
         finally:
             for folder in folders.values():
@@ -237,14 +237,14 @@ def _write_output(session, graph: Graph, name: str, value, path: str, folder) ->
         except ValueError as e:  # name the user's path, not the temporary
             raise BatchError(str(e).replace(tmp, path)) from None
 
-    return F.write_atomic(path, write, folder)
+    return write_atomic(path, write, folder)
 
 
 def graph_sha256(graph: Graph) -> str | None:
     if graph.file is None:
         return None
     try:
-        return F.file_sha256(graph.file)
+        return file_sha256(graph.file)
     except OSError:
         return None
 

@@ -280,7 +280,9 @@ def test_sidecar_hashes_the_bytes_written(scene, tmp_path, references, monkeypat
     still records what this batch wrote, so the file no longer matches it and a resume
     renders that row again instead of trusting the foreign bytes."""
     out = tmp_path / "out"
-    real = F.write_json_atomic
+    import pixgraph_batch.work as W
+
+    real = W.write_json_atomic
     foreign = (scene / "photo.png").read_bytes()
 
     def meddle(path, data, folder=None):
@@ -288,12 +290,12 @@ def test_sidecar_hashes_the_bytes_written(scene, tmp_path, references, monkeypat
             (out / "1.png").write_bytes(foreign)
         real(path, data, folder)
 
-    monkeypatch.setattr(F, "write_json_atomic", meddle)
+    monkeypatch.setattr(W, "write_json_atomic", meddle)
     kw = dict(sweeps=[("light.azimuth", AZ["a"])], outputs={"final": str(out / "{index}.png")})
     assert batch(Session(), scene / "g.yaml", **kw).count("done") == 4
     meta = json.loads((out / "1.png.json").read_text())
     assert meta["file_sha256"] == references[AZ["a"][1]] != hashlib.sha256(foreign).hexdigest()
-    monkeypatch.setattr(F, "write_json_atomic", real)
+    monkeypatch.setattr(W, "write_json_atomic", real)
     again = batch(Session(), scene / "g.yaml", **kw)
     assert [r.status for r in again.results] == ["skipped", "done", "skipped", "skipped"]
     assert hashlib.sha256((out / "1.png").read_bytes()).hexdigest() == references[AZ["a"][1]]
