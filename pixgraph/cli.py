@@ -13,10 +13,10 @@ import sys
 import traceback
 from typing import Any
 
-import yaml
 
 from . import errors
 from .errors import EXIT_BAD_INPUT, EXIT_CANCELLED, EXIT_INTERNAL, EXIT_OK, UsageError  # noqa: F401
+from .options import parse_output_options, parse_sets  # noqa: F401 (part of the CLI's API)
 from .registry import Registry
 
 
@@ -110,20 +110,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def parse_sets(items: list[str]) -> dict[str, Any]:
-    """``["blur.sigma=4", "m.color=[1, 0, 0]"]`` -> ``{"blur.sigma": 4, ...}`` (safe YAML values)."""
-    out = {}
-    for item in items:
-        name, eq, raw = item.partition("=")
-        if not eq or "." not in name:
-            raise UsageError(f"--set {item}: expected NODE.PARAM=VALUE")
-        try:
-            out[name.strip()] = yaml.safe_load(raw) if raw.strip() else ""
-        except yaml.YAMLError as e:
-            raise UsageError(f"--set {item}: value is not valid YAML: {str(e).splitlines()[0]}") from None
-    return out
-
-
 def main(argv: list[str] | None = None, registry: Registry | None = None) -> int:
     """Entry point; returns the exit code. ``registry`` replaces discovery (tests, hosts)."""
     parser = _parser()
@@ -198,12 +184,7 @@ def _session(args, registry, disk: bool = True):
 def _cmd_run(args, registry) -> int:
     from .events import NodeCached, NodeFinished, NodeProgress, RunStarted
 
-    targets = {}
-    for item in args.output:
-        name, eq, path = item.partition("=")
-        if not eq or not name or not path:
-            raise UsageError(f"-o {item}: expected NAME=PATH")
-        targets[name] = path
+    targets = parse_output_options(args.output)
     s = _session(args, registry)
     sets = parse_sets(args.set)
     graph = s.graph(args.graph, sets)

@@ -37,16 +37,17 @@ class Item:
 
 
 def parse_output_options(options: Sequence[str]) -> dict[str, str] | None:
-    """``-o NAME=TEMPLATE`` options -> ``{name: template}`` (None when none given)."""
+    """``-o NAME=TEMPLATE`` options -> ``{name: template}`` (None when none given);
+    the same parser as ``pixgraph run -o``."""
+    from pixgraph.options import parse_output_options as parse
+    from pixgraph.errors import UsageError
+
     if not options:
         return None
-    outputs = {}
-    for item in options:
-        name, eq, tmpl = item.partition("=")
-        if not eq or not name or not tmpl:
-            raise BatchError(f"-o {item}: expected NAME=TEMPLATE")
-        outputs[name] = tmpl
-    return outputs
+    try:
+        return parse(options, "TEMPLATE")
+    except UsageError as e:
+        raise BatchError(str(e)) from None
 
 
 def template_folder(template: str) -> str:
