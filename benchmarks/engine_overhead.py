@@ -28,6 +28,16 @@ import numpy as np
 
 from pixgraph import types as T
 from pixgraph.node import node, param, port
+
+
+class Array(T.PortType):
+    """float32 (H, W) array (the benchmark's own port type, so it runs on any
+    engine version: domain types moved to the node pack)."""
+
+    @classmethod
+    def validate(cls, value):
+        if not isinstance(value, np.ndarray) or value.dtype != np.float32:
+            raise TypeError("Array must be a float32 numpy array")
 from pixgraph.registry import Registry
 from pixgraph.session import Session
 
@@ -37,14 +47,14 @@ class Inc:
     """a (+ b) + k on (1, 1) arrays."""
 
     class Inputs:
-        a: T.Image = port(optional=True)
-        b: T.Image = port(optional=True)
+        a: Array = port(optional=True)
+        b: Array = port(optional=True)
 
     class Params:
         k: float = param(1.0, min=-1e6, max=1e6)
 
     class Outputs:
-        out: T.Image = port()
+        out: Array = port()
 
     def compute(self, ctx, inputs, params):
         a = inputs.a if inputs.a is not None else np.zeros((1, 1), np.float32)

@@ -12,7 +12,7 @@ import os
 import numpy as np
 
 from pixgraph.node import InputError
-from pixgraph.types import Shape
+from pixgraph_nodes.types import Shape
 
 
 def same_size(camera=None, **arrays) -> tuple[int, int]:

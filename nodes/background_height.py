@@ -1,14 +1,14 @@
 """pixgraph.BackgroundHeight: background pixel height from a template with a few handles."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, param, port
 
 from .ops import heightmaps as hm
 
 
 @node("pixgraph.BackgroundHeight", version=1)
-class BackgroundHeight:
+class BackgroundHeight(Node):
     """Background pixel height from a template: ground, walls on a junction line, steps, cove.
 
     Wall templates (back_wall, wall_corner, two_corners) are drawn in the image: the
@@ -22,16 +22,16 @@ class BackgroundHeight:
 
     class Params:
         kind: str = param("ground", choices=hm.BACKGROUND_KINDS, doc="template")
-        junction_row: float = param(300.0, unit="px",
+        junction_row: float = param(300.0, min=-1e6, max=1e6, unit="px",
                                     doc="back_wall: junction row at the image centre column")
         junction_slope: float = param(0.0, min=-100.0, max=100.0, unit="px/px",
                                       doc="back_wall: junction slope dv/du")
-        junction_points: list[float] = param([], unit="px",
+        junction_points: list[float] = param([], min=-1e6, max=1e6, unit="px",
                                              doc="walls: explicit junction polyline u0, v0, u1, v1, ... "
                                                  "(overrides the other wall handles when given)")
-        corner: list[float] = param([256.0, 300.0], length=2, unit="px",
+        corner: list[float] = param([256.0, 300.0], length=2, min=-1e6, max=1e6, unit="px",
                                     doc="wall_corner: the corner (u, v); two_corners: the left corner")
-        corner2: list[float] = param([384.0, 300.0], length=2, unit="px",
+        corner2: list[float] = param([384.0, 300.0], length=2, min=-1e6, max=1e6, unit="px",
                                      doc="two_corners: the right corner (u, v)")
         left_slope: float = param(-0.3, min=-100.0, max=100.0, unit="px/px",
                                   doc="corners: junction slope dv/du left of the (left) corner")

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import dataclasses
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
-from pixgraph.types import Shape
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
+from pixgraph_nodes.types import Shape
 
 from .ops.camera import Camera as CameraValue
 
@@ -23,7 +23,7 @@ class CameraShape(Shape):
 
 
 @node("pixgraph.Camera", version=1)
-class Camera:
+class Camera(Node):
     """Pixel-height camera: image size, horizontal field of view, horizon row and height.
 
     The size comes from the ``image`` input (the background photo) when ``width`` and

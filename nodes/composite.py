@@ -1,15 +1,15 @@
 """pixgraph.Composite: shadow on the background in linear light, then the cutout over it."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, same_size
 from .ops.composite import composite
 
 
 @node("pixgraph.Composite", version=1)
-class Composite:
+class Composite(Node):
     """Darken the background by the shadow (``bg * (1 - opacity * darkness * (1 - tint))``,
     linear light), then put the premultiplied cutout over it with its alpha.
 

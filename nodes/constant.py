@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, param, port
 
 
 @node("pixgraph.Constant", version=1)
-class Constant:
+class Constant(Node):
     """An RGBA image filled with one linear-light colour (premultiplied on output)."""
 
     class Params:

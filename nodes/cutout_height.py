@@ -9,8 +9,8 @@ import pathlib
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
 
 from ._checks import same_size
 from .ops.heightmaps import ContactLinePredictor
@@ -64,7 +64,7 @@ def _weights_version() -> str:
 
 
 @node("pixgraph.CutoutHeight", version=1)
-class CutoutHeight:
+class CutoutHeight(Node):
     """Pixel height of a cutout standing on the ground. ``contact_line`` (default, alpha
     only): distance in rows to one line fitted to the object's lowest pixels, right for
     upright objects; ``column_bottom``: to each column's lowest pixel (see

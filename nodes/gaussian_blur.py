@@ -1,14 +1,14 @@
 """pixgraph.GaussianBlur: separable Gaussian blur on the OpenCL device."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, param, port
 
 from .ops.blur import gaussian_blur
 
 
 @node("pixgraph.GaussianBlur", version=1)
-class GaussianBlur:
+class GaussianBlur(Node):
     """Gaussian blur of an image (every channel, premultiplied alpha included), edges clamped."""
 
     class Inputs:

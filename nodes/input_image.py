@@ -1,14 +1,14 @@
 """pixgraph.InputImage: an image a host application hands in as a numpy array."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
 
 from .ops.imageio import host_pixels, to_internal
 
 
 @node("pixgraph.InputImage", version=1)
-class InputImage:
+class InputImage(Node):
     """A host's image: bind a numpy array to this node (``Session.run(bind={id: array})``).
 
     The array is (H, W, 3) RGB (a background photo) or (H, W, 4) RGBA (a cutout;

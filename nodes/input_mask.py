@@ -3,15 +3,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, port
 
 from .input_image import unbound
 from .ops.imageio import host_pixels
 
 
 @node("pixgraph.InputMask", version=1)
-class InputMask:
+class InputMask(Node):
     """A host's mask (matte): bind an (H, W) or (H, W, 1) array, float in [0, 1] or
     unsigned integers (255 / 65535 = inside). Data, never colour-decoded; values
     outside [0, 1] are clipped. Unbound, the node is an error."""

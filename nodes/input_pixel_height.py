@@ -1,15 +1,15 @@
 """pixgraph.InputPixelHeight: a pixel-height map a host application hands in as a numpy array."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, port
 
 from .input_image import unbound
 from .ops.imageio import host_pixels
 
 
 @node("pixgraph.InputPixelHeight", version=1)
-class InputPixelHeight:
+class InputPixelHeight(Node):
     """A host's pixel height: bind an (H, W) float array in pixels (of that array's
     own size; 0 on the ground). Values are passed on as they are: the nodes that
     use a height refuse NaN or infinite values where they matter (inside the

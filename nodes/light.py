@@ -5,8 +5,8 @@ import math
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
 
 from .ops import light_screen, lights
 
@@ -15,7 +15,7 @@ TALL = 5.0
 
 
 @node("pixgraph.Light", version=1)
-class Light:
+class Light(Node):
     """A light placed by azimuth/elevation/distance around the object's foot, or by
     dragging the shadow tip.
 
@@ -91,6 +91,17 @@ class Light:
                     f"it would be {mask.placed_height / (v - horizon):.0f} times as tall as the camera is high; "
                     "check the horizon (see docs/own-photo.md, 'The horizon')")
         return {}
+
+    def affects(self, params):
+        """Only the active placement's handles are in the key: dragging the shadow tip
+        leaves a light placed by azimuth/elevation cached, and the reverse."""
+        names = {"kind", "placement", "radius", "angular_radius", "facing", "camera"}
+        if params.kind != "directional":
+            names.add("distance")
+        if params.placement == "shadow_tip":
+            return names | {"tip_uv", "top_uvh"}
+        names |= {"azimuth", "elevation", "target_mode"}
+        return names | ({"mask"} if params.target_mode == "mask_foot" else {"target_uv"})
 
     def compute(self, ctx, inputs, params):
         cam = inputs.camera

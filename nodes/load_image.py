@@ -5,9 +5,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
-from pixgraph.types import Shape
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
+from pixgraph_nodes.types import Shape
 
 from ._checks import file_shape, no_alpha
 
@@ -16,7 +16,7 @@ from .ops.resample import at_scale
 
 
 @node("pixgraph.LoadImage", version=1)
-class LoadImage:
+class LoadImage(Node):
     """Read PNG, JPEG, TIFF or EXR; decode to linear light and premultiply alpha.
 
     A host may bind a numpy array instead of the file (as for pixgraph.InputImage;

@@ -5,9 +5,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
-from pixgraph.types import Shape
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
+from pixgraph_nodes.types import Shape
 
 from ._checks import file_shape, npy_finite, source
 
@@ -16,7 +16,7 @@ from .ops.resample import at_scale
 
 
 @node("pixgraph.LoadMask", version=1)
-class LoadMask:
+class LoadMask(Node):
     """Read a mask: PNG/TIFF/EXR (the alpha channel if the file has one, else its
     first channel, as stored: a matte is never sRGB-decoded) or ``.npy`` (the
     PixHt-Lab authors' format; bool, 0..1 or 0..255). Connect it to

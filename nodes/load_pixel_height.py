@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
-from pixgraph.types import Shape
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
+from pixgraph_nodes.types import Shape
 
 from ._checks import file_shape, npy_finite
 from .ops.heightmaps import load_pixel_height
@@ -16,7 +16,7 @@ from .ops.resample import at_scale
 
 
 @node("pixgraph.LoadPixelHeight", version=1)
-class LoadPixelHeight:
+class LoadPixelHeight(Node):
     """Read a cutout or background pixel-height map from a file.
 
     .npy and float EXR/TIFF hold pixels (times ``scale``); 8/16-bit PNG/TIFF hold a

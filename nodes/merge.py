@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, param, port
 
 
 def to_rgba(image: np.ndarray) -> np.ndarray:
@@ -46,7 +46,7 @@ def merge(a: np.ndarray, b: np.ndarray, mode: str, opacity: float) -> np.ndarray
 
 
 @node("pixgraph.Merge", version=1)
-class Merge:
+class Merge(Node):
     """Combine A onto B (over, add, multiply or mix), faded by opacity."""
 
     class Inputs:

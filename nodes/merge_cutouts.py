@@ -1,14 +1,14 @@
 """pixgraph.MergeCutouts: two cutouts as one occluder, so each casts shadows on the other."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import node, port
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, port
 
 from .ops.cutouts import merge_cutouts
 
 
 @node("pixgraph.MergeCutouts", version=1)
-class MergeCutouts:
+class MergeCutouts(Node):
     """Merge two cutouts (mask, pixel height, premultiplied colour) placed in the same
     image. Where they overlap, the one whose foot is lower in the image (closer to the
     camera) is in front. Chain the node for more cutouts."""

@@ -3,15 +3,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
 
 from ._checks import same_size
 from .ops.height_edit import edit_pixel_height
 
 
 @node("pixgraph.PixelHeightEdit", version=1)
-class PixelHeightEdit:
+class PixelHeightEdit(Node):
     """Edit a cutout's pixel height where a predictor got it wrong (the math and its
     derivations: pixgraph_nodes.ops.height_edit). ``contact_points`` (flat list u1, v1,
     u2, v2, ... in the cutout's pixels, u right, v down): where the object touches the

@@ -5,9 +5,9 @@ import dataclasses
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
-from pixgraph.types import Shape
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
+from pixgraph_nodes.types import Shape
 
 from .ops.heightmaps import contact_line_height
 from .ops.placement import place_cutout, resize_map
@@ -23,7 +23,7 @@ class PlacedShape(Shape):
 
 
 @node("pixgraph.PlaceCutout", version=1)
-class PlaceCutout:
+class PlaceCutout(Node):
     """Place a cutout (an RGBA image of any size) on the background's canvas: its foot
     lands on ``foot`` (background pixels), scaled by ``scale``, optionally mirrored,
     cropped at the canvas border. Everything downstream works on the canvas size.

@@ -1,14 +1,14 @@
 """pixgraph.Reconstruct3D: 3D positions, normals and depth from pixel height (paper Eq. 3-4)."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import node, port
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, port
 
 from .ops.geometry import reconstruct_geometry
 
 
 @node("pixgraph.Reconstruct3D", version=1)
-class Reconstruct3D:
+class Reconstruct3D(Node):
     """Back-project every pixel through the camera using its pixel height.
 
     A pixel whose foot (v + h) is at or above the horizon has no 3D point: it is

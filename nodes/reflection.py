@@ -3,15 +3,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, finite_outputs, inside, pixel_heights, rgba, same_size
 from .ops.reflection_proxy import AUTO_MAX_SIDE, proxy_reflection
 
 
 @node("pixgraph.Reflection", version=1)
-class Reflection:
+class Reflection(Node):
     """Reflection of the cutout in the background surface, traced in pixel-height space.
 
     The receiver is the background (positions and normals reconstructed from its

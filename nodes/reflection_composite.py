@@ -3,15 +3,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, same_size
 from .ops.composite import _over_into, _shadow_into
 
 
 @node("pixgraph.ReflectionComposite", version=1)
-class ReflectionComposite:
+class ReflectionComposite(Node):
     """Background, shadow, reflection, cutout and refraction layered in linear light.
 
     Layers the effects in the order light reaches the eye:

@@ -1,15 +1,15 @@
 """pixgraph.Refraction: the background seen through a transparent cutout."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, finite_outputs, pixel_heights, rgba, same_size
 from .ops.refraction import refraction_cl
 
 
 @node("pixgraph.Refraction", version=1)
-class Refraction:
+class Refraction(Node):
     """The background seen through a transparent cutout (glass ball, bottle), traced in pixel-height space.
 
     Refracts each view ray at the front surface of the object by Snell's law, with normals reconstructed from its pixel height,

@@ -4,14 +4,14 @@ from __future__ import annotations
 from pathlib import Path
 import pathlib
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
 
 from .ops.imageio import write_exr_channels
 
 
 @node("pixgraph.SaveBuffers", version=1)
-class SaveBuffers:
+class SaveBuffers(Node):
     """Write every channel of a Buffers value to one multichannel float EXR, named as
     in the value, in its order."""
 

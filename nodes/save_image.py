@@ -3,16 +3,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 import numpy as np
 
-from pixgraph.node import InputError, node, param, port
+from pixgraph.node import InputError, Node, node, param, port
 
 from .ops.imageio import write_data, write_image
 
 
 @node("pixgraph.SaveImage", version=1)
-class SaveImage:
+class SaveImage(Node):
     """Write an image; the extension picks the format.
 
     PNG, TIFF and JPEG are sRGB-encoded with straight alpha (JPEG drops alpha);

@@ -3,10 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
 
-from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
+from ._checks import finite_outputs, inside
+from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
 from .ops import choose as C
 from .ops.softness import softness_of
 from .ops.lights import disk_extremes, disk_samples, light_point
@@ -20,7 +21,7 @@ def _has_torch() -> bool:
 
 
 @node("pixgraph.Shadow", version=1)
-class Shadow:
+class Shadow(Node):
     """Shadow of a cutout, by the method the scene needs ("model no more than a scene
     needs"). ``method: auto`` picks the cheapest of the hard shadow, the classical
     soft shadow with 4-64 light samples and SSN++ whose 90th-percentile RMSE against
@@ -29,12 +30,8 @@ class Shadow:
     and why are in the run's log and in ``pixgraph explain`` (docs/auto.md).
     ``hard``, ``soft`` (``samples``) and ``ssn`` force a method."""
 
-    class Inputs:
-        mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
-        fg_height: T.PixelHeight = port(doc="cutout pixel height [px]")
-        bg_height: T.PixelHeight = port(doc="background pixel height [px]")
+    class Inputs(ShadowInputs):
         light: T.Light = port(doc="the light; its radius / distance is the softness")
-        camera: T.Camera = port(doc="camera that converts the light to pixel-height space")
 
     class Params:
         method: str = param("auto", choices=("auto", "hard", "soft", "ssn"),
@@ -43,8 +40,7 @@ class Shadow:
                                 doc="auto's accuracy target: RMSE of darkness against ground truth that at "
                                     "most 10% of the benchmark's similar scenes exceeded")
         samples: int = param(64, min=1, max=65536, doc="light samples of method soft")
-        thickness: float = param(1.0, min=0.0, max=1000.0, unit="px",
-                                 doc="occluder thickness of the pixel-height tracer")
+        thickness: float = thickness_param(doc="occluder thickness of the pixel-height tracer")
         proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px, longer side",
                            doc="classical shadows of images longer than this are traced at this size (0: never)")
 
@@ -60,8 +56,7 @@ class Shadow:
     #: shells may switch this node among the registered types declaring the same handles kind
     handles = {"kind": "shadow"}
 
-    @staticmethod
-    def describe(params) -> str:
+    def describe(self, params) -> str:
         """What ``pixgraph explain`` shows before the run (the choice needs the inputs)."""
         if params["method"] != "auto":
             return f"method {params['method']} (forced)"
@@ -72,10 +67,7 @@ class Shadow:
                 f"(table weights/{C.TABLE.name}, {n} benchmark samples)")
 
     def compute(self, ctx, inputs, params):
-        same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
-        finite(mask=inputs.mask)
-        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
-        pixel_heights(bg_height=inputs.bg_height)
+        check_inputs(inputs)
         light, cam = inputs.light, inputs.camera
         H, W = inputs.mask.shape
         if not inside(inputs.mask).any():  # nothing casts a shadow

@@ -1,16 +1,17 @@
 """pixgraph.SoftShadow: classical soft shadow, the average of hard shadows over the area light."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, param, port
 
-from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
+from ._checks import finite_outputs
+from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
 from .ops.lights import disk_samples, light_point
 from .ops.upsample import AUTO_MAX_SIDE, proxy_soft_shadow
 
 
 @node("pixgraph.SoftShadow", version=1)
-class SoftShadow:
+class SoftShadow(Node):
     """Soft shadow in pixel-height space: the fraction of ``samples`` stratified points of
     the disk light (sunflower pattern) that each pixel sees. The pixel-height-space
     reference; its cost grows linearly with ``samples``. A point light needs one.
@@ -21,18 +22,13 @@ class SoftShadow:
     they report progress and stop at the next band when the run is cancelled.
     Images larger than ``proxy`` are traced at a proxy resolution (docs/auto.md)."""
 
-    class Inputs:
-        mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
-        fg_height: T.PixelHeight = port(doc="cutout pixel height [px]")
-        bg_height: T.PixelHeight = port(doc="background pixel height [px]")
+    class Inputs(ShadowInputs):
         light: T.Light = port(doc="the light; its radius / angular radius is the softness")
-        camera: T.Camera = port(doc="camera that converts the light to pixel-height space")
 
     class Params:
         samples: int = param(64, min=1, max=65536, doc="light samples (noise falls like 1/samples)")
         seed: int = param(0, min=0, max=2**31 - 1, doc="rotation of the sample pattern")
-        thickness: float = param(1.0, min=0.0, max=1000.0, unit="px",
-                                 doc="how far a ray may pass behind the cutout surface and still be blocked")
+        thickness: float = thickness_param()
         proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px, longer side",
                            doc="images whose longer side exceeds this are traced on a copy of this longer side "
                                "and enlarged edge-aware against the full-resolution mask (0: never)")
@@ -48,10 +44,7 @@ class SoftShadow:
     handles = {"kind": "shadow"}
 
     def compute(self, ctx, inputs, params):
-        same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
-        finite(mask=inputs.mask)
-        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
-        pixel_heights(bg_height=inputs.bg_height)
+        check_inputs(inputs)
         light, cam = inputs.light, inputs.camera
         if light.is_area:
             samples = disk_samples(light, cam, params.samples, params.seed)

@@ -1,14 +1,14 @@
 """pixgraph.Sphere: a procedural ball on the ground (cutout colour, alpha, pixel height)."""
 from __future__ import annotations
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
 
 from .ops.sphere import sphere_cutout
 
 
 @node("pixgraph.Sphere", version=1)
-class Sphere:
+class Sphere(Node):
     """A procedural ball resting on the ground, as a cutout with exact pixel height.
 
     Premultiplied colour, coverage (4x4 samples per pixel) and the pixel height of

@@ -6,10 +6,11 @@ import pathlib
 
 import numpy as np
 
-from pixgraph import types as T
-from pixgraph.node import InputError, node, param, port
+from pixgraph_nodes import types as T
+from pixgraph.node import InputError, Node, node, param, port
 
-from ._checks import finite, finite_outputs, inside, pixel_heights, same_size
+from ._checks import finite_outputs, inside
+from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
 from .ops.lights import disk_extremes, light_point
 
 WEIGHTS = pathlib.Path(__file__).parent / "weights"
@@ -43,7 +44,7 @@ def load_shipped(name: str):
 
 
 @node("pixgraph.SoftShadowSSN", version=1)
-class SoftShadowSSN:
+class SoftShadowSSN(Node):
     """Soft shadow from SSN++: the 3D-aware buffer channels (cutout pixel height,
     background gradient, hard and sparse hard shadows, relative distance) and the
     light's softness run through a small trained U-Net on the CPU. Same ports as
@@ -62,18 +63,13 @@ class SoftShadowSSN:
     data's (radius / distance outside 0.015-0.45) is clamped, with a warning in
     the run's log (docs/ssn.md)."""
 
-    class Inputs:
-        mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
-        fg_height: T.PixelHeight = port(doc="cutout pixel height [px]")
-        bg_height: T.PixelHeight = port(doc="background pixel height [px]")
+    class Inputs(ShadowInputs):
         light: T.Light = port(doc="the disk light; radius over distance to the object is the softness")
-        camera: T.Camera = port(doc="camera that converts the light to pixel-height space")
 
     class Params:
         model: str = param("ssnpp", choices=("ssnpp",), doc="shipped weights to use")
-        thickness: float = param(1.0, min=0.0, max=1000.0, unit="px",
-                                 doc="occluder thickness of the buffer channels' hard shadows, "
-                                     "in pixels of the network's window (the trained scale)")
+        thickness: float = thickness_param(doc="occluder thickness of the buffer channels' hard shadows, "
+                                            "in pixels of the network's window (the trained scale)")
 
     class Outputs:
         lit: T.Mask = port(doc="1 - darkness")
@@ -89,10 +85,7 @@ class SoftShadowSSN:
     handles = {"kind": "shadow"}
 
     def compute(self, ctx, inputs, params):
-        same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
-        finite(mask=inputs.mask)
-        pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
-        pixel_heights(bg_height=inputs.bg_height)
+        check_inputs(inputs)
         cam, light = inputs.camera, inputs.light
         if not inside(inputs.mask).any():  # nothing casts a shadow
             darkness = np.zeros(inputs.mask.shape, np.float32)

@@ -13,18 +13,11 @@ import sys
 import traceback
 from typing import Any
 
-import yaml
 
-from .cache import CacheError
-from .engine import NodeInputError
-from .graph import GraphError, one_line
+from . import errors
+from .errors import EXIT_BAD_INPUT, EXIT_CANCELLED, EXIT_INTERNAL, EXIT_OK, UsageError  # noqa: F401
+from .options import parse_output_options, parse_sets  # noqa: F401 (part of the CLI's API)
 from .registry import Registry
-
-EXIT_OK, EXIT_INTERNAL, EXIT_BAD_INPUT, EXIT_CANCELLED = 0, 1, 2, 130
-
-
-class UsageError(Exception):
-    """Bad command-line input (exit 2)."""
 
 
 def default_disk_cache() -> str:
@@ -36,10 +29,19 @@ def default_disk_cache() -> str:
     return os.path.join(base, "pixgraph")
 
 
-def _parser() -> argparse.ArgumentParser:
+def _common(default) -> argparse.ArgumentParser:
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--debug", action="store_true", help="show tracebacks")
-    common.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summaries")
+    common.add_argument("--debug", action="store_true", default=default, help="show tracebacks")
+    common.add_argument("--quiet", "-q", action="store_true", default=default,
+                        help="no progress bar or summaries")
+    return common
+
+
+def _parser() -> argparse.ArgumentParser:
+    # --debug and --quiet go before or after the command: a command's own default
+    # is SUPPRESS, so ``pixgraph --debug run`` keeps the flag the top level read
+    top = _common(False)
+    common = _common(argparse.SUPPRESS)
 
     graph_opts = argparse.ArgumentParser(add_help=False)
     graph_opts.add_argument("graph", help="graph file (YAML)")
@@ -56,7 +58,7 @@ def _parser() -> argparse.ArgumentParser:
     cache_opts.add_argument("--no-disk-cache", action="store_true", help="memory cache only")
 
     p = argparse.ArgumentParser(prog="pixgraph", description="Node-graph compositing with pixel-height light effects.",
-                                parents=[common])
+                                parents=[top])
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     r = sub.add_parser("run", parents=[common, graph_opts, cache_opts], help="run a graph")
@@ -66,11 +68,21 @@ def _parser() -> argparse.ArgumentParser:
                         "(no gamma, never clipped: 16-bit PNG for 0..1, else npy/exr/tif)")
     r.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
     r.add_argument("--cache-bytes", type=int, default=None, help="memory cache limit in bytes")
+    r.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="compute up to N independent branches at once (default PIXGRAPH_WORKERS, else 1; "
+                        "OpenCL nodes still take turns on the device)")
 
     sub.add_parser("validate", parents=[common, graph_opts],
                    help="check a graph file and its input files' headers without running it")
     sub.add_parser("explain", parents=[common, graph_opts, cache_opts],
                    help="show what a run would compute or take from cache, and why")
+
+    gr = sub.add_parser("graph", parents=[common, graph_opts],
+                        help="draw a graph: Graphviz DOT text (--dot, the default) or an SVG picture (--svg)")
+    fmt = gr.add_mutually_exclusive_group()
+    fmt.add_argument("--dot", action="store_true", help="print DOT text (render with Graphviz: dot -Tpng)")
+    fmt.add_argument("--svg", action="store_true", help="an SVG picture, drawn without Graphviz")
+    gr.add_argument("-o", "--output", metavar="PATH", default=None, help="write to PATH instead of stdout")
 
     n = sub.add_parser("nodes", parents=[common], help="list node types, or show one")
     n.add_argument("name", nargs="?", help="node type id")
@@ -83,7 +95,7 @@ def _parser() -> argparse.ArgumentParser:
 
     sv = sub.add_parser("serve", parents=[common],
                         help="serve a graph: browser UI (drag the light) and a local HTTP API")
-    from pixgraph_serve import add_arguments as _serve_arguments
+    from pixgraph_serve.cli import add_arguments as _serve_arguments
 
     _serve_arguments(sv)
 
@@ -98,20 +110,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def parse_sets(items: list[str]) -> dict[str, Any]:
-    """``["blur.sigma=4", "m.color=[1, 0, 0]"]`` -> ``{"blur.sigma": 4, ...}`` (safe YAML values)."""
-    out = {}
-    for item in items:
-        name, eq, raw = item.partition("=")
-        if not eq or "." not in name:
-            raise UsageError(f"--set {item}: expected NODE.PARAM=VALUE")
-        try:
-            out[name.strip()] = yaml.safe_load(raw) if raw.strip() else ""
-        except yaml.YAMLError as e:
-            raise UsageError(f"--set {item}: value is not valid YAML: {str(e).splitlines()[0]}") from None
-    return out
-
-
 def main(argv: list[str] | None = None, registry: Registry | None = None) -> int:
     """Entry point; returns the exit code. ``registry`` replaces discovery (tests, hosts)."""
     parser = _parser()
@@ -121,26 +119,19 @@ def main(argv: list[str] | None = None, registry: Registry | None = None) -> int
         return EXIT_BAD_INPUT if e.code else EXIT_OK
     try:
         return _COMMANDS[args.command](args, registry)
-    except (GraphError, UsageError, CacheError) as e:
-        _fail(args, e)
-        return EXIT_BAD_INPUT
-    except NodeInputError as e:
-        _fail(args, e, prefix="error: ")
-        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("pixgraph: cancelled", file=sys.stderr)
         if argv is None:
             _exit_now(EXIT_CANCELLED)
         return EXIT_CANCELLED
-    except Exception as e:
-        from .device import DeviceError
-        from .events import Cancelled
-
-        if isinstance(e, Cancelled):
+    except Exception as e:  # one table: pixgraph.errors
+        code = errors.exit_code(e)
+        if code == EXIT_CANCELLED:
             print("pixgraph: cancelled", file=sys.stderr)
-            return EXIT_CANCELLED
-        _fail(args, e, prefix="error: ")
-        return EXIT_BAD_INPUT if isinstance(e, DeviceError) and "matches" in str(e) else EXIT_INTERNAL
+            return code
+        # a graph or usage error names its own file/flag; anything else says "error:"
+        _fail(args, e, prefix="" if errors.names_its_input(e) else "error: ")
+        return code
 
 
 def _exit_now(code: int) -> None:
@@ -155,17 +146,14 @@ def _exit_now(code: int) -> None:
 
 
 def _fail(args, e: BaseException, prefix: str = "") -> None:
-    try:
-        text = str(e)
-    except Exception:  # noqa: BLE001 - a message that cannot even be formatted
-        text = type(e).__name__
-    print(one_line(f"{prefix}{text}"), file=sys.stderr)
+    print(errors.one_line(f"{prefix}{errors.message(e)}"), file=sys.stderr)
     if getattr(args, "debug", False):
         traceback.print_exception(e, file=sys.stderr)
 
 
 def _session(args, registry, disk: bool = True):
     from .session import Session
+
 
     disk_dir = None
     if disk and not getattr(args, "no_disk_cache", False):
@@ -185,19 +173,18 @@ def _session(args, registry, disk: bool = True):
             choose(args.device)  # a bad spec is bad input, found before any node runs
         except DeviceError as e:
             raise UsageError(str(e)) from None
+    workers = getattr(args, "workers", None)
+    if workers is not None and workers < 1:
+        raise UsageError(f"--workers {workers}: must be 1 or more")
     return Session(device=getattr(args, "device", None), cache_bytes=getattr(args, "cache_bytes", None),
-                   disk_cache=disk_dir, registry=registry, allow_paths=getattr(args, "allow_path", []))
+                   disk_cache=disk_dir, registry=registry, allow_paths=getattr(args, "allow_path", []),
+                   workers=workers)
 
 
 def _cmd_run(args, registry) -> int:
     from .events import NodeCached, NodeFinished, NodeProgress, RunStarted
 
-    targets = {}
-    for item in args.output:
-        name, eq, path = item.partition("=")
-        if not eq or not name or not path:
-            raise UsageError(f"-o {item}: expected NAME=PATH")
-        targets[name] = path
+    targets = parse_output_options(args.output)
     s = _session(args, registry)
     sets = parse_sets(args.set)
     graph = s.graph(args.graph, sets)
@@ -311,6 +298,27 @@ def _cmd_explain(args, registry) -> int:
     return EXIT_OK
 
 
+def _cmd_graph(args, registry) -> int:
+    from . import drawing
+    from .session import Session
+
+    s = Session(registry=registry if registry is not None else Registry.discover(), allow_paths=args.allow_path)
+    g = s.graph(args.graph, parse_sets(args.set))
+    title = os.path.basename(args.graph)
+    text = drawing.to_svg(g, s.registry, title) if args.svg else drawing.to_dot(g, s.registry)
+    if args.output is None:
+        sys.stdout.write(text)
+        return EXIT_OK
+    try:
+        with open(args.output, "w", encoding="utf-8") as f:
+            f.write(text)
+    except OSError as e:
+        raise UsageError(f"-o {args.output}: {e.strerror or e}") from None
+    if not args.quiet:
+        print(f"{args.graph}: {len(g.nodes)} nodes drawn to {args.output}", file=sys.stderr)
+    return EXIT_OK
+
+
 def _cmd_nodes(args, registry) -> int:
     from . import reference
 
@@ -383,9 +391,9 @@ def _cmd_cache(args, registry) -> int:
         print(json.dumps({"root": root, "entries": 0, "bytes": 0}) if args.action == "stats"
               else f"removed 0 entries from {root} (no such folder)")
         return EXIT_OK
-    from .session import DEFAULT_DISK_CACHE_BYTES, _env_bytes
+    from .session import DEFAULT_DISK_CACHE_BYTES, env_bytes
 
-    d = DiskCache(root, _env_bytes("PIXGRAPH_DISK_CACHE_BYTES", DEFAULT_DISK_CACHE_BYTES))
+    d = DiskCache(root, env_bytes("PIXGRAPH_DISK_CACHE_BYTES", DEFAULT_DISK_CACHE_BYTES))
     if args.action == "clear":
         n = d.clear()
         print(f"removed {n} entr{'y' if n == 1 else 'ies'} from {root}")
@@ -401,11 +409,11 @@ def _cmd_batch(args, registry) -> int:
 
 
 def _cmd_serve(args, registry) -> int:
-    from pixgraph_serve import cli_serve
+    from pixgraph_serve.cli import cli_serve
 
     return cli_serve(args, registry, UsageError)
 
 
-_COMMANDS = {"run": _cmd_run, "batch": _cmd_batch, "serve": _cmd_serve, "validate": _cmd_validate,
+_COMMANDS = {"run": _cmd_run, "graph": _cmd_graph, "batch": _cmd_batch, "serve": _cmd_serve, "validate": _cmd_validate,
              "explain": _cmd_explain, "nodes": _cmd_nodes, "schema": _cmd_schema, "devices": _cmd_devices,
              "cache": _cmd_cache}

@@ -13,10 +13,9 @@ always run when requested and are never cached.
 """
 from __future__ import annotations
 
-import collections.abc
-import dataclasses
 import logging
 import os
+import threading
 import time
 from typing import Any, Callable, Mapping
 
@@ -25,13 +24,17 @@ import numpy as np
 from . import codehash, events as E
 from .device import DeviceError
 from .cache import MISS, DiskCache, MemoryCache, Unstorable, misfit
-from .graph import Graph, GraphError, Ref
+from .errors import NodeError, NodeInputError, out_of_memory  # noqa: F401 (re-exported)
+from .graph import Graph, GraphError, Ref, upstream
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import InputError, Namespace, NodeSpec
-from .paths import PathError, PathPolicy, WritePath
-from .unusable import refuse_unusable_inputs
+from .paths import PathError, PathPolicy
+from .plan import NodeContext, Plan, RunResult, Step, files_upstream  # noqa: F401 (re-exported)
 from .registry import Registry
-from .types import SIZED, Shape, nbytes
+from .resolve import check_overwrites, check_scale, checked_path, resolve_params, scale_params
+from .scheduler import DeviceGate, execute
+from .types import nbytes
+from .unusable import refuse_unusable_inputs
 
 
 DEFAULT_MAX_FILE_BYTES = 4 << 30
@@ -44,130 +47,6 @@ def _env_int(name: str, default: int) -> int:
         return int(float(raw)) if raw.strip() else default
     except ValueError:
         raise GraphError(f"{name} must be a number, got {raw[:40]!r}") from None
-
-
-class NodeError(RuntimeError):
-    """A node failed while computing, or returned values that break its declaration."""
-
-    def __init__(self, node_id: str, type_id: str, message: str):
-        super().__init__(f"node {node_id!r} ({type_id}): {message}")
-        self.node_id = node_id
-        self.type_id = type_id
-
-
-class NodeInputError(NodeError):
-    """A node rejected inputs that do not fit together (``node.InputError``): bad input."""
-
-
-class NodeContext:
-    """What a node's ``compute`` may use besides its inputs and params.
-
-    ``device`` is opened on first access only, so graphs without OpenCL nodes
-    never touch OpenCL. ``scale`` is the run's working resolution (``Engine.plan``):
-    a node that declares ``uses_scale = True`` (a loader) makes its images this
-    many times the file's size; 1 is full size.
-    """
-
-    __slots__ = ("node_id", "graph_dir", "_device", "_cancel", "_emit", "scale")
-
-    def __init__(self, node_id: str, graph_dir: str, device: Callable[[], Any],
-                 cancel: E.CancelToken | None, emit: Callable[[Any], None], scale: float = 1.0):
-        self.node_id = node_id
-        self.graph_dir = graph_dir
-        self.scale = scale
-        self._device = device
-        self._cancel = cancel
-        self._emit = emit
-
-    @property
-    def device(self):
-        """The session's ``pixgraph.device.Device``."""
-        return self._device()
-
-    def progress(self, fraction: float, message: str = "") -> None:
-        """Report this node's progress, ``fraction`` in [0, 1]."""
-        self._emit(E.NodeProgress(self.node_id, min(1.0, max(0.0, float(fraction))), message))
-
-    def check_cancelled(self) -> None:
-        """Raise ``events.Cancelled`` when the run was cancelled."""
-        if self._cancel is not None:
-            self._cancel.raise_if_cancelled()
-
-    def log(self, message: str) -> None:
-        self._emit(E.NodeLog(self.node_id, str(message)))
-
-
-@dataclasses.dataclass(frozen=True)
-class Step:
-    """One needed node of a plan. ``status`` is run, memory, disk or bound."""
-
-    node_id: str
-    type_id: str
-    key: str
-    status: str
-    reason: str
-
-
-@dataclasses.dataclass(frozen=True)
-class Plan:
-    graph: Graph
-    #: requested output name -> where it comes from
-    outputs: Mapping[str, Ref]
-    #: needed nodes, inputs before the nodes that use them
-    steps: tuple[Step, ...]
-    keys: Mapping[str, str]
-    parts: Mapping[str, KeyParts]
-    #: params as compute receives them: defaults filled in, paths absolute
-    params: Mapping[str, Mapping[str, Any]]
-    bind: Mapping[str, Any]
-    #: bound node id -> its outputs (a host input's ``bind`` hook applied; else the
-    #: array as the first output)
-    bound: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
-    #: working resolution of the run (1 = full size; see ``Engine.plan``)
-    scale: float = 1.0
-
-    def step(self, node_id: str) -> Step:
-        return next(s for s in self.steps if s.node_id == node_id)
-
-    def table(self) -> str:
-        """The plan as a text table, for ``pixgraph explain``."""
-        rows = [("node", "type", "status", "key", "why")]
-        rows += [(s.node_id, s.type_id, s.status, s.key[:12], s.reason) for s in self.steps]
-        widths = [max(len(r[i]) for r in rows) for i in range(4)]
-        return "\n".join("  ".join(c.ljust(w) for c, w in zip(r[:4], widths)) + "  " + r[4] for r in rows)
-
-
-@dataclasses.dataclass(frozen=True)
-class RunResult(collections.abc.Mapping):
-    """What a run returns: its outputs, and what ran and what came from a cache.
-
-    It is a read-only mapping of output name -> value (``result["final"]``,
-    ``dict(result)``, ``result.items()``); ``outputs`` is the same as a plain dict.
-    """
-
-    #: ``{output name: value}``
-    outputs: dict[str, Any]
-    #: compute seconds of each node that ran
-    timings: dict[str, float]
-    ran: tuple[str, ...]
-    cached: tuple[str, ...]
-    plan: Plan
-    #: messages each node that ran logged (``ctx.log``), by node id
-    logs: dict[str, list[str]] = dataclasses.field(default_factory=dict)
-
-    @property
-    def seconds(self) -> float:
-        """Compute seconds of the nodes that ran, summed (cache hits count 0)."""
-        return float(sum(self.timings.values()))
-
-    def __getitem__(self, name: str) -> Any:
-        return self.outputs[name]
-
-    def __iter__(self):
-        return iter(self.outputs)
-
-    def __len__(self) -> int:
-        return len(self.outputs)
 
 
 class Engine:
@@ -195,6 +74,8 @@ class Engine:
         self.memory_only: dict[str, str] = {}
         #: cache key -> what the node logged when it computed that key (this process)
         self._logs_by_key: dict[str, list[str]] = {}
+        #: nodes computed at once on independent branches (``scheduler``); 1 = in order
+        self.workers = _env_int("PIXGRAPH_WORKERS", 1)
 
     # -- plan -------------------------------------------------------------------
 
@@ -207,7 +88,7 @@ class Engine:
         ``ctx.scale`` and in their cache key. The engine knows no more of images than
         that; at 1 (the default) plans and keys are those of an unscaled run."""
         bind = dict(bind or {})
-        scale = _check_scale(scale)
+        scale = check_scale(scale)
         requested = self._requested(graph, outputs)
         for nid in bind:
             if nid not in graph.nodes:
@@ -220,9 +101,9 @@ class Engine:
             spec = self.registry.get(inst.type)
             if nid in bind:
                 params[nid] = {}
-                if hasattr(spec.cls, "bind"):
+                if "bind" in spec.hooks:
                     # a host input: its params (colour space, alpha...) say how to read the array
-                    p, relevant = self._params(graph, nid, spec, inst.params, read_paths=False)
+                    p, relevant = resolve_params(graph, nid, spec, inst.params, None, self._hash_file, self.max_file_bytes, read_paths=False)
                     params[nid] = p
                     bound[nid] = self._bind(graph, nid, spec, bind[nid], p)
                     parts[nid] = KeyParts(spec.type_id, spec.version, codehash.impl_version(spec), relevant,
@@ -233,14 +114,16 @@ class Engine:
                     parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
                     bound[nid] = {spec.outputs[0].name: bind[nid]}
                 continue
-            p, relevant = self._params(graph, nid, spec, inst.params, policy)
+            p, relevant = resolve_params(graph, nid, spec, inst.params, policy, self._hash_file, self.max_file_bytes)
             if scale != 1.0:
-                _scale_params(spec, p, relevant, scale)
+                scale_params(spec, p, relevant, scale)
             params[nid] = p
             inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
+            if "affects" in spec.hooks:  # params and inputs ignored in this mode stay out of the key
+                relevant, inputs = _affecting(nid, spec, p, relevant, inputs)
             parts[nid] = KeyParts(spec.type_id, spec.version, codehash.impl_version(spec), relevant, inputs)
             keys[nid] = parts[nid].key()
-        self._check_overwrites(graph, params, order, bind)
+        check_overwrites(self.registry, graph, params, order, bind)
         refuse_unusable_inputs(graph, self.registry, order, params, bind)
         steps = self._steps(graph, requested, order, keys, parts, bind, params)
         return Plan(graph, requested, steps, keys, parts, params, bind, bound, scale)
@@ -251,13 +134,14 @@ class Engine:
         """Check what the needed nodes will get, from file headers only, before anything
         runs: returns ``{node: {output: info}}`` (a ``types.Shape`` where known).
 
-        A node with an ``infer(self, ctx, inputs, params)`` hook turns its inputs'
-        infos into its outputs' (a loader reads its file's header; ``ctx.node_id``
-        names the node) and raises ``InputError`` for inputs that cannot work. Any
-        other node needs inputs of one size: its sized outputs get that size. The
-        first problem is a ``GraphError`` naming the node, its line, and the files.
-        What an infer hook logs (``ctx.log``: something plausible-looking that is
-        probably wrong) is appended to ``notes``, named like an error, when given.
+        Each node's ``infer(self, ctx, inputs, params)`` hook (``node.Node.infer``)
+        turns its inputs' infos into its outputs' (a loader reads its file's header;
+        ``ctx.node_id`` names the node) and raises ``InputError`` for inputs that
+        cannot work; the default needs inputs of one size and gives it to the sized
+        outputs. The first problem is a ``GraphError`` naming the node, its line,
+        and the files. What an infer hook logs (``ctx.log``: something
+        plausible-looking that is probably wrong) is appended to ``notes``, named
+        like an error, when given.
         """
         requested = self._requested(graph, outputs)
         order = self._ancestors(graph, [r.node for r in requested.values()], {})
@@ -270,22 +154,18 @@ class Engine:
             params = spec.coerce_params(inst.params)
             for p in spec.params:
                 if p.kind == "path" and params[p.name] is not None:  # the policy before any header is read
-                    params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
+                    params[p.name] = checked_path(graph, policy, nid, p, params[p.name])
             checked[nid] = params
             refuse_unusable_inputs(graph, self.registry, [nid], checked, {})
             ins = {p.name: None for p in spec.inputs}
             for port, ref in inst.inputs.items():
                 ins[port] = infos[ref.node].get(ref.output)
-            infer = getattr(spec.cls, "infer", None)
             try:
-                if infer is not None:
-                    note = _ignore if notes is None else (
-                        lambda ev, nid=nid: notes.append(str(graph.error(ev.message, node=nid)))
-                        if isinstance(ev, E.NodeLog) else None)
-                    ctx = NodeContext(nid, graph.base_dir, _no_device, None, note)
-                    infos[nid] = dict(spec.cls().infer(ctx, Namespace(ins), Namespace(params)) or {})
-                else:
-                    infos[nid] = _same_size(spec, ins)
+                note = _ignore if notes is None else (
+                    lambda ev, nid=nid: notes.append(str(graph.error(ev.message, node=nid)))
+                    if isinstance(ev, E.NodeLog) else None)
+                ctx = NodeContext(nid, graph.base_dir, _no_device, None, note)
+                infos[nid] = dict(spec.cls().infer(ctx, Namespace(ins), Namespace(params)) or {})
             except InputError as e:
                 raise graph.error(str(e).splitlines()[0], node=nid) from None
         return infos
@@ -317,26 +197,8 @@ class Engine:
     @staticmethod
     def _ancestors(graph: Graph, roots: list[str], bind: Mapping[str, Any]) -> list[str]:
         """Ancestors of ``roots`` (inclusive) in dependency order; a bound node's
-        inputs are not followed. Iterative: chains may be thousands long."""
-        order, done = [], set()
-        for root in roots:
-            if root in done:
-                continue
-            stack = [(root, False)]
-            while stack:
-                nid, expanded = stack.pop()
-                if nid in done:
-                    continue
-                if expanded:
-                    done.add(nid)
-                    order.append(nid)
-                    continue
-                stack.append((nid, True))
-                if nid not in bind:
-                    for ref in reversed(list(graph.nodes[nid].inputs.values())):
-                        if ref.node not in done:
-                            stack.append((ref.node, False))
-        return order
+        inputs are not followed (``graph.upstream``, on networkx)."""
+        return upstream(graph, list(dict.fromkeys(roots)), stop=bind)
 
     @staticmethod
     def _bind(graph: Graph, nid: str, spec: NodeSpec, value, params) -> dict[str, Any]:
@@ -371,77 +233,9 @@ class Engine:
             values = spec.coerce_params(inst.params)
             for p in spec.params:
                 if p.kind == "path" and values.get(p.name) is not None:
-                    values[p.name] = self._checked_path(graph, policy, nid, p, values[p.name])
+                    values[p.name] = checked_path(graph, policy, nid, p, values[p.name])
             params[nid] = values
-        self._check_overwrites(graph, params, list(graph.nodes), {})
-
-    @staticmethod
-    def _checked_path(graph: Graph, policy: PathPolicy, nid: str, p, raw) -> str:
-        field = f"params.{p.name}"
-        try:
-            resolved = graph.resolve_path(os.fspath(raw))
-            checked = (policy.check_write if p.writes else policy.check_read)(resolved, node=nid, param=p.name)
-        except PathError as e:
-            located = graph.error(e.message, node=nid, field=field)
-            raise PathError(e.message, file=located.file, line=located.line, node=nid, field=field) from None
-        except ValueError as e:  # e.g. embedded NUL in a home-folder lookup
-            located = graph.error(f"bad path: {e}"[:200], node=nid, field=field)
-            raise PathError(located.message, file=located.file, line=located.line, node=nid, field=field) from None
-        # the node gets the path as the graph names it (made absolute), so its messages
-        # name the user's path; the check above resolved every symlink in it, and a
-        # written path carries the folder it checked (writers never follow a symlink)
-        return WritePath(resolved, os.fspath(checked)) if p.writes else resolved
-
-    def _check_overwrites(self, graph: Graph, params, order, bind) -> None:
-        """A node may not write over a file that this run reads (or the graph file)."""
-        reads = {os.path.realpath(graph.file): "the graph file"} if graph.file else {}
-        writes = []
-        for nid in order:
-            if nid in bind:
-                continue
-            spec = self.registry.get(graph.nodes[nid].type)
-            for p in spec.params:
-                if p.kind == "path" and params[nid].get(p.name) is not None:
-                    real = os.path.realpath(params[nid][p.name])
-                    if p.writes:
-                        writes.append((nid, p.name, real))
-                    else:
-                        reads.setdefault(real, f"node {nid!r} param {p.name!r}")
-        for nid, pname, path in writes:
-            if path in reads:
-                raise self._located(graph, f"would write over {reads[path]}, read by this run ({path})",
-                                    nid, f"params.{pname}")
-
-    @staticmethod
-    def _located(graph: Graph, message: str, nid: str, field: str) -> PathError:
-        e = graph.error(message, node=nid, field=field)
-        return PathError(e.message, file=e.file, line=e.line, node=nid, field=field)
-
-    def _params(self, graph: Graph, nid: str, spec: NodeSpec, values, policy: PathPolicy | None = None,
-                read_paths: bool = True) -> tuple[dict, dict]:
-        params = spec.coerce_params(values)
-        relevant = {}
-        for p in spec.params:
-            if p.kind == "path" and not read_paths:
-                continue  # a bound host input reads no file
-            if p.kind == "path":
-                params[p.name] = self._checked_path(graph, policy, nid, p, params[p.name])
-                if p.writes:
-                    relevant[p.name] = params[p.name]
-                else:
-                    try:
-                        size = os.path.getsize(params[p.name])
-                        if size > self.max_file_bytes:
-                            raise graph.error(f"file is {size} bytes, more than the limit of {self.max_file_bytes} "
-                                              "(PIXGRAPH_MAX_FILE_BYTES)", node=nid, field=f"params.{p.name}")
-                        relevant[p.name] = {"file_sha256": self._hash_file(params[p.name])}
-                    except OSError as e:
-                        raise graph.error(f"cannot read {params[p.name]}: {e.strerror}", node=nid,
-                                          field=f"params.{p.name}") from None
-            elif p.cache:
-                v = params[p.name]
-                relevant[p.name] = list(v) if isinstance(v, tuple) else v
-        return params, relevant
+        check_overwrites(self.registry, graph, params, list(graph.nodes), {})
 
     def _steps(self, graph, requested, order, keys, parts, bind, params) -> tuple[Step, ...]:
         last = self._last_run_parts(graph.file)
@@ -487,9 +281,11 @@ class Engine:
                 why.append(f"an earlier result is in the {status[nid]} cache")
             # a node may say what it will do with these params (``describe(params)``),
             # and what it logged when it made the result now in the cache
-            describe = getattr(self.registry.get(type_id).cls, "describe", None)
-            if callable(describe) and nid not in bind:
-                why.append(str(describe(params[nid])))
+            spec = self.registry.get(type_id)
+            if "describe" in spec.hooks and nid not in bind:
+                said = spec.cls().describe(Namespace(params[nid]))
+                if said:
+                    why.append(str(said))
             if status[nid] != "run" and keys[nid] in self._logs_by_key:
                 why.append("its run logged: " + " | ".join(self._logs_by_key[keys[nid]]))
             steps.append(Step(nid, type_id, keys[nid], status[nid], "; ".join(why)))
@@ -499,13 +295,18 @@ class Engine:
 
     def run(self, plan: Plan, cancel: E.CancelToken | None = None,
             on_event: Callable[[Any], None] | None = None) -> RunResult:
+        """Pull the plan's outputs: serve what the caches hold, then compute the
+        rest in dependency order (``scheduler.execute``; ``self.workers`` > 1 runs
+        independent branches concurrently)."""
         forward = on_event or _ignore
         logs: dict[str, list[str]] = {}
+        lock = threading.RLock()
 
         def emit(ev):
-            if isinstance(ev, E.NodeLog):
-                logs.setdefault(ev.node_id, []).append(ev.message)
-            forward(ev)
+            with lock:  # nodes of concurrent branches report from their threads
+                if isinstance(ev, E.NodeLog):
+                    logs.setdefault(ev.node_id, []).append(ev.message)
+                forward(ev)
         graph = plan.graph
         results: dict[str, dict[str, Any]] = {}
         timings: dict[str, float] = {}
@@ -514,14 +315,18 @@ class Engine:
         t_run = time.perf_counter()
         emit(E.RunStarted(sum(s.status == "run" for s in plan.steps),
                           sum(s.status != "run" for s in plan.steps)))
+        # 1. resolve: what the caches hold, and which nodes must compute (inputs first)
+        to_compute: list[str] = []
+        first_of: dict[str, str] = {}  # key -> the node that computes it
+        twins: dict[str, list[str]] = {}  # that node -> nodes of the same key
+        resolved: set[str] = set()
         missed: set[str] = set()
-        tainted: set[str] = set()
         expected = _Expected(self, plan)
         # a stack: reversed, so outputs (and inputs, below) are pulled in the order given
         stack = list(reversed(dict.fromkeys(r.node for r in plan.outputs.values())))
         while stack:
             nid = stack[-1]
-            if nid in results:
+            if nid in resolved:
                 stack.pop()
                 continue
             if cancel is not None:
@@ -532,7 +337,13 @@ class Engine:
             if nid in plan.bind:
                 results[nid] = dict(plan.bound[nid])
                 cached.append(nid)
+                resolved.add(nid)
                 emit(E.NodeCached(nid, "bound"))
+                stack.pop()
+                continue
+            if not spec.side_effects and key in first_of and nid not in missed:
+                twins.setdefault(first_of[key], []).append(nid)  # same key: served by that node's result
+                resolved.add(nid)
                 stack.pop()
                 continue
             if not spec.side_effects and nid not in missed:
@@ -540,6 +351,7 @@ class Engine:
                 if value is not MISS:
                     results[nid] = value
                     cached.append(nid)
+                    resolved.add(nid)
                     emit(E.NodeCached(nid, where))
                     stack.pop()
                     continue
@@ -548,28 +360,59 @@ class Engine:
                 if why:
                     reasons[nid] = f"disk cache entry discarded ({why}); recomputing"
                     emit(E.NodeLog(nid, reasons[nid]))
-            waiting = [ref.node for ref in inst.inputs.values() if ref.node not in results]
+            waiting = [ref.node for ref in inst.inputs.values() if ref.node not in resolved]
             if waiting:
                 stack.extend(reversed(waiting))
                 continue
             stack.pop()
+            resolved.add(nid)
+            to_compute.append(nid)
+            if not spec.side_effects:
+                first_of[key] = nid
+        # 2. compute
+        tainted: set[str] = set()
+        workers = max(1, int(self.workers))
+        gate = DeviceGate(self._device) if workers > 1 and len(to_compute) > 1 else None
+
+        def work(nid: str) -> None:
+            inst = graph.nodes[nid]
+            spec = self.registry.get(inst.type)
             emit(E.NodeStarted(nid, spec.type_id, reasons.get(nid, "evicted since the plan")))
             t0 = time.perf_counter()
-            value = self._compute(nid, spec, inst, plan, results, cancel, emit)
-            timings[nid] = time.perf_counter() - t0
-            results[nid] = value
-            ran.append(nid)
+            try:
+                value = self._compute(nid, spec, inst, plan, results, cancel, emit,
+                                      gate.opener() if gate is not None else self._device)
+            finally:
+                if gate is not None:
+                    gate.release()
+            seconds = time.perf_counter() - t0
             changed = self._sources_changed(nid, spec, plan)
-            if changed or any(ref.node in tainted for ref in inst.inputs.values()):
-                # computed on bytes the key does not describe: never cache it, nor what uses it
-                tainted.add(nid)
-                stored = ("not cached: " + (f"file changed during the run ({', '.join(changed)})" if changed
-                                            else "an input was computed from a file that changed during the run"))
-                emit(E.NodeLog(nid, stored))
-                _log.warning("node %r: %s", nid, stored)
-            else:
-                stored = self._store(spec, key, value)
-            emit(E.NodeFinished(nid, timings[nid], stored))
+            with lock:
+                timings[nid] = seconds
+                results[nid] = value
+                ran.append(nid)
+                if changed or any(ref.node in tainted for ref in inst.inputs.values()):
+                    # computed on bytes the key does not describe: never cache it, nor what uses it
+                    tainted.add(nid)
+                    stored = ("not cached: " + (f"file changed during the run ({', '.join(changed)})" if changed
+                                                else "an input was computed from a file that changed during the run"))
+                    emit(E.NodeLog(nid, stored))
+                    _log.warning("node %r: %s", nid, stored)
+                else:
+                    stored = self._store(spec, plan.keys[nid], value)
+                    if "not on disk:" in stored:
+                        emit(E.NodeLog(nid, stored.split("; ", 1)[-1]))
+                for twin in twins.get(nid, ()):
+                    results[twin] = value
+                    cached.append(twin)
+            emit(E.NodeFinished(nid, seconds, stored))
+            for twin in twins.get(nid, ()):
+                emit(E.NodeCached(twin, "memory"))
+
+        twin_of = {t: n for n, ts in twins.items() for t in ts}
+        deps = {nid: [twin_of.get(ref.node, ref.node) for ref in graph.nodes[nid].inputs.values()]
+                for nid in to_compute}
+        execute(to_compute, deps, work, workers, cancel)
         last = self._last_run_parts(graph.file)
         for nid in results:
             last[nid] = plan.parts[nid]
@@ -635,23 +478,22 @@ class Engine:
                     changed.append(f"params.{p.name}")
         return changed
 
-    def _compute(self, nid, spec: NodeSpec, inst, plan: Plan, results, cancel, emit) -> dict[str, Any]:
+    def _compute(self, nid, spec: NodeSpec, inst, plan: Plan, results, cancel, emit, device) -> dict[str, Any]:
         inputs = {p.name: None for p in spec.inputs}
         for port, ref in inst.inputs.items():
             inputs[port] = results[ref.node][ref.output]
-        ctx = NodeContext(nid, plan.graph.base_dir, self._device, cancel, emit, plan.scale)
+        ctx = NodeContext(nid, plan.graph.base_dir, device, cancel, emit, plan.scale)
         try:
             out = spec.cls().compute(ctx, Namespace(inputs), Namespace(plan.params[nid]))
         except (E.Cancelled, DeviceError):
             raise  # not the node's fault: no device could be opened
         except InputError as exc:
-            files = _files_upstream(plan, nid)
+            files = files_upstream(plan, nid)
             where = f" (inputs from {files})" if files else ""
             raise NodeInputError(nid, spec.type_id,
                                  (str(exc).splitlines() or [type(exc).__name__])[0] + where) from exc
         except MemoryError as exc:  # sizes from the user's graph, too large for this machine
-            raise NodeInputError(nid, spec.type_id, "ran out of memory: its inputs or params ask for more "
-                                 "than this machine has") from exc
+            raise NodeInputError(nid, spec.type_id, out_of_memory()) from exc
         except Exception as exc:
             raise NodeError(nid, spec.type_id, (f"failed: {type(exc).__name__}: {exc}".splitlines() or [""])[0]) from exc
         if not isinstance(out, dict):
@@ -674,7 +516,7 @@ class Engine:
             return "not cached (sink)"
         size = nbytes(value)
         where = "memory" if self.memory.put(key, value, size) else "not cached (larger than the memory limit)"
-        if self.disk is not None and not getattr(spec.cls, "disk_cache", True):
+        if self.disk is not None and not spec.disk_cache:
             where += "; not on disk (the node recomputes faster than the disk cache reads)"
         elif self.disk is not None:
             try:
@@ -689,90 +531,24 @@ class Engine:
             except Unstorable as e:
                 self.memory_only[spec.type_id] = str(e)
                 where += f"; memory only: {e}"
+            except MemoryError:  # the result is computed: a run never fails for want of a cache entry
+                where += "; not on disk: ran out of memory writing the entry"
+            except OSError as e:
+                where += f"; not on disk: {e.strerror or e}"
         return where
 
 
-def _check_scale(scale) -> float:
-    try:
-        scale = float(scale)
-    except (TypeError, ValueError):
-        raise GraphError(f"scale must be a number in (0, 1], got {scale!r}") from None
-    if not 0.0 < scale <= 1.0:
-        raise GraphError(f"scale must be in (0, 1] (1 = full size), got {scale!r}")
-    return scale
-
-
-def _scale_params(spec: NodeSpec, params: dict, relevant: dict, scale: float) -> None:
-    """A scaled run (``Engine.plan``): params declared in pixels (``unit="px"``)
-    times ``scale``, in ``params`` (what compute gets) and ``relevant`` (the key);
-    a node with ``uses_scale = True`` gets ``@scale`` in its key."""
-    def one(p, v):
-        v = v * scale
-        if p.kind == "int":
-            v = int(round(v))
-        if p.min is not None:
-            v = max(v, p.min)
-        if p.max is not None:
-            v = min(v, p.max)
-        return v
-    for p in spec.params:
-        if p.unit != "px" or p.kind not in ("int", "float", "floats") or params.get(p.name) is None:
-            continue
-        v = params[p.name]
-        params[p.name] = tuple(one(p, x) for x in v) if p.kind == "floats" else one(p, v)
-        if p.name in relevant:
-            relevant[p.name] = list(params[p.name]) if p.kind == "floats" else params[p.name]
-    if getattr(spec.cls, "uses_scale", False):
-        relevant["@scale"] = scale
-
-
-def _same_size(spec: NodeSpec, ins: Mapping[str, Any]) -> dict[str, Any]:
-    """The default check: every input of known size has the same size, and the node's
-    sized outputs get it."""
-    shapes = {port: v for port, v in ins.items() if isinstance(v, Shape)}
-    sizes = {(v.height, v.width) for v in shapes.values()}
-    if len(sizes) > 1:
-        listing = ", ".join(f"{port} {v.described()}" for port, v in shapes.items())
-        raise InputError(f"inputs differ in size: {listing}")
-    if not sizes:
-        return {}
-    (h, w), = sizes
-    source = next(iter(shapes.values())).source
-    return {p.name: Shape(h, w, None, source) for p in spec.outputs if issubclass(p.type, SIZED)}
-
-
-def _files_upstream(plan: Plan, nid: str) -> str:
-    """``"mask: 'small.png' (node 'cutout'), ..."``: for each input of a node, the files
-    read by its nearest ancestors that read files, so an error names the user's files."""
-    graph = plan.graph
-    out = []
-    for port, ref in graph.nodes[nid].inputs.items():
-        seen, stack, files = set(), [ref.node], []
-        while stack:
-            n = stack.pop()
-            if n in seen:
-                continue
-            seen.add(n)
-            paths = [v for k, v in plan.parts[n].params.items() if isinstance(v, dict) and "file_sha256" in v] \
-                if n in plan.parts else []
-            if paths:
-                for p in plan.params.get(n, {}).values():
-                    if isinstance(p, str) and os.path.isfile(p):
-                        files.append(f"{_short(p)!r} (node {n!r})")
-                continue
-            if n in plan.bind:
-                files.append(f"the array bound to {n!r}")
-                continue
-            stack.extend(r.node for r in graph.nodes[n].inputs.values())
-        if files:
-            out.append(f"{port}: {', '.join(dict.fromkeys(files))}")
-    return "; ".join(out)
-
-
-def _short(path: str) -> str:
-    """A path as short as it is clear: relative to the current folder when inside it."""
-    rel = os.path.relpath(path)
-    return path if rel.startswith("..") else rel
+def _affecting(nid: str, spec: NodeSpec, params: Mapping[str, Any], relevant: dict, inputs: dict):
+    """The key parts the node's ``affects`` hook keeps: it may only leave names out."""
+    names = spec.cls().affects(Namespace(params))
+    if names is None:
+        return relevant, inputs
+    names = set(names)
+    unknown = names - {p.name for p in spec.params} - {p.name for p in spec.inputs}
+    if unknown:
+        raise NodeError(nid, spec.type_id, f"affects() names no param or input {sorted(unknown)}")
+    return ({k: v for k, v in relevant.items() if k in names},
+            {k: v for k, v in inputs.items() if k in names})
 
 
 class _Expected:

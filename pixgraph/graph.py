@@ -22,57 +22,17 @@ and, for a graph read from a file, the file and line.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import os
 import re
 from types import MappingProxyType
 from typing import Any, Mapping
 
+from .errors import MAX_ERROR_LINE, GraphError, PathError, one_line  # noqa: F401 (re-exported)
 from .node import NodeSpec, ParamError
 from .registry import Registry, UnknownNodeType
 
-#: longest error line printed, in characters
-MAX_ERROR_LINE = 300
-
-
-def one_line(text: str, limit: int = MAX_ERROR_LINE) -> str:
-    """``text`` on one line, cut to ``limit`` characters (error messages quote user
-    values, which may be huge)."""
-    text = " ".join(str(text).split("\n"))
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
 NODE_ID = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
-
-
-class GraphError(ValueError):
-    """A graph that cannot run: names the node and field, and the file and line.
-
-    ``field`` is a dotted path inside the node: ``"params.sigma"``,
-    ``"inputs.image"``, ``"type"``, or for graph outputs ``"outputs.final"``.
-    ``str()`` is one line: ``"g.yaml:12: node 'blur': param 'sigma': ..."``.
-    """
-
-    def __init__(self, message: str, *, file: str | None = None, line: int | None = None,
-                 node: str | None = None, field: str | None = None):
-        super().__init__(message)
-        self.message = message
-        self.file = file
-        self.line = line
-        self.node = node
-        self.field = field
-
-    def __str__(self) -> str:
-        parts = []
-        if self.file:
-            parts.append(f"{self.file}:{self.line}" if self.line else self.file)
-        if self.node:
-            parts.append(f"node {self.node!r}")
-        if self.field and self.field != "type":
-            head, _, rest = self.field.partition(".")
-            label = {"params": "param", "inputs": "input", "outputs": "output"}.get(head)
-            parts.append(f"{label} {rest!r}" if label and rest else self.field)
-        parts.append(self.message)
-        return one_line(": ".join(parts))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -206,7 +166,7 @@ def _check_params(graph: Graph, nid: str, spec: NodeSpec, values: Mapping[str, A
         except ParamError as e:
             raise graph.error(e.message, node=nid, field=f"params.{name}") from None
         if p.kind == "path":
-            from .paths import PathError, bad_characters
+            from .paths import bad_characters
 
             why = bad_characters(os.fspath(out[name]))
             if why:
@@ -250,51 +210,118 @@ def _check_inputs(graph: Graph, nid: str, spec: NodeSpec, inputs: Mapping[str, R
 
 
 def _check_cycles(graph: Graph) -> None:
-    state: dict[str, int] = {}  # 1 = on the DFS stack, 2 = done
-    for root in graph.nodes:
-        if state.get(root):
-            continue
-        stack = [(root, iter(graph.nodes[root].inputs.values()))]
-        path = [root]
-        state[root] = 1
-        while stack:
-            nid, it = stack[-1]
-            ref = next(it, None)
-            if ref is None:
-                state[nid] = 2
-                stack.pop()
-                path.pop()
-                continue
-            s = state.get(ref.node)
-            if s == 1:
-                cycle = path[path.index(ref.node):] + [ref.node]
-                raise graph.error("cycle: " + " <- ".join(cycle), node=ref.node)
-            if s is None:
-                state[ref.node] = 1
-                path.append(ref.node)
-                stack.append((ref.node, iter(graph.nodes[ref.node].inputs.values())))
+    import networkx as nx
+
+    g = dag(graph)
+    if nx.is_directed_acyclic_graph(g):  # linear; find_cycle alone is quadratic on long chains
+        return
+    # the first strongly connected component (file order) that holds a cycle, followed
+    # along inputs so the path reads "a <- b <- a": a takes b's output
+    index = {n: i for i, n in enumerate(graph.nodes)}
+    comps = [c for c in nx.strongly_connected_components(g) if len(c) > 1 or g.has_edge(*[next(iter(c))] * 2)]
+    comp = min(comps, key=lambda c: min(index[n] for n in c))
+    start = min(comp, key=index.__getitem__)
+    cycle = nx.find_cycle(g.subgraph(comp).reverse(copy=False), source=start)
+    path = [u for u, _ in cycle] + [cycle[-1][1]]
+    raise graph.error("cycle: " + " <- ".join(path), node=path[0])
+
+
+# -- the graph as a networkx DiGraph ------------------------------------------------
+
+def dag(graph: Graph):
+    """``graph`` as a ``networkx.DiGraph``: one vertex per node id (file order), an
+    edge ``src -> dst`` for each connection (attribute ``ports``: the list of
+    ``(output, input)`` pairs it carries). Made on each call and not kept: a
+    networkx graph is thousands of small dicts, and keeping one per graph value
+    made Python's garbage collector several times slower for the whole process
+    (benchmarks/engine_overhead.py). References to missing nodes are left out
+    (``validate`` reports them)."""
+    import networkx as nx
+
+    ports: dict[tuple[str, str], list] = {}
+    nodes = graph.nodes
+    for nid, inst in nodes.items():
+        for port, ref in inst.inputs.items():
+            if ref.node in nodes:
+                ports.setdefault((ref.node, nid), []).append((ref.output, port))
+    g = nx.DiGraph()
+    g.add_nodes_from(nodes)
+    g.add_edges_from((a, b, {"ports": p}) for (a, b), p in ports.items())
+    return g
+
+
+def upstream(graph: Graph, roots, stop=()) -> list[str]:
+    """``roots`` and every node they depend on, inputs before the nodes that use
+    them (ties in file order); the inputs of nodes in ``stop`` (bound nodes) are
+    not followed."""
+    import networkx as nx
+
+    memo = graph.__dict__.setdefault("_upstream", {})
+    k = (tuple(roots), frozenset(stop))
+    if k in memo:  # a graph is immutable: plan it again (a warm run) without the walk
+        return list(memo[k])
+    # an edited graph (new params, same connections) has the same order: remembered by
+    # the digest of its structure, a few strings per process
+    shape = hashlib.sha256(repr((k[0], sorted(k[1]), [(n, sorted((p, r.node) for p, r in i.inputs.items()))
+                                                       for n, i in graph.nodes.items()])).encode()).hexdigest()
+    if shape in _ORDERS:
+        memo[k] = _ORDERS[shape]
+        return list(memo[k])
+    g = dag(graph)
+    if stop:
+        g = g.copy()
+        g.remove_edges_from([e for n in stop if n in g for e in list(g.in_edges(n))])
+    needed = set(roots)
+    for r in roots:
+        if r not in needed or len(needed) < len(g):
+            needed |= nx.ancestors(g, r)
+    sub = g if len(needed) == len(g) else g.subgraph(needed).copy()
+    order = list(nx.topological_sort(sub))  # inputs first; ties in file order (insertion order)
+    memo[k] = _ORDERS[shape] = tuple(order)
+    if len(memo) > 64:
+        memo.pop(next(iter(memo)))
+    while len(_ORDERS) > 32:
+        _ORDERS.pop(next(iter(_ORDERS)))
+    return order
+
+
+#: structure digest -> dependency order (``upstream``), the most recent 32
+_ORDERS: dict[str, tuple[str, ...]] = {}
+
+
+def downstream(graph: Graph, node_ids) -> set[str]:
+    """Every node whose result depends on one of ``node_ids`` (exclusive): what an
+    edit of those nodes can change."""
+    import networkx as nx
+
+    g = dag(graph)
+    out: set[str] = set()
+    for n in node_ids:
+        out |= nx.descendants(g, n)
+    return out
 
 
 class GraphBuilder:
     """Mutable recipe for a ``Graph``; ``build()`` validates and freezes it."""
 
-    def __init__(self, registry: Registry, *, base_dir: str | None = None):
+    def __init__(self, registry: Registry, *, base_dir: str | None = None, graph: Graph | None = None):
+        """An empty builder, or one holding ``graph``'s nodes (``from_graph``)."""
         self.registry = registry
-        self.base_dir = base_dir or os.getcwd()
+        self.base_dir = base_dir or (graph.base_dir if graph is not None else os.getcwd())
         self._nodes: dict[str, dict] = {}
         self._outputs: dict[str, Ref] = {}
         self._file: str | None = None
         self._lines: dict[str, int] = {}
+        if graph is not None:
+            for nid, inst in graph.nodes.items():
+                self._nodes[nid] = {"type": inst.type, "params": dict(inst.params), "inputs": dict(inst.inputs)}
+            self._outputs = dict(graph.outputs)
+            self._file, self._lines = graph.file, dict(graph.lines)
 
     @classmethod
     def from_graph(cls, graph: Graph, registry: Registry) -> "GraphBuilder":
         """A builder holding ``graph``'s nodes, to derive an edited graph from it."""
-        b = cls(registry, base_dir=graph.base_dir)
-        for nid, inst in graph.nodes.items():
-            b._nodes[nid] = {"type": inst.type, "params": dict(inst.params), "inputs": dict(inst.inputs)}
-        b._outputs = dict(graph.outputs)
-        b._file, b._lines = graph.file, dict(graph.lines)
-        return b
+        return cls(registry, graph=graph)
 
     def add(self, type_id: str, node_id: str, **params: Any) -> str:
         """Add a node of type ``type_id``; returns ``node_id``."""

@@ -1,10 +1,11 @@
-"""The node contract: a node is one class that declares its ports and params.
+"""The node contract: a node is one class that declares its ports and params and
+subclasses ``Node``, whose hooks it overrides.
 
-    from pixgraph.node import node, param, port
-    from pixgraph import types as T
+    from pixgraph.node import Node, node, param, port
+    from pixgraph_nodes import types as T
 
     @node("pixgraph.GaussianBlur", version=1)
-    class GaussianBlur:
+    class GaussianBlur(Node):
         '''Gaussian blur of an image on the OpenCL device.'''
         class Inputs:
             image: T.Image = port(doc="image to blur")
@@ -12,10 +13,15 @@
             sigma: float = param(2.0, min=0.0, max=100.0, unit="px", doc="standard deviation")
         class Outputs:
             image: T.Image = port(doc="blurred image")
-        impl_version = "1"          # bump when the numbers it produces change
 
         def compute(self, ctx, inputs, params):
             return {"image": blur(ctx.device, inputs.image, params.sigma)}
+
+``Node`` declares every hook the engine calls, each with one signature and a
+documented default (read its docstrings); ``@node`` reads which hooks a class
+overrides into ``spec.hooks``, and refuses an override whose signature differs
+from the base's (a ``staticmethod`` hook, a missing argument). A class that does
+not subclass ``Node`` gets it as a base from ``@node``.
 
 ``compute`` receives ``inputs`` and ``params`` as read-only attribute namespaces
 (``inputs.image``, ``params.sigma``; an absent optional input is ``None``) and
@@ -28,16 +34,10 @@ its *content* is part of the cache key, so editing the file reruns the node).
 A ``Path`` param with default ``None`` is required; ``param(None, writes=True)``
 declares a file the node writes (its path, not its content, is hashed).
 
-A node that writes files (a sink) sets ``side_effects = True``: it runs whenever
-one of its outputs is requested and is never served from cache.
-
-A node whose outputs are large and cheap to remake (a file loader, a composite)
-sets ``disk_cache = False``: its results stay in the memory cache only.
-
 Working resolution (``Session.run(..., scale=s)``): params declared with
 ``unit="px"`` reach ``compute`` multiplied by ``s``; a node that makes images of
 its own size from files (a loader) sets ``uses_scale = True`` and reads
-``ctx.scale``.
+``ctx.scale`` (see ``Node``).
 """
 from __future__ import annotations
 
@@ -46,19 +46,15 @@ import math
 import pathlib
 import typing
 from types import MappingProxyType
-from typing import Any, Callable
+import inspect
+from typing import Any, Callable, ClassVar, Collection
 
 from . import types as T
+from .errors import InputError  # noqa: F401 (nodes import it from here)
 
 _MISSING = object()
 
 PARAM_KINDS = ("float", "int", "bool", "str", "floats", "path")
-
-
-class InputError(ValueError):
-    """Raised by ``compute`` when its inputs or params do not fit together (say,
-    a mask and a pixel-height map of different sizes): the user's graph is wrong,
-    not the node. The CLI reports it as bad input (exit 2) naming the node."""
 
 
 class ParamError(ValueError):
@@ -256,19 +252,30 @@ def _param_kind(annotation: Any, owner: str, name: str) -> str:
 
 
 def _annotations(cls: type | None) -> dict[str, Any]:
+    """Annotations of an ``Inputs``/``Params``/``Outputs`` class and its bases (a
+    node pack may share a block of ports: ``class Inputs(ShadowInputs)``), bases
+    first, each resolved in its own module (so ``mask: T.Mask`` works with or
+    without ``from __future__ import annotations``)."""
     if cls is None:
         return {}
-    # resolve string annotations (from __future__ import annotations) in the
-    # module of the node, so `mask: T.Mask` works either way
     import sys
-    module = sys.modules.get(cls.__module__)
-    globalns = dict(vars(module)) if module else {}
-    globalns.setdefault("T", T)
-    globalns.setdefault("Path", pathlib.Path)
-    try:
-        return typing.get_type_hints(cls, globalns=globalns)
-    except Exception:
-        return dict(getattr(cls, "__annotations__", {}))
+    out: dict[str, Any] = {}
+    for klass in reversed(cls.__mro__):
+        own = klass.__dict__.get("__annotations__")
+        if not own:
+            continue
+        module = sys.modules.get(klass.__module__)
+        globalns = dict(vars(module)) if module else {}
+        globalns.setdefault("T", T)
+        globalns.setdefault("Path", pathlib.Path)
+        for name, ann in own.items():
+            if isinstance(ann, str):
+                try:
+                    ann = eval(ann, globalns, dict(vars(klass)))  # noqa: S307 - the node's own source text
+                except Exception:  # noqa: BLE001 - reported as a bad annotation by the caller
+                    pass
+            out[name] = ann
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -287,6 +294,10 @@ class NodeSpec:
     source: str
     #: True for sinks that write files: they run whenever requested, never from cache
     side_effects: bool = False
+    #: the hooks of ``Node`` this class overrides (``"infer"``, ``"bind"``, ...)
+    hooks: frozenset = frozenset()
+    #: False: results stay in the memory cache only (``Node.disk_cache``)
+    disk_cache: bool = True
 
     @property
     def summary(self) -> str:
@@ -315,6 +326,119 @@ class NodeSpec:
         return out
 
 
+#: the hooks a node may override; each is declared once, on ``Node``
+HOOKS = ("compute", "infer", "bind", "describe", "affects")
+
+
+class Node:
+    """Base of every node: every hook the engine calls, with its one signature and
+    its default. A node overrides ``compute`` and whatever else it needs.
+
+    Class attributes (declarations, read once by ``@node``):
+
+    ``impl_version = "1"``
+        the version of the numbers the node produces; it is part of every cache
+        key of the node. The engine also hashes the node's code into its key
+        (``pixgraph.codehash``), so an edit reruns the node even when this is not
+        bumped; bump it for changes the code hash cannot see (weights files read
+        by path, a dependency's new version).
+    ``side_effects = False``
+        True for a sink that writes files: it runs whenever one of its outputs is
+        requested and is never served from a cache.
+    ``disk_cache = True``
+        False keeps the node's results in the memory cache only (outputs that are
+        large and cheaper to remake than to read back).
+    ``uses_scale = False``
+        True for a node that makes images of its own size from files (a loader):
+        it reads the run's working resolution as ``ctx.scale``.
+    ``preview = None``
+        a cheaper stand-in for interactive previews (e.g. the type id of a node
+        with the same ports, as the soft shadows name the hard shadow); None: the
+        node itself previews. The engine never reads it; shells may.
+    ``handles = None``
+        what an interactive shell may draw and drag for this node: a mapping with
+        a ``kind`` (``"light"``, ``"background"``...) and the names of the params
+        and inputs it moves (``pixgraph_serve.scene`` reads it; the Light node's
+        says its shadow tip and the object's top). The engine never reads it.
+    """
+
+    spec: ClassVar["NodeSpec"]
+    impl_version: ClassVar[str] = "1"
+    side_effects: ClassVar[bool] = False
+    disk_cache: ClassVar[bool] = True
+    uses_scale: ClassVar[bool] = False
+    preview: ClassVar[Any] = None
+    handles: ClassVar[Any] = None
+
+    def compute(self, ctx, inputs: "Namespace", params: "Namespace") -> dict[str, Any]:
+        """The node's work: a dict with one value per declared output, each valid
+        for its port type. ``ctx`` is a ``pixgraph.engine.NodeContext`` (device,
+        progress, cancellation, log). Raise ``InputError`` when the inputs or params
+        do not fit together (bad input, exit 2); anything else is a node failure.
+        Required: the base raises."""
+        raise NotImplementedError(f"{type(self).__name__} has no compute")
+
+    def infer(self, ctx, inputs: "Namespace", params: "Namespace") -> dict[str, Any] | None:
+        """The check before running (``pixgraph validate``, ``Session.check``): from
+        what is known of the inputs (a ``types.Shape`` where a size is known, else
+        None) and the params, what is known of the outputs, ``{output: Shape}``,
+        reading file headers at most. Raise ``InputError`` for inputs that cannot
+        work. Default: every input of known size has the same size, and each
+        ``sized`` output gets it."""
+        shapes = {port: v for port, v in inputs.items() if isinstance(v, T.Shape)}
+        sizes = {(v.height, v.width) for v in shapes.values()}
+        if len(sizes) > 1:
+            listing = ", ".join(f"{port} {v.described()}" for port, v in shapes.items())
+            raise InputError(f"inputs differ in size: {listing}")
+        if not sizes:
+            return {}
+        (h, w), = sizes
+        source = next(iter(shapes.values())).source
+        return {p.name: T.Shape(h, w, None, source) for p in self.spec.outputs if p.type.sized}
+
+    def bind(self, value: Any, params: "Namespace") -> dict[str, Any]:
+        """The outputs when a host binds an array to this node
+        (``Session.run(bind={node: array})``). A host input overrides it to read the
+        array the way its params say (colour space, alpha); its params are then part
+        of the key. Default: the array is the first output, keyed by its content
+        alone."""
+        return {self.spec.outputs[0].name: value}
+
+    def describe(self, params: "Namespace") -> str | None:
+        """One line for ``pixgraph explain``: what the node will do with these params
+        (e.g. which method an automatic choice picks). Default None: nothing to add."""
+        return None
+
+    def affects(self, params: "Namespace") -> Collection[str] | None:
+        """The key hook (Gaffer's *affects*): the names of the params and inputs
+        that affect the outputs with these param values, e.g. only the shadow-tip
+        handles when a light is placed by its shadow tip. Params and inputs left out
+        are left out of the node's cache key, so changing them reruns neither the
+        node nor anything downstream. Name the params that choose the mode too.
+        Default None: every cache-relevant param and every input."""
+        return None
+
+
+def _hook_overrides(cls: type, owner: str) -> frozenset:
+    """The hooks ``cls`` overrides, each checked against the base's signature."""
+    found = set()
+    for name in HOOKS:
+        mine, base = inspect.getattr_static(cls, name), Node.__dict__[name]
+        if mine is base:
+            continue
+        want = list(inspect.signature(base).parameters)
+        if not inspect.isfunction(mine):
+            raise TypeError(f"{owner}: hook {name!r} must be a plain method {name}({', '.join(want)}) "
+                            "(not a staticmethod, classmethod or attribute)")
+        got = [q for q in inspect.signature(mine).parameters.values()
+               if q.kind in (q.POSITIONAL_ONLY, q.POSITIONAL_OR_KEYWORD)]
+        if len(got) != len(want):
+            raise TypeError(f"{owner}: hook {name!r} must take ({', '.join(want)}), "
+                            f"got ({', '.join(q.name for q in got)})")
+        found.add(name)
+    return frozenset(found)
+
+
 def _read_spec(cls: type, type_id: str, version: int) -> NodeSpec:
     owner = f"{cls.__module__}:{cls.__qualname__}"
     inputs, outputs, params = [], [], []
@@ -341,11 +465,12 @@ def _read_spec(cls: type, type_id: str, version: int) -> NodeSpec:
         params.append(spec)
     if not outputs:
         raise TypeError(f"{owner}: a node needs at least one output")
-    if not callable(getattr(cls, "compute", None)):
-        raise TypeError(f"{owner}: a node needs a compute(ctx, inputs, params) method")
-    return NodeSpec(type_id, version, str(getattr(cls, "impl_version", "1")), cls.__doc__ or "",
+    hooks = _hook_overrides(cls, owner)
+    if "compute" not in hooks:
+        raise TypeError(f"{owner}: a node needs a compute(self, ctx, inputs, params) method")
+    return NodeSpec(type_id, version, str(cls.impl_version), cls.__doc__ or "",
                     tuple(inputs), tuple(outputs), tuple(params), cls, owner,
-                    bool(getattr(cls, "side_effects", False)))
+                    bool(cls.side_effects), hooks, bool(cls.disk_cache))
 
 
 def node(type_id: str, *, version: int = 1) -> Callable[[type], type]:
@@ -358,6 +483,9 @@ def node(type_id: str, *, version: int = 1) -> Callable[[type], type]:
         raise ValueError(f"node type id {type_id!r} must be namespaced, like 'mypack.MyNode'")
 
     def wrap(cls: type) -> type:
+        if not issubclass(cls, Node):  # an older plain class: give it the base and its defaults
+            cls = type(cls.__name__, (cls, Node), {"__module__": cls.__module__, "__qualname__": cls.__qualname__,
+                                                   "__doc__": cls.__doc__})
         cls.spec = _read_spec(cls, type_id, version)
         return cls
 

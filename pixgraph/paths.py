@@ -27,16 +27,12 @@ import pathlib
 import stat
 from typing import Iterable, Sequence
 
-from .graph import GraphError
+from .errors import GraphError, PathError  # noqa: F401 (PathError is re-exported)
 
 PathLike = str | os.PathLike
 ENV_ALLOW = "PIXGRAPH_ALLOW_PATHS"
 #: longest path text quoted in an error, in characters
 _QUOTE = 100
-
-
-class PathError(GraphError):
-    """A file path that the policy refuses (bad input: the CLI exits 2)."""
 
 
 def env_roots() -> list[str]:

@@ -105,6 +105,14 @@ def markdown(registry: Registry) -> str:
            "Generated from the node declarations by `pixgraph nodes --markdown`; do not edit by hand.", ""]
     for spec in registry.specs():
         out.append(f"- [`{spec.type_id}`](#{spec.type_id.lower().replace('.', '')}) - {spec.summary}")
+    out += ["", "## Port types", "",
+            "What flows along an edge (`Registry.port_types()`: the engine's own and those of these nodes' "
+            "ports). An output feeds an input of its own type, of a base type, or `Any`.", "",
+            "| type | base | value | file |", "|---|---|---|---|"]
+    for name, t in sorted(registry.port_types().items()):
+        base = next((b.type_name() for b in t.__mro__[1:] if b in registry.port_types().values()), "")
+        writes = "written by `-o`" if t.write is not None else ""
+        out.append(f"| {name} | {base} | {_cell(t.describe)} | {writes} |")
     text = "\n".join(out) + "\n"
     for spec in registry.specs():
         text += "\n" + markdown_section(spec)

@@ -25,6 +25,7 @@ import types
 from typing import Callable, Iterable
 
 from .node import NodeSpec, is_node_class
+from .types import BUILTIN, PortType
 
 ENTRY_POINT_GROUP = "pixgraph.nodes"
 
@@ -158,6 +159,18 @@ class Registry:
     def specs(self) -> list[NodeSpec]:
         """Every registered spec, sorted by type id."""
         return [self._specs[k] for k in sorted(self._specs)]
+
+    def port_types(self) -> dict[str, type]:
+        """Every port type by name: the engine's own (``Any``, ``Scalar``) and those
+        of the registered nodes' ports, for the file format, schema and references.
+        Two packs' types of one name: the first registered keeps it."""
+        out = dict(BUILTIN)
+        for spec in self.specs():
+            for p in spec.inputs + spec.outputs:
+                for t in p.type.__mro__:  # a Mask brings the Image it may feed
+                    if isinstance(t, type) and issubclass(t, PortType) and t is not PortType:
+                        out.setdefault(t.type_name(), t)
+        return out
 
     def suggest(self, type_id: str) -> str | None:
         """The closest registered id, for 'did you mean' hints."""

@@ -28,7 +28,7 @@ DEFAULT_CACHE_BYTES = 2 << 30          # PIXGRAPH_CACHE_BYTES
 DEFAULT_DISK_CACHE_BYTES = 20 << 30    # PIXGRAPH_DISK_CACHE_BYTES
 
 
-def _env_bytes(name: str, default: int) -> int:
+def env_bytes(name: str, default: int) -> int:
     raw = os.environ.get(name)
     if raw is None or raw == "":
         return default
@@ -61,18 +61,20 @@ class Session:
 
     def __init__(self, device=None, cache_bytes: int | None = None, disk_cache: str | os.PathLike | None = None,
                  registry: Registry | None = None, disk_cache_bytes: int | None = None,
-                 allow_paths=(), strict_paths: bool = False):
+                 allow_paths=(), strict_paths: bool = False, workers: int | None = None):
         self.registry = registry if registry is not None else Registry.discover()
         if cache_bytes is None:
-            cache_bytes = _env_bytes("PIXGRAPH_CACHE_BYTES", DEFAULT_CACHE_BYTES)
+            cache_bytes = env_bytes("PIXGRAPH_CACHE_BYTES", DEFAULT_CACHE_BYTES)
         if disk_cache_bytes is None:
-            disk_cache_bytes = _env_bytes("PIXGRAPH_DISK_CACHE_BYTES", DEFAULT_DISK_CACHE_BYTES)
+            disk_cache_bytes = env_bytes("PIXGRAPH_DISK_CACHE_BYTES", DEFAULT_DISK_CACHE_BYTES)
         self.memory = MemoryCache(cache_bytes)
         self.disk = DiskCache(disk_cache, disk_cache_bytes) if disk_cache is not None else None
         self._device_arg = device
         self._device = None
         self.paths = PathPolicy(allow_paths, strict=strict_paths)
         self.engine = Engine(self.registry, self.memory, self.disk, self._get_device, paths=self.paths)
+        if workers is not None:  # independent branches at once (default PIXGRAPH_WORKERS, else 1)
+            self.engine.workers = max(1, int(workers))
         self.last_run: RunResult | None = None
 
     @property
@@ -180,7 +182,7 @@ class Session:
             if nid not in graph.nodes:
                 raise GraphError("cannot bind: no such node in the graph", file=graph.file, node=nid)
             spec = self.registry.get(graph.nodes[nid].type)
-            if hasattr(spec.cls, "bind"):
+            if "bind" in spec.hooks:
                 continue  # a host input checks the array itself, in the plan
             port = spec.outputs[0]
             try:
@@ -262,3 +264,6 @@ class Session:
 
     def cache_stats(self) -> dict:
         return {"memory": self.memory.stats(), "disk": self.disk.stats() if self.disk else None}
+
+
+_env_bytes = env_bytes  # the former name

@@ -1,25 +1,51 @@
 """Port types: what flows along an edge, and which output may feed which input.
 
 A port type is a class; ``B`` may feed an input of type ``A`` when ``B`` is ``A``
-or a subclass of it (a Mask is an Image with one channel, so a Mask output may
-feed an Image input, but not the reverse). ``Any`` accepts everything.
+or a subclass of it. ``Any`` accepts everything. The engine knows only the
+generic types below; a node pack declares its own value types (the built-in
+pack's images, masks, cameras and lights are in ``pixgraph_nodes.types``) by
+subclassing ``PortType``, and the registry collects them from the ports of the
+registered nodes (``Registry.port_types()``).
 
 The engine never looks inside values; these classes only describe them, check
-them (``validate``) and give a byte size for the memory cache.
+them (``validate``), say whether they carry an image size (``sized``), how to
+write them to a file (``write``), and give a byte size for the memory cache.
 """
 from __future__ import annotations
 
 import dataclasses
 import sys
-from typing import Any as _Any
+from typing import Any as _Any, Callable, ClassVar
 
 import numpy as np
 
 
 class PortType:
-    """Base of every port type. ``describe`` is the one-line doc in node references."""
+    """Base of every port type. Subclasses override the hooks they need:
 
-    describe = "any value"
+    ``describe``
+        one line for node references (``pixgraph nodes``, docs/nodes.md).
+    ``validate(value)``
+        raise ``TypeError`` when ``value`` is not a valid value of the type; the
+        engine calls it on every computed, bound or disk-cached output. Default:
+        accepts anything.
+    ``sized``
+        True when a value is an (H, W[, C]) array or carries one image size: the
+        default check before running (``Engine.check``) gives such outputs the
+        size of the node's inputs. Default False.
+    ``finite``
+        True when every number of a value must be finite: a disk cache entry
+        holding NaN or infinity is discarded, not served. Default False.
+    ``write(path, value) -> path``
+        write a value to a file (``Session.write_output`` calls it; the type
+        decides colour vs data encoding). Default ``None``: the type cannot be
+        written to a file.
+    """
+
+    describe: ClassVar[str] = "any value"
+    sized: ClassVar[bool] = False
+    finite: ClassVar[bool] = False
+    write: ClassVar[Callable[[str, _Any], str] | None] = None
 
     @classmethod
     def type_name(cls) -> str:
@@ -34,77 +60,9 @@ class PortType:
     def validate(cls, value: _Any) -> None:
         """Raise ``TypeError`` when ``value`` is not a valid value of this type."""
 
-    #: A port type whose values can be saved defines ``write(path, value) -> path``
-    #: (``Session.write_output`` calls it: an image is written as colour, a matte or
-    #: a pixel height as data). Types without it cannot be written to a file.
-    write = None
-
 
 class Any(PortType):
     describe = "any value"
-
-
-def _check_array(value, ndim: tuple[int, ...], name: str) -> None:
-    if not isinstance(value, np.ndarray):
-        raise TypeError(f"{name} must be a numpy array, got {type(value).__name__}")
-    if value.ndim not in ndim:
-        raise TypeError(f"{name} must have {' or '.join(map(str, ndim))} dimensions, got shape {value.shape}")
-    if value.dtype != np.float32:
-        raise TypeError(f"{name} must be float32, got {value.dtype}")
-
-
-class Image(PortType):
-    """float32 array (H, W, C), C in 1..4, linear light, alpha premultiplied when C == 4."""
-
-    describe = "float32 (H, W, C) linear-light image, premultiplied alpha when C = 4"
-
-    @classmethod
-    def validate(cls, value):
-        _check_array(value, (2, 3), "Image")
-
-    @classmethod
-    def write(cls, path, value):
-        """Colour: sRGB-encoded 8/16-bit files, or linear EXR."""
-        from pixgraph_nodes.ops.imageio import write_image  # moves with the domain types to the node package
-
-        cls.validate(value)
-        return write_image(path, value)
-
-
-class Mask(Image):
-    """float32 array (H, W) in [0, 1]: coverage, 1 = inside."""
-
-    describe = "float32 (H, W) coverage in [0, 1]"
-
-    @classmethod
-    def validate(cls, value):
-        _check_array(value, (2,), "Mask")
-
-    @classmethod
-    def write(cls, path, value):
-        """Data: the numbers themselves, never colour-encoded."""
-        from pixgraph_nodes.ops.imageio import write_data
-
-        cls.validate(value)
-        return write_data(path, value)
-
-
-class PixelHeight(PortType):
-    """float32 array (H, W): distance in pixels from each point to its foot on the ground."""
-
-    describe = "float32 (H, W) pixel height, pixels"
-
-    @classmethod
-    def validate(cls, value):
-        _check_array(value, (2,), "PixelHeight")
-
-    @classmethod
-    def write(cls, path, value):
-        """Data: heights in pixels, never colour-encoded."""
-        from pixgraph_nodes.ops.imageio import write_data
-
-        cls.validate(value)
-        return write_data(path, value)
 
 
 class Scalar(PortType):
@@ -116,35 +74,15 @@ class Scalar(PortType):
             raise TypeError(f"Scalar must be a number, got {type(value).__name__}")
 
 
-class Camera(PortType):
-    """A pixel-height camera (``pixgraph_nodes.ops.camera.Camera``)."""
-
-    describe = "pinhole camera with horizon (lens shift), field of view and height"
-
-
-class Light(PortType):
-    """A light in 3D and in pixel-height space (``pixgraph_nodes.ops.lights.Light``)."""
-
-    describe = "point, directional or disk area light"
-
-
-class Geometry(PortType):
-    """Per-pixel 3D reconstruction: positions, depth, normals and validity."""
-
-    describe = "reconstructed 3D positions, depth, normals and validity mask"
-
-
-class Buffers(PortType):
-    """Named float32 (H, W) channels, e.g. the SSN++ buffer channels."""
-
-    describe = "dict of named float32 (H, W) channels"
-
-    @classmethod
-    def validate(cls, value):
-        if not isinstance(value, dict):
-            raise TypeError(f"Buffers must be a dict of arrays, got {type(value).__name__}")
-        for k, v in value.items():
-            _check_array(v, (2,), f"Buffers channel {k!r}")
+def check_array(value: _Any, ndim: tuple[int, ...], name: str) -> None:
+    """Raise ``TypeError`` unless ``value`` is a float32 numpy array with one of
+    the dimension counts ``ndim`` (a helper for array port types' ``validate``)."""
+    if not isinstance(value, np.ndarray):
+        raise TypeError(f"{name} must be a numpy array, got {type(value).__name__}")
+    if value.ndim not in ndim:
+        raise TypeError(f"{name} must have {' or '.join(map(str, ndim))} dimensions, got shape {value.shape}")
+    if value.dtype != np.float32:
+        raise TypeError(f"{name} must be float32, got {value.dtype}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -168,10 +106,6 @@ class Shape:
         return f"{self.size} from {self.source}" if self.source else self.size
 
 
-#: port types whose values are (H, W[, C]) arrays or carry one image size
-SIZED = (Image, Mask, PixelHeight, Buffers, Geometry)
-
-
 def nbytes(value: _Any) -> int:
     """Approximate size of a value in bytes, for the memory-bounded cache."""
     if isinstance(value, np.ndarray):
@@ -186,8 +120,5 @@ def nbytes(value: _Any) -> int:
     return sys.getsizeof(value)
 
 
-#: every built-in port type by name, for the file format and schema
-ALL: dict[str, type[PortType]] = {
-    t.type_name(): t
-    for t in (Any, Image, Mask, PixelHeight, Scalar, Camera, Light, Geometry, Buffers)
-}
+#: the engine's own port types by name; a registry adds those of its nodes' ports
+BUILTIN: dict[str, type[PortType]] = {t.type_name(): t for t in (Any, Scalar)}

@@ -6,6 +6,6 @@
 encoded outputs; ``scene`` turns the handles nodes declare into what the page draws
 and the param edits a drag means; ``server`` binds and stops; ``cli`` is the command
 line; ``errors`` maps every exception to its HTTP status; ``static/`` is the page.
-Importing this package imports no web server (``pip install 'pixgraph[serve]'``).
+Importing this package imports nothing else (``pixgraph serve`` comes from
+``pixgraph_serve.cli``; ``pip install 'pixgraph[serve]'`` brings the web server).
 """
-from .cli import add_arguments, cli_serve  # noqa: F401

@@ -11,9 +11,45 @@ import time
 
 import numpy as np
 
-from pixgraph import types as T
+from pixgraph import types as _engine_types
 from pixgraph.node import node, param, port
 from pixgraph.registry import Registry
+
+
+class T:
+    """The engine tests' own port types (the engine knows no images: the node
+    pack's live in ``pixgraph_nodes.types``)."""
+
+    Any = _engine_types.Any
+    Scalar = _engine_types.Scalar
+
+    class Image(_engine_types.PortType):
+        """float32 (H, W[, C]) array."""
+
+        describe = "test image"
+        sized = True
+        finite = True
+
+        @classmethod
+        def validate(cls, value):
+            _engine_types.check_array(value, (2, 3), "Image")
+
+        @classmethod
+        def write(cls, path, value):
+            """The array in numpy's .npy format, whatever the file's extension."""
+            cls.validate(value)
+            with open(path, "wb") as f:
+                np.save(f, value)
+            return path
+
+    class Mask(Image):
+        """float32 (H, W): an Image with one channel (feeds Image inputs, not the reverse)."""
+
+        describe = "test mask"
+
+        @classmethod
+        def validate(cls, value):
+            _engine_types.check_array(value, (2,), "Mask")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,16 +1,14 @@
 """Batch runs: manifests and sweeps give the same pixels as single runs, resume
 skips done rows (by content key), a bad row is reported while the rest complete,
-and the process-pool and Dask executors give the in-process results."""
+rows that differ only downstream share their upstream work, and the process-pool
+and Dask executors give the in-process results. Safety: test_batch_safety.py."""
 import json
 import os
-import signal
-import subprocess
-import sys
-import time
 
 import numpy as np
 import pytest
 
+import pixgraph_batch.files as F
 import pixgraph_batch.runner as B
 from pixgraph_batch import batch as run_batch
 from pixgraph.cli import main
@@ -98,7 +96,7 @@ def test_fifty_row_manifest_equals_fifty_single_runs(scene, tmp_path, capsys):
     assert meta["pixgraph"] and len(meta["graph_sha256"]) == 64
     assert meta["methods"]["fg_h"]["method"] == "contact_line"
     assert meta["methods"]["shadow"]["type"] == "pixgraph.SoftShadow"
-    assert meta["file_sha256"] == B._file_sha256(str(out / "r07.exr"))
+    assert meta["file_sha256"] == F.file_sha256(str(out / "r07.exr"))
 
 
 def test_bad_rows_are_reported_and_the_rest_complete(scene, tmp_path, capsys):
@@ -122,31 +120,8 @@ def test_bad_rows_are_reported_and_the_rest_complete(scene, tmp_path, capsys):
         f"r{i:02d}.png{ext}" for i in (0, 1, 3, 5, 6, 7) for ext in ("", ".json"))
 
 
-def test_resume_after_kill_skips_done_rows(scene, tmp_path):
-    """Kill a batch subprocess mid-way; the rerun skips the rows it finished and renders the rest."""
-    man = _manifest(scene / f"{tmp_path.name}.csv", 12)
-    out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "pixgraph", "batch", str(scene / "g.yaml"), str(man), "--no-disk-cache",
-           "--set", "shadow.samples=1500", "-o", f"final={out}/{{row}}.png", "--report", str(tmp_path / "r.json")]
-    env = dict(os.environ, OMP_NUM_THREADS="1")
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 120
-    while time.time() < deadline and proc.poll() is None:
-        if out.is_dir() and len([f for f in os.listdir(out) if f.endswith(".json")]) >= 3:
-            break
-        time.sleep(0.05)
-    assert proc.poll() is None, "the batch finished before it could be killed: make rows slower"
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    done_before = {f[:-5] for f in os.listdir(out) if f.endswith(".png.json")}
-    assert 3 <= len(done_before) < 12
-    mtimes = {f: os.stat(out / f).st_mtime_ns for f in done_before}
-    r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
-    summary = json.loads((tmp_path / "r.json").read_text())["summary"]
-    assert summary["skipped"] == len(done_before) and summary["done"] == 12 - len(done_before)
-    assert {f: os.stat(out / f).st_mtime_ns for f in done_before} == mtimes  # not rewritten
-    assert len([f for f in os.listdir(out) if f.endswith(".png")]) == 12
+# resume after kill -9: tests/test_batch_safety.py::test_resume_after_kill_mid_write kills the
+# batch at a chosen point (in the middle of a row's write), not by hoping rows are slow
 
 
 def test_changed_input_rerenders_only_its_rows(scene, tmp_path):
@@ -190,7 +165,7 @@ def test_bad_manifest_is_exit_2_naming_file_and_line(scene, tmp_path, capsys):
     assert err.startswith(f"{man}:2: column 'lamp.azimuth': no node 'lamp'") and "\n" not in err
     man.write_text("light.azimuth\n10\n20\n")
     assert main(["batch", str(scene / "g.yaml"), str(man), "-o", f"final={tmp_path}/same.png"]) == 2
-    assert "both write" in capsys.readouterr().err
+    assert "output final and row 0001 output final both write" in capsys.readouterr().err
 
 
 def _sweep_kw(tmp_path, scene, name):
@@ -286,3 +261,52 @@ def test_rows_never_write_over_their_inputs(scene, tmp_path):
                           outputs={"final": str(tmp_path / "cut" / "{stem}.png")})
     assert [r.status for r in res.results] == ["failed"] and "would write over" in res.results[0].error
     assert (tmp_path / "cut" / "c1.png").read_bytes() == src
+
+
+# -- rows that differ only downstream share what is upstream -----------------------------------
+
+
+def _ran(out, n):
+    return [json.loads((out / f"{i:04d}.exr.json").read_text())["ran"] for i in range(n)]
+
+
+@pytest.mark.parametrize("share", [True, False])
+def test_rows_share_upstream_even_past_the_cache_limit(scene, tmp_path, share):
+    """Two cutouts x three azimuths, the cutouts interleaved by a manifest, with a memory
+    cache that holds about one 64x64 result: grouped, each cutout's upstream (load,
+    heights, camera, photo) is computed once and held for its three rows; ungrouped,
+    the byte limit makes every row compute it again. Pixels are the same either way."""
+    rows = [{"cutout.path": f"{scene}/cutouts/c{k}.png", "light.azimuth": a} for a in (-60, 0, 60) for k in (0, 1)]
+    out = tmp_path / "out"
+    s = Session(cache_bytes=100_000)
+    res = run_batch(s, scene / "g.yaml", rows=rows, outputs={"final": str(out / "{index:04d}.exr")}, share=share)
+    assert s.memory.limit_bytes == 100_000  # the pins' extra room is given back
+    assert res.count("done") == 6 and res.groups == (2 if share else 6)
+    ran = _ran(out, 6)
+    upstream = {"cutout", "photo", "fg_h", "bg_h", "cam"}
+    computed = sum(len(upstream & set(r)) for r in ran)
+    if share:
+        assert computed <= 2 * 5  # at most once per group (cutout), in the group's first row
+        assert sum("cutout" in r for r in ran) == 2 and sum("fg_h" in r for r in ran) == 2
+        assert all(set(r) == {"light", "shadow", "comp"} for r in ran[2:])  # rows 2..5: only what the light changes
+    else:
+        assert computed >= 5 * 6 - 6  # the tiny cache kept next to nothing
+    for i, row in enumerate(rows):
+        single = Session().run(scene / "g.yaml", outputs=["final"], params=row)["final"]
+        assert np.array_equal(_pixels(out / f"{i:04d}.exr"), single), f"row {i}"
+
+
+def test_grouping_follows_the_fastest_varying_param(scene):
+    from pixgraph_batch.work import group_items
+
+    s = Session()
+    g = s.load(scene / "g.yaml")
+    rows = B.sweep_rows([("cutout.path", [f"{scene}/cutouts/c{k}.png" for k in range(3)]),
+                         ("light.azimuth", [0, 10, 20, 30]), ("light.elevation", [20, 40])])
+    items = B.make_items(g, rows, s.registry, {"final": "/tmp/x/{index}.png"})
+    groups = group_items(g, items)
+    # azimuth varies most; elevation is on the same node (light): groups are the cutouts
+    assert [len(x) for x in groups] == [8, 8, 8]
+    assert all(len({it.params["cutout.path"] for it in grp}) == 1 for grp in groups)
+    # a shared (--set) value changes nothing; one row, one group
+    assert len(group_items(g, items[:1])) == 1

@@ -16,7 +16,7 @@ PLUGIN = {
     "plug/__init__.py": "",
     "plug/glow.py": textwrap.dedent('''
         import numpy as np
-        from pixgraph import types as T
+        from pixgraph_nodes import types as T
         from pixgraph.node import node, port
 
         @node("plug.Glow", version=1)
@@ -120,7 +120,7 @@ def test_code_files_of_a_builtin_node():
 
 
 def test_a_node_without_a_source_file_keeps_its_declared_impl_version():
-    from pixgraph import types as T
+    from pixgraph_nodes import types as T
     from pixgraph.node import node, port
 
     ns = {"node": node, "port": port, "T": T, "__name__": "not_a_module_anywhere"}

@@ -68,20 +68,18 @@ def test_set_overrides_are_validated_like_file_params(tmp_path, capsys):
 
 def test_run_writes_outputs_with_o(tmp_path, capsys):
     good = os.path.join(FIXTURES, "good", "format1.yaml")
-    out = tmp_path / "final.exr"
+    out = tmp_path / "final.npy"
     code = main(["run", good, "--no-disk-cache", "-q", "--set", "sum.k=0.25", "-o", f"final={out}"],
                 registry=make_registry())
     assert code == 0, capsys.readouterr().err
-    from pixgraph_nodes.ops.imageio import read_image
-
-    img, _ = read_image(out)
-    np.testing.assert_array_equal(img[..., 0], np.full((3, 3), 4.25, np.float32))
+    # the port type's write (the test pack's Image saves .npy)
+    np.testing.assert_array_equal(np.load(out), np.full((3, 3), 4.25, np.float32))
     assert main(["run", good, "--no-disk-cache", "-o", "nope=x.png"], registry=make_registry()) == 2
     assert "no output named 'nope'" in capsys.readouterr().err
     # any node output, not only the graph's named outputs
-    src = tmp_path / "src.exr"
+    src = tmp_path / "src.npy"
     assert main(["run", good, "--no-disk-cache", "-q", "-o", f"src.out={src}"], registry=make_registry()) == 0
-    np.testing.assert_array_equal(read_image(src)[0][..., 0], np.full((3, 3), 2.0, np.float32))
+    np.testing.assert_array_equal(np.load(src), np.full((3, 3), 2.0, np.float32))
     assert main(["run", good, "--no-disk-cache", "-o", f"src.nope={src}"], registry=make_registry()) == 2
     assert "no such node output 'src.nope'" in capsys.readouterr().err
 

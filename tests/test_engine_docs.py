@@ -42,6 +42,23 @@ def test_tutorial_bind_example_runs_and_prints_what_it_says(monkeypatch, capsys)
     assert capsys.readouterr().out == printed
 
 
+def test_nodes_md_is_the_generated_reference_whole():
+    """docs/nodes.md is exactly what 'pixgraph nodes --markdown' prints for the
+    installed nodes: every section, the index and the port types, nothing stale."""
+    from pixgraph.cli import main
+
+    import contextlib
+    import io
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main(["nodes", "--markdown"]) == 0
+    text = open(os.path.join(DOCS, "nodes.md")).read()
+    assert buf.getvalue() == text, "docs/nodes.md is stale: run 'pixgraph nodes --markdown > docs/nodes.md'"
+    assert text.count("\n## pixgraph.") == len(Registry.discover()) >= 28
+    assert "| Mask | Image | float32 (H, W) coverage in [0, 1] | written by `-o` |" in text
+
+
 @pytest.mark.parametrize("type_id", ENGINE_NODES)
 def test_nodes_md_is_up_to_date_for_engine_nodes(type_id):
     reg = Registry.discover()

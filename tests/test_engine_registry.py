@@ -8,10 +8,9 @@ import types
 import numpy as np
 import pytest
 
-from engine_testnodes import make_nodes, make_registry
+from engine_testnodes import T, make_nodes, make_registry
 from pixgraph.node import node, port
 from pixgraph.registry import Registry, UnknownNodeType
-from pixgraph import types as T
 from pixgraph.session import Session
 
 
@@ -103,7 +102,7 @@ def test_add_rejects_non_nodes_and_ignores_re_adding_the_same_class():
 PLUGINS = {
     "okpack/__init__.py": '''
         import numpy as np
-        from pixgraph import types as T
+        from pixgraph_nodes import types as T
         from pixgraph.node import node, param, port
 
         @node("ok.Double", version=1)
@@ -121,7 +120,7 @@ PLUGINS = {
     ''',
     "duppack/__init__.py": '''
         import numpy as np
-        from pixgraph import types as T
+        from pixgraph_nodes import types as T
         from pixgraph.node import node, port
 
         @node("pixgraph.Constant", version=7)
@@ -185,3 +184,17 @@ def test_installed_broken_and_duplicate_plugins(plugin_dir):
 
     ch = read_exr_channels(plugin_dir / "out.exr")
     assert [float(ch[c][0, 0]) for c in "RGBA"] == [1.0, 1.0, 1.0, 2.0]
+
+
+def test_port_types_come_from_the_registered_nodes():
+    """The name -> port type table is the engine's own types plus those of the
+    registered nodes' ports (a Mask output brings the Image it may feed)."""
+    reg = Registry()
+    assert set(reg.port_types()) == {"Any", "Scalar"}
+    reg = make_registry()
+    table = reg.port_types()
+    assert table["Image"] is T.Image and table["Mask"] is T.Mask and table["Scalar"] is T.Scalar
+    assert "PortType" not in table and "Camera" not in table
+    real = Registry.discover().port_types()
+    assert {"Image", "Mask", "PixelHeight", "Camera", "Light", "Geometry", "Buffers"} <= set(real)
+    assert real["Image"].__module__ == "pixgraph_nodes.types"

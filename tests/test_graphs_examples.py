@@ -2,7 +2,6 @@
 import pathlib
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -42,15 +41,13 @@ def test_example_graph_runs_and_casts_a_shadow(session, name):
 
 
 def test_readme_job_through_the_cli(tmp_path):
-    """`pixgraph run graphs/wall_corner_shadow.yaml -o final=...` writes a PNG quickly."""
+    """`pixgraph run graphs/wall_corner_shadow.yaml -o final=...` writes a PNG (its time:
+    benchmarks/example_graph_bench.py)."""
     out = tmp_path / "wall_corner.png"
-    t0 = time.perf_counter()
     cmd = ["run", str(GRAPHS / "wall_corner_shadow.yaml"), "-o", f"final={out}", "--no-disk-cache", "-q"]
     r = subprocess.run([sys.executable, "-c", "import sys; from pixgraph.cli import main; sys.exit(main())", *cmd],
                        capture_output=True, text=True)
-    wall = time.perf_counter() - t0
     assert r.returncode == 0, r.stderr
     from pixgraph_nodes.ops.imageio import read_image
     img, _ = read_image(out)
     assert img.shape[:2] == (512, 512) and np.all(np.isfinite(img))
-    assert wall < 10.0, f"{wall:.1f} s"

@@ -25,7 +25,7 @@ except SystemExit as e:
     code = e.code
 else:
     code = 0
-heavy = ("torch", "kornia", "matplotlib", "networkx")
+heavy = ("torch", "kornia", "matplotlib")  # networkx is the graph model: a base dependency
 print(json.dumps({"code": code, "loaded": [m for m in heavy if m in sys.modules]}))
 """
 
@@ -66,7 +66,7 @@ def _deps():
 
 def test_base_install_has_no_torch_and_pocl_only_where_its_wheel_exists():
     base = {Requirement(r).name.lower(): Requirement(r) for r in _deps()["dependencies"]}
-    assert not {"torch", "kornia", "matplotlib", "networkx"} & set(base)
+    assert not {"torch", "kornia", "matplotlib"} & set(base) and "networkx" in base
     pocl = base["pocl-binary-distribution"].marker
     env = {"platform_system": "Linux", "platform_machine": "x86_64"}
     assert pocl.evaluate(env)

@@ -138,30 +138,26 @@ def test_reflection_reports_progress_and_stops_when_cancelled(device):
 
 def test_65536_sample_shadow_cancelled_from_another_thread(tmp_path):
     """The issue's case: a 65,536-sample soft shadow (about a minute here) is
-    cancelled 0.3 s after it reports its first progress; the run must stop at
-    the next band. Measured: well under 0.2 s (one band); asserted: < 5 s."""
+    cancelled from another thread as soon as it reports its first band; the node
+    stops at its next check, before another band. No sleeps and no clocks: the
+    node's thread waits (an event) until the other thread has cancelled, so the
+    order is fixed. (Latency: benchmarks/cancel_bench.py.)"""
     s = Session(disk_cache=str(tmp_path / "cache"))
     g = s.graph(GRAPH, {"shadow.samples": 65536})
     token = CancelToken()
-    seen, cancelled_at = [], []
-
-    def cancel_soon():
-        time.sleep(0.3)
-        cancelled_at.append(time.perf_counter())
-        token.cancel()
+    cancelled = threading.Event()
+    seen = []
 
     def on_event(ev):
         if isinstance(ev, NodeProgress) and ev.node_id == "shadow":
-            if not seen:
-                threading.Thread(target=cancel_soon, daemon=True).start()
             seen.append(ev.fraction)
+            if len(seen) == 1:
+                threading.Thread(target=lambda: (token.cancel(), cancelled.set()), daemon=True).start()
+                assert cancelled.wait(30), "the cancelling thread never ran"
 
     with pytest.raises(Cancelled):
         s.run(g, cancel=token, on_event=on_event)
-    latency = time.perf_counter() - cancelled_at[0]
-    print(f"cancel latency {latency * 1e3:.0f} ms after {len(seen)} progress events, at {seen[-1]:.3%}")
-    assert seen and seen[-1] < 0.5
-    assert latency < 5.0
+    assert len(seen) == 1 and 0 < seen[0] < 0.01  # one band of many, then the stop
     # nothing of the interrupted node was stored
     plan = s.plan(g)
     assert plan.step("shadow").status == "run"
@@ -172,7 +168,8 @@ def test_ctrl_c_on_the_command_line(tmp_path):
     """SIGINT to ``pixgraph run`` during a 65,536-sample soft shadow: exit 130,
     'cancelled' on stderr, no cache entry for the shadow (its inputs' entries
     stay). The wait for the shadow to start is the upstream nodes' entries
-    appearing in the disk cache."""
+    appearing in the disk cache (polled, not timed; whether SIGINT lands in the
+    shadow or just before it, the assertions hold)."""
     from pixgraph.cache import DiskCache
 
     cache = tmp_path / "cache"
@@ -201,10 +198,9 @@ def test_ctrl_c_on_the_command_line(tmp_path):
     finally:
         if p.poll() is None:
             p.kill()
-    print(f"exit {rc} {latency * 1e3:.0f} ms after SIGINT")
+    print(f"exit {rc} {latency * 1e3:.0f} ms after SIGINT (not asserted: benchmarks/cancel_bench.py)")
     assert rc == 130
     assert "cancelled" in p.stderr.read()
-    assert latency < 5.0
     assert plan.keys["shadow"] not in disk
     assert not list(cache.rglob(f"*{plan.keys['shadow'][:16]}*"))
     assert not (tmp_path / "final.png").exists()

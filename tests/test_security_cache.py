@@ -499,7 +499,7 @@ def test_a_result_too_large_for_memory_is_not_cached(tmp_path, monkeypatch):
     def no_memory(key, value):
         raise MemoryError()
 
-    monkeypatch.setattr(C, "_entry_parts", no_memory)
+    monkeypatch.setattr(C, "entry_parts", no_memory)
     s = Session(registry=make_registry(), disk_cache=tmp_path / "disk")
     events = []
     np.testing.assert_array_equal(s.run(_graph(s, 1.0), on_event=events.append)["o"], 2.0)

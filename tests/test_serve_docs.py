@@ -35,7 +35,7 @@ def test_server_md_client_example(tmp_path, monkeypatch, capsys):
 def test_server_md_names_every_option():
     import argparse
 
-    from pixgraph_serve import add_arguments
+    from pixgraph_serve.cli import add_arguments
 
     text = open(DOC).read()
     start = text[text.index("## Start it"):text.index("## The page")]

@@ -8,7 +8,7 @@ import httpx
 import numpy as np
 import pytest
 
-from pixgraph import types as T
+from pixgraph_nodes import types as T
 from pixgraph.node import node, param, port
 from pixgraph.registry import Registry
 from pixgraph_serve.app import create_app

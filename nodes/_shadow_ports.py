@@ -1,0 +1,41 @@
+"""What the shadow-family nodes share (not a node module: its name starts with _):
+their five inputs, the ``thickness`` param and the check of those inputs.
+
+``HardShadow``, ``SoftShadow``, ``SoftShadowSSN``, ``Shadow`` and
+``BufferChannels`` declare ``class Inputs(ShadowInputs)`` (a node may restate one
+port to give it its own doc), ``thickness: float = thickness_param()`` and call
+``check_inputs(inputs)`` before they trace anything.
+"""
+from __future__ import annotations
+
+from pixgraph.node import param, port
+from pixgraph_nodes import types as T
+
+from ._checks import finite, inside, pixel_heights, same_size
+
+THICKNESS_DOC = "how far a ray may pass behind the cutout surface and still be blocked"
+
+
+class ShadowInputs:
+    """The cutout, both pixel-height maps, the light and the camera."""
+
+    mask: T.Mask = port(doc="cutout coverage (occluder where > 0.5)")
+    fg_height: T.PixelHeight = port(doc="cutout pixel height [px]")
+    bg_height: T.PixelHeight = port(doc="background pixel height [px]")
+    light: T.Light = port(doc="the light")
+    camera: T.Camera = port(doc="camera that converts the light to pixel-height space")
+
+
+def thickness_param(doc: str = THICKNESS_DOC):
+    """The ``thickness`` param [px]: default 1, in [0, 1000]."""
+    return param(1.0, min=0.0, max=1000.0, unit="px", doc=doc)
+
+
+def check_inputs(inputs) -> None:
+    """``InputError`` naming the input unless the mask and both height maps have the
+    camera's size, the mask is finite, and the pixel heights are finite and >= 0
+    (the cutout's inside its mask)."""
+    same_size(inputs.camera, mask=inputs.mask, fg_height=inputs.fg_height, bg_height=inputs.bg_height)
+    finite(mask=inputs.mask)
+    pixel_heights(inside(inputs.mask), fg_height=inputs.fg_height)
+    pixel_heights(bg_height=inputs.bg_height)

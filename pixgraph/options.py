@@ -1,0 +1,35 @@
+"""Command-line option parsers that the CLI and the shells share: ``--set
+NODE.PARAM=VALUE`` and ``-o NAME=PATH`` (one parser each)."""
+from __future__ import annotations
+
+from typing import Any
+
+import yaml
+
+from .errors import UsageError
+
+
+def parse_sets(items: list[str]) -> dict[str, Any]:
+    """``["blur.sigma=4", "m.color=[1, 0, 0]"]`` -> ``{"blur.sigma": 4, ...}`` (safe YAML values)."""
+    out = {}
+    for item in items:
+        name, eq, raw = item.partition("=")
+        if not eq or "." not in name:
+            raise UsageError(f"--set {item}: expected NODE.PARAM=VALUE")
+        try:
+            out[name.strip()] = yaml.safe_load(raw) if raw.strip() else ""
+        except yaml.YAMLError as e:
+            raise UsageError(f"--set {item}: value is not valid YAML: {str(e).splitlines()[0]}") from None
+    return out
+
+
+def parse_output_options(options, value: str = "PATH") -> dict[str, str]:
+    """``-o NAME=PATH`` options (``pixgraph run``; ``pixgraph batch`` with a
+    template as the value) -> ``{name: value}``; raises ``UsageError``."""
+    outputs = {}
+    for item in options or ():
+        name, eq, text = item.partition("=")
+        if not eq or not name or not text:
+            raise UsageError(f"-o {item}: expected NAME={value}")
+        outputs[name] = text
+    return outputs

@@ -1,0 +1,102 @@
+"""``pixgraph graph FILE --dot/--svg``: the picture has every node, connection and
+output, and its layers run left to right (every edge points right)."""
+import contextlib
+import io
+import os
+import re
+import xml.etree.ElementTree as ET
+
+from engine_testnodes import make_registry
+from pixgraph.cli import main
+from pixgraph.drawing import layout
+from pixgraph.graph import dag, downstream, upstream
+from pixgraph.session import Session
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+WALL = os.path.join(ROOT, "graphs", "wall_corner_shadow.yaml")
+SVG = "{http://www.w3.org/2000/svg}"
+
+
+def _run(argv, registry=None):
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = main(argv, registry=registry)
+    return code, buf.getvalue()
+
+
+def _connections(g):
+    return [(ref.node, nid, port) for nid, inst in g.nodes.items() for port, ref in inst.inputs.items()]
+
+
+def test_dot_lists_every_node_connection_and_output():
+    g = Session().graph(WALL)
+    code, text = _run(["graph", WALL, "--dot"])
+    assert code == 0 and text.startswith("digraph pixgraph {\n") and text.endswith("}\n")
+    edges = re.findall(r'^  "([^"]+)" -> "([^"]+)" \[label="([^"]+)"\];$', text, re.M)
+    expect = {(src, dst, f"{g.nodes[dst].inputs[port].output} -> {port}") for src, dst, port in _connections(g)}
+    expect |= {(ref.node, f"output:{name}", ref.output) for name, ref in g.outputs.items()}
+    assert set(edges) == expect and len(edges) == len(expect) == 14
+    assert '"light" [label="light\\npixgraph.Light\\nazimuth = -25' in text
+
+
+def test_svg_is_a_picture_of_the_graph(tmp_path):
+    out = tmp_path / "wall.svg"
+    code, _ = _run(["graph", WALL, "--svg", "-o", str(out), "-q"])
+    assert code == 0
+    root = ET.parse(out).getroot()
+    g = Session().graph(WALL)
+    boxes = {e.get("data-id"): e for e in root.iter(f"{SVG}g") if e.get("class") == "node"}
+    assert set(boxes) == set(g.nodes)
+    assert [e.get("data-id") for e in root.iter(f"{SVG}g") if e.get("class") == "graph-output"] == ["final"]
+    paths = [p for p in root.iter(f"{SVG}path") if (p.get("class") or "").startswith("edge")]
+    assert len(paths) == len(_connections(g)) + len(g.outputs)
+    rects = {nid: b.find(f"{SVG}rect") for nid, b in boxes.items()}
+    for p in paths:
+        x1, y1, *_, x2, y2 = map(float, re.findall(r"-?\d+\.?\d*", p.get("d")))
+        src = p.get("data-edge").split(".")[0]
+        assert x1 == float(rects[src].get("x")) + float(rects[src].get("width"))  # leaves its source's right side
+        assert x2 > x1, p.get("data-edge")  # and points right, into a later layer
+    # each box shows what the graph sets
+    texts = "".join(t.text or "" for t in boxes["shadow"].iter(f"{SVG}text"))
+    assert "pixgraph.SoftShadow" in texts and "samples = 48" in texts and "thickness = 6" in texts
+
+
+def test_layers_follow_the_dependencies():
+    s = Session(registry=make_registry())
+    b = s.builder()
+    b.add("t.Source", "a")
+    b.add("t.Source", "b")
+    b.add("t.Add", "c")
+    b.add("t.Add", "d")
+    b.connect("a.out", "c.a")
+    b.connect("b.out", "c.b")
+    b.connect("c.out", "d.a")
+    b.connect("a.out", "d.b")
+    b.output("o", "d.out")
+    g = b.build()
+    pos = layout(g)
+    assert pos == {"a": (0, 0), "b": (0, 1), "c": (1, 0), "d": (2, 0)}
+    assert sorted(dag(g).edges) == [("a", "c"), ("a", "d"), ("b", "c"), ("c", "d")]
+    assert upstream(g, ["c"]) == ["a", "b", "c"] and upstream(g, ["d"], stop={"c"}) == ["a", "c", "d"]
+    assert downstream(g, ["b"]) == {"c", "d"} and downstream(g, ["d"]) == set()
+
+
+def test_bad_graph_is_exit_2(tmp_path, capsys):
+    bad = os.path.join(ROOT, "tests", "fixtures", "bad", "cycle.yaml")
+    assert main(["graph", bad, "--svg"], registry=make_registry()) == 2
+    assert capsys.readouterr().err.strip().endswith("node 'a': cycle: a <- b <- a")
+
+
+def test_tutorial_transcript(tmp_path, monkeypatch):
+    """docs/tutorial.md's 'pixgraph graph' line prints what the page shows."""
+    text = open(os.path.join(ROOT, "docs", "tutorial.md")).read()
+    block = re.search(r"```\n(\$ pixgraph graph .*?)```", text, re.S).group(1)
+    line, printed = block.split("\n", 1)
+    monkeypatch.chdir(ROOT)
+    argv = line[len("$ pixgraph "):].split()
+    argv[argv.index("-o") + 1] = str(tmp_path / "wall.svg")
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(argv) == 0
+    assert err.getvalue() == printed.replace("wall.svg", str(tmp_path / "wall.svg"))
+    assert (tmp_path / "wall.svg").read_text().startswith("<svg ")
