@@ -361,7 +361,7 @@ ROUTES = [
     Route("/api/render", render, methods=["POST"]),
     Route("/api/save", save, methods=["POST"]),
     Route("/api/uploads/{name}", upload, methods=["PUT"]),
-    *files.routes(),
+    *files.routes(locked, json_body),
 ]
 
 

@@ -224,50 +224,29 @@ def save_with_files(state: ServeState, path: str | None) -> dict:
         return {"path": target, "copied": copied, "yaml": f.read()}
 
 
-def routes(state: ServeState | None = None, locked=None, json_body=None):
+def routes(locked, json_body):
     """Starlette routes of this module: ``POST /api/open``, ``POST /api/save_files``
-    and ``GET /api/notes`` (the check's warnings). Given ``state``, ``locked(fn,
-    *args)`` and ``json_body(request)``: handlers over that state. Without them:
-    handlers that find the state, the run lock and the body as module-level
-    handlers of ``app.py`` do (``request.app.state.serve``, ``app.locked(request,
-    fn, *args)``, ``app.json_body(request)``)."""
+    and ``GET /api/notes`` (the check's warnings). ``locked(request, fn, *args)``
+    and ``json_body(request)`` are app.py's; the state is ``request.app.state.serve``."""
     from starlette.responses import JSONResponse
     from starlette.routing import Route
 
-    if state is not None:
-        def serve(request):
-            return state
-
-        async def run(request, fn, *args):
-            return await locked(fn, *args)
-
-        async def body(request):
-            return await json_body(request)
-    else:
-        from . import app
-
-        def serve(request):
-            return request.app.state.serve
-
-        async def run(request, fn, *args):
-            return await app.locked(request, fn, *args)
-
-        async def body(request):
-            return await app.json_body(request)
+    def serve(request) -> ServeState:
+        return request.app.state.serve
 
     async def open_route(request):
-        data = await body(request)
-        return JSONResponse(await run(request, open_files, serve(request), data))
+        data = await json_body(request)
+        return JSONResponse(await locked(request, open_files, serve(request), data))
 
     async def save_route(request):
-        data = await body(request)
+        data = await json_body(request)
         p = data.get("path")
         if p is not None and not isinstance(p, str):
             raise ServeError(400, "path must be a string", field="path")
-        return JSONResponse(await run(request, save_with_files, serve(request), p))
+        return JSONResponse(await locked(request, save_with_files, serve(request), p))
 
     async def notes_route(request):
-        return JSONResponse({"notes": await run(request, notes, serve(request))})
+        return JSONResponse({"notes": await locked(request, notes, serve(request))})
 
     return [Route("/api/open", open_route, methods=["POST"]),
             Route("/api/save_files", save_route, methods=["POST"]),
