@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from pixgraph_nodes import types as T
-from pixgraph.node import Node, node, param, port
+from pixgraph.node import InputError, Node, node, param, port
 
 from .ops import heightmaps as hm
 
@@ -65,8 +65,11 @@ class BackgroundHeight(Node):
         pts = params.junction_points
         if pts and k in ("back_wall", "wall_corner", "two_corners"):
             if len(pts) < 4 or len(pts) % 2:
-                raise ValueError(f"junction_points needs an even count >= 4 of numbers, got {len(pts)}")
-            h = hm.wall_from_junction(W, H, list(zip(pts[0::2], pts[1::2])))
+                raise InputError(f"param 'junction_points': needs an even count >= 4 of numbers, got {len(pts)}")
+            try:
+                h = hm.wall_from_junction(W, H, list(zip(pts[0::2], pts[1::2])))
+            except ValueError as e:  # e.g. two points at one u: the user's numbers, not a bug
+                raise InputError(f"param 'junction_points': {e}") from None
         elif k == "ground":
             h = hm.ground(W, H)
         elif k == "back_wall":

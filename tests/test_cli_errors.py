@@ -29,6 +29,14 @@ def test_huge_corner_is_a_param_range_error(capsys):
     assert "above the maximum 1000000" in line
 
 
+def test_junction_points_at_one_u_are_bad_input(capsys):
+    own = os.path.join(ROOT, "graphs", "own_photo.yaml")
+    code = main(["run", own, "--no-disk-cache", "-q", "--set", "bg_h.junction_points=[10, 300, 10, 320]"])
+    line = _one_line(capsys.readouterr().err)
+    assert code == 2
+    assert "node 'bg_h'" in line and "param 'junction_points'" in line and "distinct u" in line
+
+
 def test_negative_cache_bytes_names_the_flag(tmp_path, capsys):
     g = tmp_path / "g.yaml"
     g.write_text("pixgraph: 1\nnodes:\n  s: {type: t.Source}\noutputs: {o: s.out}\n")
