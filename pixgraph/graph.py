@@ -212,12 +212,15 @@ def _check_inputs(graph: Graph, nid: str, spec: NodeSpec, inputs: Mapping[str, R
 def _check_cycles(graph: Graph) -> None:
     import networkx as nx
 
+    index = {n: i for i, n in enumerate(graph.nodes)}
+    if all(index.get(ref.node, -1) < index[nid] for nid, inst in graph.nodes.items()
+           for ref in inst.inputs.values()):
+        return  # every input comes from a node earlier in the file: no cycle is possible
     g = dag(graph)
     if nx.is_directed_acyclic_graph(g):  # linear; find_cycle alone is quadratic on long chains
         return
     # the first strongly connected component (file order) that holds a cycle, followed
     # along inputs so the path reads "a <- b <- a": a takes b's output
-    index = {n: i for i, n in enumerate(graph.nodes)}
     comps = [c for c in nx.strongly_connected_components(g) if len(c) > 1 or g.has_edge(*[next(iter(c))] * 2)]
     comp = min(comps, key=lambda c: min(index[n] for n in c))
     start = min(comp, key=index.__getitem__)

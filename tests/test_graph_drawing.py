@@ -100,3 +100,31 @@ def test_tutorial_transcript(tmp_path, monkeypatch):
         assert main(argv) == 0
     assert err.getvalue() == printed.replace("wall.svg", str(tmp_path / "wall.svg"))
     assert (tmp_path / "wall.svg").read_text().startswith("<svg ")
+
+
+def test_cycles_found_whatever_the_file_order():
+    """Validation skips the networkx walk when every input comes from a node earlier in
+    the file (no cycle is possible then); a node that reads a later one still builds,
+    and a cycle closed by one backward edge at the end of a long chain is still found."""
+    import pytest
+
+    from pixgraph.graph import GraphBuilder, GraphError
+
+    reg = make_registry()
+    b = GraphBuilder(reg)
+    b.add("t.Add", "user")           # reads 'late', defined after it: acyclic
+    b.add("t.Source", "late")
+    b.connect("late.out", "user.a")
+    b.output("o", "user.out")
+    assert upstream(b.build(), ["user"]) == ["late", "user"]
+
+    b = GraphBuilder(reg)
+    n = 300
+    for i in range(n):
+        b.add("t.Add", f"n{i}")
+        if i:
+            b.connect(f"n{i - 1}.out", f"n{i}.a")
+    b.connect(f"n{n - 1}.out", "n0.a")  # closes the chain into a ring
+    b.output("o", f"n{n - 1}.out")
+    with pytest.raises(GraphError, match=r"cycle: n0 <- n299 <- n298 <- n297"):
+        b.build()
