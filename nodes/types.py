@@ -34,6 +34,15 @@ class Image(PortType):
         return write_image(path, value)
 
 
+def _write_data(cls, path, value):
+    """A data map (a matte, a darkness, a pixel height) written as its numbers, never
+    colour-encoded: the ``write`` of Mask and PixelHeight."""
+    from .ops.imageio import write_data
+
+    cls.validate(value)
+    return write_data(path, value)
+
+
 class Mask(Image):
     """float32 array (H, W) in [0, 1]: coverage, 1 = inside. A Mask may feed an
     Image input (it is an image with one channel), not the reverse."""
@@ -44,13 +53,7 @@ class Mask(Image):
     def validate(cls, value):
         check_array(value, (2,), "Mask")
 
-    @classmethod
-    def write(cls, path, value):
-        """Data: the numbers themselves, never colour-encoded."""
-        from .ops.imageio import write_data
-
-        cls.validate(value)
-        return write_data(path, value)
+    write = classmethod(_write_data)
 
 
 class PixelHeight(PortType):
@@ -64,13 +67,7 @@ class PixelHeight(PortType):
     def validate(cls, value):
         check_array(value, (2,), "PixelHeight")
 
-    @classmethod
-    def write(cls, path, value):
-        """Data: heights in pixels, never colour-encoded."""
-        from .ops.imageio import write_data
-
-        cls.validate(value)
-        return write_data(path, value)
+    write = classmethod(_write_data)
 
 
 class Camera(PortType):

@@ -403,13 +403,7 @@ class DiskCache:
         except OSError as e:
             return self._skip(_write_failure(e))
         finally:
-            if pending:
-                try:
-                    d.unlink(tmp)
-                except OSError:
-                    pass
-            if d is not None:
-                d.close()
+            _release(d, tmp if pending else None)
         self.last_skip = ""
         self.discarded.pop(key, None)
         return True
@@ -439,13 +433,7 @@ class DiskCache:
         except (OSError, ValueError, TypeError):
             pass  # records only serve explanations: never fail a run for one
         finally:
-            if pending:
-                try:
-                    d.unlink(tmp)
-                except OSError:
-                    pass
-            if d is not None:
-                d.close()
+            _release(d, tmp if pending else None)
 
     def load_record(self, name: str) -> dict | None:
         if not _RECORD_NAME.match(name) or not self.owned:
@@ -535,6 +523,19 @@ class DiskCache:
             if _LEGACY.match(name) or now - st.st_mtime > older_than_s:
                 removed += self._unlink(folder, name)
         return removed
+
+
+def _release(folder, tmp: str | None) -> None:
+    """Close a folder opened for a write, removing the temporary ``tmp`` left in it
+    by a write that did not reach its rename (None: nothing left)."""
+    if folder is None:
+        return
+    if tmp is not None:
+        try:
+            folder.unlink(tmp)
+        except OSError:
+            pass
+    folder.close()
 
 
 class _FileLock:

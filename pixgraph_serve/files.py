@@ -188,15 +188,7 @@ def save_with_files(state: ServeState, path: str | None) -> dict:
     file it reads from the upload folder copied beside it; the saved graph names
     them relative to itself, and the served graph then reads the copies.
     Returns ``{"path", "copied": [names], "yaml"}``."""
-    from pixgraph import fileio
-
-    target = state.graph_path if not path else os.path.normpath(os.path.join(state.root, path))
-    if not target.endswith((".yaml", ".yml")):
-        raise ServeError(400, f"save: {path!r} must end in .yaml or .yml", field="path")
-    try:
-        state.session.policy_for(state.graph).check_write(target)
-    except PathError as e:
-        raise ServeError(403, str(e), field="path") from None
+    target = state.save_target(path)   # checked before anything is copied
     folder = os.path.dirname(target)
     os.makedirs(folder, exist_ok=True)
     uploads = os.path.realpath(state.upload_dir)
@@ -216,10 +208,7 @@ def save_with_files(state: ServeState, path: str | None) -> dict:
             live[f"{nid}.{p.name}"] = os.path.relpath(dest, state.root) if inside else dest
     if live:
         state.set_params(live)   # the served graph reads the copies from now on
-    try:
-        fileio.dump(state.graph, target, state.registry)  # relative paths rebased
-    except OSError as e:
-        raise ServeError(400, f"save: cannot write {path or target}: {e.strerror or e}", field="path") from None
+    target = state.save(path)    # relative paths rebased; written atomically
     with open(target, encoding="utf-8") as f:
         return {"path": target, "copied": copied, "yaml": f.read()}
 

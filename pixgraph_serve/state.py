@@ -317,8 +317,9 @@ class ServeState:
     def yaml(self) -> str:
         return fileio.dumps(self.graph)
 
-    def save(self, path: str | None = None) -> str:
-        """Write the edited graph as canonical YAML (default: over the served file)."""
+    def save_target(self, path: str | None = None) -> str:
+        """The file ``save(path)`` writes (relative to the served graph's folder; default
+        the served file), checked: a YAML name the path policy lets this graph write."""
         target = self.graph_path if not path else os.path.normpath(os.path.join(self.root, path))
         if not target.endswith((".yaml", ".yml")):
             raise ServeError(400, f"save: {path!r} must end in .yaml or .yml", field="path")
@@ -326,6 +327,11 @@ class ServeState:
             self.session.policy_for(self.graph).check_write(target)
         except PathError as e:
             raise ServeError(403, str(e), field="path") from None
+        return target
+
+    def save(self, path: str | None = None) -> str:
+        """Write the edited graph as canonical YAML (default: over the served file)."""
+        target = self.save_target(path)
         tmp = os.path.join(os.path.dirname(target), f".{os.path.basename(target)}.tmp-{os.getpid()}")
         try:
             fileio.dump(self.graph, tmp, self.registry)

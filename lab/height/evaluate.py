@@ -71,12 +71,24 @@ def eval_heights(data_dir, predictor, limit=0):
     return rows
 
 
+def shadow_sample(f, device):
+    """One shadow-benchmark sample as the height evaluations use it: the prepared
+    sample, the receiver pixels scored (background, valid), the ground-truth darkness
+    (float64), the cutout as premultiplied float32 RGBA, and its mask."""
+    from pixgraph_lab.evaluate import prepared_sample
+
+    s = prepared_sample(f, device)
+    a = s["alpha"].astype(np.float32)
+    rgba = np.concatenate([s["rgb"].astype(np.float32) * a[..., None], a[..., None]], 2)
+    return s, ~s["mask"] & s["bg_valid"], s["shadow"].astype(np.float64), rgba, s["mask"]
+
+
 def eval_shadows(data_dir, predictor, n_samples=64, limit=0, thickness=1.0):
     from pixgraph.device import Device
     from pixgraph_nodes.ops.heightmaps import contact_line_height
 
     from pixgraph_lab.datagen.dataset import sample_files
-    from pixgraph_lab.evaluate import Method, prepared_sample
+    from pixgraph_lab.evaluate import Method
     from pixgraph_lab.metrics import shadow_metrics
 
     from .generate import is_overhang
@@ -84,13 +96,7 @@ def eval_shadows(data_dir, predictor, n_samples=64, limit=0, thickness=1.0):
     soft = Method(f"soft:{n_samples}", thickness)
     rows = []
     for f in sample_files(data_dir)[: limit or None]:
-        s = prepared_sample(f, device)
-        valid = ~s["mask"] & s["bg_valid"]
-        g = s["shadow"].astype(np.float64)
-        a = s["alpha"].astype(np.float32)
-        rgb = s["rgb"].astype(np.float32)
-        rgba = np.concatenate([rgb * a[..., None], a[..., None]], 2)
-        mask = s["mask"]
+        s, valid, g, rgba, mask = shadow_sample(f, device)
         heights = {"true": s["fg_height"].astype(np.float32),
                    "learned": predictor.predict(rgba),
                    "heuristic": contact_line_height(mask.astype(np.float32))}

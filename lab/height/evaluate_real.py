@@ -28,7 +28,6 @@ Writes ``OUT/heights.csv``, ``OUT/shadows.csv``, ``OUT/report.md`` (and prints i
 from __future__ import annotations
 
 import argparse
-import csv
 import glob
 import json
 import os
@@ -96,21 +95,17 @@ def eval_shadows(data_dir, predictor, n_samples=64, limit=0, thickness=1.0, ssn=
     from pixgraph.device import Device
 
     from pixgraph_lab.datagen.dataset import sample_files
-    from pixgraph_lab.evaluate import Method, prepared_sample
+    from pixgraph_lab.evaluate import Method
     from pixgraph_lab.metrics import shadow_metrics
     device = Device.open()
     methods = {"soft64": Method(f"soft:{n_samples}", thickness)}
     if ssn:
         methods["ssnpp"] = Method("pixgraph_lab.ssn.methods:node")
     rows = []
+    from .evaluate import shadow_sample
+
     for f in sample_files(data_dir)[: limit or None]:
-        s = prepared_sample(f, device)
-        valid = ~s["mask"] & s["bg_valid"]
-        g = s["shadow"].astype(np.float64)
-        a = s["alpha"].astype(np.float32)
-        rgb = s["rgb"].astype(np.float32)
-        rgba = np.concatenate([rgb * a[..., None], a[..., None]], 2)
-        mask = s["mask"]
+        s, valid, g, rgba, mask = shadow_sample(f, device)
         r = predictor.predict_full(rgba)
         conf = r["confidence"]
         heights = {"true": s["fg_height"].astype(np.float32), "learned": r["height"], "heuristic": r["heuristic"]}

@@ -152,7 +152,7 @@ def raw_object(obj_id: str, rng: np.random.Generator):
 
 def pose_object(V, pose: str, rng: np.random.Generator, height_range=(0.3, 1.6)):
     """Rotate by ``pose`` (module doc), random yaw, scale to a random height, rest on Y = 0."""
-    from pixgraph_lab.datagen.objects import _random_rotation, _yaw
+    from pixgraph_lab.datagen.objects import _random_rotation
     V = V - V.mean(0)
     if pose == "tilted" or pose == "lying":
         a = rng.uniform(0, 2 * math.pi)
@@ -162,6 +162,15 @@ def pose_object(V, pose: str, rng: np.random.Generator, height_range=(0.3, 1.6))
         V = V @ _rot([math.cos(a), 0, math.sin(a)], ang).T
     elif pose == "random":
         V = V @ _random_rotation(rng).T
+    return stand(V, rng, height_range)
+
+
+def stand(V, rng: np.random.Generator, height_range):
+    """A posed object turned about the vertical by a random yaw, scaled to a random
+    height in ``height_range`` (world units) and stood on the ground (lowest Y = 0),
+    centred on the vertical axis."""
+    from pixgraph_lab.datagen.objects import _yaw
+
     V = V @ _yaw(rng.uniform(0, 2 * math.pi)).T
     lo, hi = V.min(0), V.max(0)
     V = V * (rng.uniform(*height_range) / (hi[1] - lo[1]))

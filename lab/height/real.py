@@ -40,7 +40,7 @@ import time
 
 import numpy as np
 
-from .generate import (SPLIT_CODE, _place, _rot, is_overhang, object_pool, raw_object, render_cutout,
+from .generate import (SPLIT_CODE, _place, _rot, is_overhang, object_pool, raw_object, stand,
                        srgb_encode)
 
 NAMED = {   # id: (file under pybullet_data, up axis of the file)
@@ -88,7 +88,7 @@ def named_mesh(obj_id: str):
 
 def pose_real(V, pose, rng, height_range=(0.3, 1.6)):
     """Rotate by ``pose`` (module doc), random yaw, scale to a random height, rest on Y = 0."""
-    from pixgraph_lab.datagen.objects import _random_rotation, _yaw
+    from pixgraph_lab.datagen.objects import _random_rotation
     V = V - V.mean(0)
     if pose in ("tilted", "lying"):
         a = rng.uniform(0, 2 * math.pi)
@@ -96,11 +96,7 @@ def pose_real(V, pose, rng, height_range=(0.3, 1.6)):
         V = V @ _rot([math.cos(a), 0, math.sin(a)], ang).T
     elif pose == "random":
         V = V @ _random_rotation(rng).T
-    V = V @ _yaw(rng.uniform(0, 2 * math.pi)).T
-    lo, hi = V.min(0), V.max(0)
-    V = V * (rng.uniform(*height_range) / (hi[1] - lo[1]))
-    lo, hi = V.min(0), V.max(0)
-    return V - np.array([(lo[0] + hi[0]) / 2, lo[1], (lo[2] + hi[2]) / 2])
+    return stand(V, rng, height_range)
 
 
 def _palette(names, rng):
