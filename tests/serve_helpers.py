@@ -11,6 +11,30 @@ from urllib.parse import parse_qs, urlsplit
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 GRAPHS = os.path.join(REPO, "graphs")
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+#: how the browser tests start Debian's chromium (no background connections: the machine has no network)
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
+@contextlib.contextmanager
+def chromium_browser(*extra_args: str):
+    """Debian's chromium driven by Playwright, closed afterwards; under CI a missing
+    chromium fails the test ('./setup.sh test' installs it), elsewhere it skips."""
+    import pytest
+
+    if not os.path.exists(CHROMIUM):
+        if os.environ.get("CI"):
+            pytest.fail("Debian's chromium is missing: './setup.sh test' installs it")
+        pytest.skip("Debian's chromium is not installed ('./setup.sh test' installs it)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=[*CHROMIUM_ARGS, *extra_args])
+        try:
+            yield b
+        finally:
+            b.close()
 
 
 def copy_scene(dest: str, graph: str = "wall_corner_shadow.yaml") -> str:

@@ -17,8 +17,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from serve_helpers import GRAPHS, REPO, running_server
-from test_serve_browser import ARGS, CHROMIUM
+from serve_helpers import GRAPHS, REPO, chromium_browser, running_server
 
 sys.path.insert(0, os.path.join(REPO, "benchmarks"))
 from serve_bench import photo_files  # noqa: E402
@@ -36,16 +35,8 @@ def keep(page, name):
 
 @pytest.fixture(scope="module")
 def browser():
-    if not os.path.exists(CHROMIUM):
-        if os.environ.get("CI"):
-            pytest.fail("Debian's chromium is missing: './setup.sh test' installs it")
-        pytest.skip("Debian's chromium is not installed ('./setup.sh test' installs it)")
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+    with chromium_browser() as b:
         yield b
-        b.close()
 
 
 def own_photo_copy(dest) -> str:

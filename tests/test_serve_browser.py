@@ -7,32 +7,20 @@ that the shadow moved; type a bad value and check the page shows the error.
 import base64
 import io
 import os
-import shutil
 
 import httpx
 import numpy as np
 import pytest
 from PIL import Image
 
-from serve_helpers import REPO, copy_scene, running_server
+from serve_helpers import REPO, chromium_browser, copy_scene, running_server
 
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 
 @pytest.fixture(scope="module")
 def browser():
-    if not os.path.exists(CHROMIUM):
-        if os.environ.get("CI"):
-            pytest.fail("Debian's chromium is missing: './setup.sh test' installs it")
-        pytest.skip("Debian's chromium is not installed ('./setup.sh test' installs it)")
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+    with chromium_browser() as b:
         yield b
-        b.close()
 
 
 @pytest.fixture(scope="module")
