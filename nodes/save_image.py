@@ -35,17 +35,24 @@ class SaveImage(Node):
         kind: str = param("auto", choices=["auto", "color", "data"],
                           doc="color: sRGB-encoded for PNG/TIFF/JPEG; data: the numbers; auto: 2-D arrays are data")
         white: float = param(1.0, min=1e-9, doc="data in integer files (PNG): the value stored as full white")
+        compression: int = param(-1, min=-1, max=9,
+                                 doc="PNG only: -1 fast (ISA-L deflate, as small as zlib level 6 on photos); "
+                                     "0-9 zlib's level (9: ~15 % smaller, ~100x slower)")
 
     class Outputs:
         path: T.Any = port(doc="absolute path of the file written")
 
-    impl_version = "2"
+    impl_version = "3"
     side_effects = True
 
     def compute(self, ctx, inputs, params):
         if not isinstance(inputs.image, np.ndarray):
             raise InputError(f"SaveImage writes arrays, got {type(inputs.image).__name__}")
         data = params.kind == "data" or (params.kind == "auto" and inputs.image.ndim == 2)
+        level = None if params.compression < 0 else params.compression
+        if level is not None and Path(params.path).suffix.lower() != ".png":
+            raise InputError(f"param 'compression' applies to PNG files only, not {Path(params.path).name}")
         if data:
-            return {"path": write_data(params.path, inputs.image, params.bit_depth or None, params.white)}
-        return {"path": write_image(params.path, inputs.image, bit_depth=params.bit_depth or None)}
+            return {"path": write_data(params.path, inputs.image, params.bit_depth or None, params.white, level)}
+        return {"path": write_image(params.path, inputs.image, bit_depth=params.bit_depth or None,
+                                    compression=level)}
