@@ -30,6 +30,9 @@ def add_arguments(p) -> None:
     ex.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster (e.g. tcp://host:8786)")
     p.add_argument("--threads", type=int, default=1, help="threads per worker process (default 1)")
     p.add_argument("--force", action="store_true", help="re-render rows whose outputs are already done")
+    p.add_argument("--no-overlap", action="store_true",
+                   help="write each row's files before the next row starts (default: on a writer thread while "
+                        "the next row computes; this holds one row's outputs in memory instead of two)")
     p.add_argument("--report", metavar="JSON", help="also write every row's result to this JSON file")
     p.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
     p.add_argument("--cache-bytes", type=_bytes, default=None, help="memory cache limit in bytes (per process)")
@@ -79,7 +82,7 @@ def cli_batch(args, session, shared_params: Mapping[str, Any], usage_error) -> i
                        max_rows=args.max_rows, max_manifest_bytes=args.max_manifest_bytes,
                        executor=executor, workers=workers, scheduler=args.scheduler, force=args.force,
                        progress=show, threads=args.threads, device=args.device,
-                       wait_lock=None if args.wait_lock < 0 else args.wait_lock)
+                       wait_lock=None if args.wait_lock < 0 else args.wait_lock, overlap=not args.no_overlap)
     except BatchError as e:
         raise usage_error(str(e)) from None
     if args.report:

@@ -45,6 +45,8 @@ class WorkerConfig:
     strict_paths: bool = False
     #: pid of the batch process a local worker must not outlive (None: a remote worker)
     parent_pid: int | None = None
+    #: write a row's files on a writer thread while the next row computes (``work.run_group``)
+    overlap: bool = True
 
 
 _WORKER: dict[str, Any] = {}
@@ -130,7 +132,7 @@ def worker_run_group(config: WorkerConfig, graph_file: str, items: Sequence[Item
                 if on_result is not None:
                     on_result(r)
             return results
-        return run_group(s, graph, items, force, on_result)
+        return run_group(s, graph, items, force, on_result, overlap=config.overlap)
 
 
 try:

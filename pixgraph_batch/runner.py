@@ -80,7 +80,8 @@ class BatchResult:
 def run_batch(session, graph: Graph | str | os.PathLike, items: Sequence[Item], executor: str = "inprocess",
               workers: int = 2, scheduler=None, force: bool = False, threads: int = 1,
               progress: bool = False, on_result: Callable[[ItemResult], None] | None = None,
-              device=None, wait_lock: float | None = 0.0, share: bool = True) -> BatchResult:
+              device=None, wait_lock: float | None = 0.0, share: bool = True,
+              overlap: bool = True) -> BatchResult:
     """Run ``items`` with one executor.
 
     The output folders are locked for the whole batch (another batch on one of them:
@@ -88,6 +89,9 @@ def run_batch(session, graph: Graph | str | os.PathLike, items: Sequence[Item], 
     it takes); leftover temporaries of the items' files are removed first.
     share: group items that differ only downstream and run each group in one
         session, its upstream results held in memory (``work.group_items``).
+    overlap: write each row's files on a writer thread while the next row of its
+        group computes (``work.run_group``); False writes them before the next row
+        starts (one row's outputs in memory at a time).
     """
     if executor not in EXECUTORS:
         raise BatchError(f"executor {executor!r}: choose one of {', '.join(EXECUTORS)}")
@@ -119,7 +123,7 @@ def run_batch(session, graph: Graph | str | os.PathLike, items: Sequence[Item], 
         try:
             if executor == "inprocess":
                 for group in groups:
-                    run_group(session, g, group, force, record, pin=share)
+                    run_group(session, g, group, force, record, pin=share, overlap=overlap)
                 n = 1
             else:
                 if device is None and isinstance(session.device_spec, str):
@@ -128,7 +132,7 @@ def run_batch(session, graph: Graph | str | os.PathLike, items: Sequence[Item], 
                                       disk_cache=session.disk.root if session.disk is not None else None,
                                       threads=threads, allow_paths=tuple(session.paths.roots),
                                       allow_files=tuple(sorted(session.paths.files)),
-                                      strict_paths=session.paths.strict)
+                                      strict_paths=session.paths.strict, overlap=overlap)
                 gfile = os.path.abspath(os.fspath(graph))
                 groups = split_groups(groups, workers)
                 if executor == "processes":
@@ -156,7 +160,7 @@ def batch(session, graph, rows: Iterable[Row | Mapping[str, Any]] | str | os.Pat
     ``(name, values)``); ``outputs`` is ``{name: template}``, a list of names, or
     None (every image output, ``template``); ``params`` apply to every row.
     ``run_kw`` go to ``run_batch`` (executor, workers, scheduler, force, threads,
-    progress, on_result, device, wait_lock, share). Bad input raises ``BatchError``
+    progress, on_result, device, wait_lock, share, overlap). Bad input raises ``BatchError``
     before anything runs; a failing row is reported in the result."""
     g = graph if isinstance(graph, Graph) else session.load(graph)
     if isinstance(rows, (str, os.PathLike)):

@@ -7,9 +7,18 @@ takes a whole group, runs its items one after the other in one ``Session``, and
 keeps the group's shared upstream results in memory for the whole group even
 when the memory cache's byte limit would evict them (a 20-megapixel photo's
 intermediates are hundreds of MB each).
+
+A row is computed (``compute_item``) and then written (``write_item``: files
+through temporaries renamed into place, then sidecars). In a group the writes run
+on one writer thread while the next row computes (encoding and compressing a
+20-megapixel PNG is most of a second of CPU that needs nothing from the next
+row): at most one write is in flight, so at most two rows' outputs are held; a
+row is reported when its sidecars are written, in the group's order; a failed
+write fails its row only; an interrupted group waits for the write in flight.
 """
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import os
 import socket
@@ -18,7 +27,7 @@ from typing import Any, Callable, Sequence
 
 from pixgraph import __version__
 from pixgraph.cache import MISS
-from pixgraph.events import NodeCached, NodeFinished
+from pixgraph.events import NodeCached, NodeFinished, NodeStarted
 from pixgraph.graph import Graph, GraphError, split_param
 from pixgraph.types import nbytes
 
@@ -124,7 +133,12 @@ class Pins:
     cache), the cache's byte limit is raised by its size while the group runs (so
     pins never crowd out the working set the limit was chosen for), and it is put
     back whenever the LRU evicted it, so the engine finds it in memory for every
-    later item of the group. ``clear`` lowers the limit again."""
+    later item of the group. While a shared node computes, the limit is lifted, so
+    that a result larger than the whole cache (a 20-megapixel placement under a
+    small ``--cache-bytes``) is stored and pinned too. ``clear`` lowers the limit again."""
+
+    #: added to the limit while a shared node computes
+    LIFT = 1 << 62
 
     def __init__(self, session, shared: set[str]):
         self.session = session
@@ -132,9 +146,11 @@ class Pins:
         self.values: dict[str, Any] = {}
         self.extra_bytes = 0
         self._keys: dict[str, str] = {}
+        self._lifted: set[str] = set()
 
     def watch(self, plan) -> None:
         """The plan of the item about to run (its node keys)."""
+        self._unlift()  # a node of the last item that failed before it finished
         self._keys = {nid: plan.keys[nid] for nid in self.shared if nid in plan.keys}
 
     def restore(self) -> None:
@@ -144,37 +160,77 @@ class Pins:
                 memory.put(key, value)
 
     def on_event(self, event) -> None:
-        key = self._keys.get(getattr(event, "node_id", None))
-        if key is not None and key not in self.values and isinstance(event, (NodeFinished, NodeCached)):
-            value = self.session.memory.get(key)
-            if value is not MISS:  # (a result larger than the whole cache was never stored)
-                self.values[key] = value
-                size = nbytes(value)
-                self.extra_bytes += size
-                self.session.memory.limit_bytes += size
-        if isinstance(event, NodeFinished) and self.values:
-            self.restore()  # this node's store may have evicted a pinned entry
+        nid = getattr(event, "node_id", None)
+        key = self._keys.get(nid)
+        memory = self.session.memory
+        if key is not None and key not in self.values:
+            if isinstance(event, NodeStarted) and nid not in self._lifted:
+                self._lifted.add(nid)
+                memory.limit_bytes += self.LIFT
+            elif isinstance(event, (NodeFinished, NodeCached)):
+                value = memory.get(key)
+                if value is not MISS:  # (not stored: a failed store, e.g. a node marked tainted)
+                    self.values[key] = value
+                    size = nbytes(value)
+                    self.extra_bytes += size
+                    memory.limit_bytes += size
+        if isinstance(event, NodeFinished):
+            if nid in self._lifted:
+                self._lifted.discard(nid)
+                memory.limit_bytes -= self.LIFT
+            if self.values:
+                self.restore()  # this node's store may have evicted a pinned entry
+
+    def _unlift(self) -> None:
+        self.session.memory.limit_bytes -= self.LIFT * len(self._lifted)
+        self._lifted.clear()
 
     def clear(self) -> None:
+        self._unlift()
         self.values.clear()
         self.session.memory.limit_bytes -= self.extra_bytes
         self.extra_bytes = 0
 
 
 def run_group(session, graph: Graph, items: Sequence[Item], force: bool = False,
-              on_result: Callable[[ItemResult], None] | None = None, pin: bool = True) -> list[ItemResult]:
-    """Run a group's items in order in one session, sharing their upstream results."""
+              on_result: Callable[[ItemResult], None] | None = None, pin: bool = True,
+              overlap: bool = True) -> list[ItemResult]:
+    """Run a group's items in order in one session, sharing their upstream results;
+    with ``overlap`` each row's files are written on a writer thread while the next
+    row computes (see the module)."""
     shared = shared_nodes(graph, items) if pin else set()
     pins = Pins(session, shared)
     out = []
+    writer = (concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="pixgraph-batch-writer")
+              if overlap and len(items) > 1 else None)
+    pending = None  # the previous row's write
+
+    def report(r: ItemResult) -> None:
+        out.append(r)
+        if on_result is not None:
+            on_result(r)
+
     try:
         for item in items:
             pins.restore()
-            r = run_item(session, graph, item, force, pins=pins if shared else None)
-            out.append(r)
-            if on_result is not None:
-                on_result(r)
+            r = compute_item(session, graph, item, force, pins=pins if shared else None)
+            if pending is not None:  # one write in flight at most: wait for the previous row's
+                report(pending.result())
+                pending = None
+            if isinstance(r, ItemResult):  # skipped or failed: nothing to write
+                report(r)
+            elif writer is None:
+                report(write_item(session, r))
+            else:
+                pending = writer.submit(write_item, session, r)
+        if pending is not None:
+            report(pending.result())
+            pending = None
     finally:
+        if writer is not None:
+            if pending is not None:  # interrupted: the write in flight finishes or removes its temporary
+                concurrent.futures.wait([pending])
+            writer.shutdown(wait=True)
         pins.clear()
     return out
 
@@ -182,9 +238,29 @@ def run_group(session, graph: Graph, items: Sequence[Item], force: bool = False,
 # -- one item ----------------------------------------------------------------------------
 
 
+@dataclasses.dataclass
+class Rendered:
+    """A row computed and not yet written: what ``write_item`` needs."""
+    item: Item
+    graph: Graph
+    plan: Any
+    result: Any
+    keys: dict[str, str]
+    seconds: float
+    worker: str
+
+
 def run_item(session, graph: Graph, item: Item, force: bool = False, pins: Pins | None = None) -> ItemResult:
     """Plan ``item``; skip it when every output is done, else run it and write its
     files and sidecars. Never raises for a failure of the row: it is returned."""
+    r = compute_item(session, graph, item, force, pins)
+    return r if isinstance(r, ItemResult) else write_item(session, r)
+
+
+def compute_item(session, graph: Graph, item: Item, force: bool = False,
+                 pins: Pins | None = None) -> ItemResult | Rendered:
+    """Plan ``item`` and run it: a ``Rendered`` to write, or the row's ``ItemResult``
+    when it is skipped (every output done) or failed. Never raises for a failure of the row."""
     t0 = time.perf_counter()
     worker = worker_name()
     try:
@@ -199,23 +275,38 @@ def run_item(session, graph: Graph, item: Item, force: bool = False, pins: Pins 
         if pins is not None:
             pins.watch(plan)
         res = session.run_plan(plan, on_event=pins.on_event if pins is not None else None)
+        return Rendered(item, g, plan, res, keys, time.perf_counter() - t0, worker)
+    except Exception as e:  # one row's failure is reported, the batch goes on
+        return failed(item, _message(e), time.perf_counter() - t0, worker)
+
+
+def write_item(session, rendered: Rendered) -> ItemResult:
+    """Write a computed row's files (temporary + rename) and then their sidecars;
+    the row's seconds are its compute plus its write. Never raises for a failure of the row."""
+    t0 = time.perf_counter()
+    item, g = rendered.item, rendered.graph
+    try:
         folders = {}
         try:  # each output's folder held open from its image to its sidecar (no symlink swapped in between)
             digests = {}
             for name, path in item.outputs.items():
                 folders[name] = open_folder(path)[0]
-                digests[name] = _write_output(session, g, name, res.outputs[name], path, folders[name])
-            seconds = time.perf_counter() - t0
+                digests[name] = _write_output(session, g, name, rendered.result.outputs[name], path, folders[name])
+            seconds = rendered.seconds + time.perf_counter() - t0
             for name, path in item.outputs.items():
-                write_json_atomic(sidecar_path(path), sidecar(session, g, plan, res, item, name, keys[name],
-                                                                  digests[name], seconds), folders[name])
+                write_json_atomic(sidecar_path(path), sidecar(session, g, rendered.plan, rendered.result, item,
+                                                              name, rendered.keys[name], digests[name], seconds),
+                                  folders[name])
         finally:
             for folder in folders.values():
                 folder.close()
-        return ItemResult(item.index, item.row, "done", dict(item.outputs), seconds, worker=worker)
-    except Exception as e:  # one row's failure is reported, the batch goes on
-        msg = str(e) if isinstance(e, (GraphError, BatchError)) else f"{type(e).__name__}: {e}"
-        return failed(item, msg, time.perf_counter() - t0, worker)
+        return ItemResult(item.index, item.row, "done", dict(item.outputs), seconds, worker=rendered.worker)
+    except Exception as e:
+        return failed(item, _message(e), rendered.seconds + time.perf_counter() - t0, rendered.worker)
+
+
+def _message(e: Exception) -> str:
+    return str(e) if isinstance(e, (GraphError, BatchError)) else f"{type(e).__name__}: {e}"
 
 
 def _check_outputs(session, graph: Graph, item: Item) -> None:

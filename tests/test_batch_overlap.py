@@ -1,0 +1,142 @@
+"""A batch writes a row's files on a writer thread while the next row computes
+(pixgraph_batch.work.run_group): same files and sidecars as writing in line, one
+write in flight at most, results reported in order, a failed write fails its row
+only, an interrupt leaves no temporary; and on the own-photo graph (load, place,
+heights) the rows of a light sweep compute the upstream once."""
+import json
+import os
+import threading
+
+import numpy as np
+import pytest
+
+import pixgraph_batch.work as W
+from pixgraph.session import Session
+from pixgraph_batch import batch
+from test_batch import scene  # noqa: F401 - the fixture: a 64x64 photo, five cutouts, g.yaml
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+AZ = [-60, -30, 0, 30, 60]
+
+
+def _sweep(scene, out, **kw):
+    return batch(Session(), scene / "g.yaml", sweeps=[("light.azimuth", AZ)],
+                 outputs={"final": str(out / "{index}.png"), "shadow": str(out / "{index}_s.exr")}, **kw)
+
+
+def test_overlapped_writes_give_the_files_of_inline_writes(scene, tmp_path):
+    a = _sweep(scene, tmp_path / "a")
+    b = _sweep(scene, tmp_path / "b", overlap=False)
+    assert [r.status for r in a.results] == [r.status for r in b.results] == ["done"] * 5
+    for i in range(5):
+        for name in (f"{i}.png", f"{i}_s.exr"):
+            assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+            ma, mb = (json.loads((tmp_path / d / f"{name}.json").read_text()) for d in "ab")
+            assert ma["file_sha256"] == mb["file_sha256"] and ma["content_key"] != mb["content_key"]
+            assert ma["ran"] == mb["ran"] and ma["seconds"] > 0
+    # resume: every row of the overlapped batch is done
+    again = _sweep(scene, tmp_path / "a")
+    assert [r.status for r in again.results] == ["skipped"] * 5
+    assert not [n for n in os.listdir(tmp_path / "a") if ".tmp" in n]
+
+
+def test_a_row_is_written_while_the_next_computes_one_write_at_a_time(scene, tmp_path, monkeypatch):
+    """Row k's write waits (without a timeout that matters) until row k+1's compute has
+    started: only a writer thread can see that; never two writes at once; results in order."""
+    started = {}  # row index -> Event set when its compute starts
+    lock = threading.Lock()
+    state = {"writing": 0, "most": 0, "threads": set()}
+    real_compute, real_write = W.compute_item, W._write_output
+
+    def compute(session, graph, item, *a, **kw):
+        started.setdefault(item.index, threading.Event()).set()
+        return real_compute(session, graph, item, *a, **kw)
+
+    def write(session, graph, name, value, path, folder):
+        idx = int(os.path.basename(path).split(".")[0].split("_")[0])
+        with lock:
+            state["writing"] += 1
+            state["most"] = max(state["most"], state["writing"])
+            state["threads"].add(threading.get_ident())
+        try:
+            if idx + 1 < len(AZ) and name == "final":
+                nxt = started.setdefault(idx + 1, threading.Event())
+                assert nxt.wait(60), f"row {idx + 1} did not start while row {idx} was being written"
+            return real_write(session, graph, name, value, path, folder)
+        finally:
+            with lock:
+                state["writing"] -= 1
+
+    monkeypatch.setattr(W, "compute_item", compute)
+    monkeypatch.setattr(W, "_write_output", write)
+    order = []
+    res = _sweep(scene, tmp_path / "o", on_result=lambda r: order.append(r.index))
+    assert [r.status for r in res.results] == ["done"] * 5, res.table()
+    assert order == list(range(5))
+    assert state["most"] == 1
+    assert threading.get_ident() not in state["threads"]  # written on the writer thread
+
+
+def test_a_failed_write_fails_its_row_only(scene, tmp_path):
+    out = tmp_path / "f"
+    (out / "2.png").mkdir(parents=True)  # a folder where row 2's image goes: its rename fails
+    res = _sweep(scene, out)
+    assert [r.status for r in res.results] == ["done", "done", "failed", "done", "done"]
+    assert "2.png" in res.results[2].error
+    assert not (out / "2.png.json").exists() and (out / "3.png.json").exists()
+    assert not [n for n in os.listdir(out) if ".tmp" in n]
+
+
+def test_an_interrupt_waits_for_the_write_in_flight_and_leaves_no_temporary(scene, tmp_path, monkeypatch):
+    real_run = Session.run_plan
+    calls = []
+
+    def run_plan(self, plan, *a, **kw):
+        calls.append(1)
+        if len(calls) == 3:  # row 2 computes while row 1 is written
+            raise KeyboardInterrupt
+        return real_run(self, plan, *a, **kw)
+
+    monkeypatch.setattr(Session, "run_plan", run_plan)
+    done = []
+    with pytest.raises(KeyboardInterrupt):
+        _sweep(scene, tmp_path / "k", on_result=done.append)
+    names = os.listdir(tmp_path / "k")
+    assert not [n for n in names if ".tmp" in n], names
+    assert [r.index for r in done] == [0]  # row 1's write was in flight: finished, not reported
+    for i in (0, 1):  # both complete: image and sidecar agree
+        meta = json.loads((tmp_path / "k" / f"{i}.png.json").read_text())
+        from pixgraph_batch.files import file_sha256
+        assert meta["file_sha256"] == file_sha256(str(tmp_path / "k" / f"{i}.png"))
+    monkeypatch.setattr(Session, "run_plan", real_run)
+    again = _sweep(scene, tmp_path / "k")
+    assert [r.status for r in again.results] == ["skipped", "skipped", "done", "done", "done"]
+
+
+@pytest.mark.parametrize("cache_bytes", [None, 1 << 20])
+def test_own_photo_sweep_computes_the_upstream_once(tmp_path, cache_bytes):
+    """graphs/own_photo.yaml (photo 640x480, cutout placed, wall junction): six light
+    azimuths in one batch compute the photo and cutout loads, the camera, both heights
+    and the placement once (the first row) and only light -> shadow -> composite in
+    every other row, also when the memory cache (1 MiB) cannot hold one 640x480
+    intermediate: the group's pins keep them. Pixels equal single runs."""
+    out = tmp_path / "out"
+    az = [-60, -36, -12, 12, 36, 60]
+    s = Session(cache_bytes=cache_bytes) if cache_bytes else Session()
+    graph = os.path.join(ROOT, "graphs", "own_photo.yaml")
+    res = batch(s, graph, sweeps=[("light.azimuth", az)], params={"shadow.samples": 8},
+                outputs={"final": str(out / "{index}.png")})
+    assert res.count("done") == 6 and res.groups == 1, res.table()
+    ran = [json.loads((out / f"{i}.png.json").read_text())["ran"] for i in range(6)]
+    upstream = ["cutout", "photo", "cam", "fg_h", "place", "bg_h"]
+    counts = {n: sum(n in r for r in ran) for n in upstream}
+    assert counts == {n: 1 for n in upstream}, counts
+    assert set(ran[0]) >= set(upstream)
+    assert all(set(r) == {"light", "shadow", "comp"} for r in ran[1:]), ran
+    for i in (0, 5):
+        single = Session().run(graph, outputs=["final"], params={"light.azimuth": az[i], "shadow.samples": 8})
+        path = tmp_path / f"single{i}.png"
+        from pixgraph_nodes.ops.imageio import write_image
+        write_image(path, single["final"])
+        assert path.read_bytes() == (out / f"{i}.png").read_bytes()
+    assert np.isfinite(s.memory.limit_bytes)
