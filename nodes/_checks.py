@@ -8,6 +8,7 @@ user's data, so both are ``InputError`` (exit 2) naming the input.
 from __future__ import annotations
 
 import os
+import weakref
 
 import numpy as np
 
@@ -75,11 +76,40 @@ def rgba(**images) -> None:
             raise InputError(f"input {name!r} must be RGBA (4 channels, its alpha is the coverage), got {got}")
 
 
+#: (check, id of a frozen array) -> weak reference to that array, for arrays that passed
+_PASSED: dict[tuple[str, int], weakref.ref] = {}
+
+
+def _frozen(a) -> bool:
+    """True when no one can write ``a``'s numbers: it and every array it views are
+    read-only (the engine freezes every node output it hands on)."""
+    while isinstance(a, np.ndarray):
+        if a.flags.writeable:
+            return False
+        a = a.base
+    return a is None
+
+
+def _passed(check: str, a) -> bool:
+    """``a`` is a frozen array that already passed ``check``: a batch's later rows feed
+    the same upstream arrays (a 20-megapixel photo, its heights) to every row's nodes,
+    whose checks need not read them again."""
+    ref = _PASSED.get((check, id(a)))
+    return ref is not None and ref() is a and _frozen(a)
+
+
+def _remember(check: str, a) -> None:
+    if isinstance(a, np.ndarray) and _frozen(a):
+        key = (check, id(a))
+        _PASSED[key] = weakref.ref(a, lambda _, key=key: _PASSED.pop(key, None))
+
+
 def finite(**arrays) -> None:
     """Raise ``InputError`` naming the first array that holds NaN or inf (colours,
-    masks, layers: a NaN pixel would spread through every effect to the output)."""
+    masks, layers: a NaN pixel would spread through every effect to the output).
+    A frozen array that passed before is not read again."""
     for name, a in arrays.items():
-        if a is None:
+        if a is None or _passed("finite", a):
             continue
         bad = ~np.isfinite(np.asarray(a))
         n = int(np.count_nonzero(bad))
@@ -87,6 +117,7 @@ def finite(**arrays) -> None:
             i, j = np.unravel_index(int(np.argmax(bad.reshape(bad.shape[0], bad.shape[1], -1).any(-1))),
                                     bad.shape[:2])
             raise InputError(f"input {name!r}: {n} value(s) NaN or infinite (first at pixel u={j}, v={i})")
+        _remember("finite", a)
 
 
 def pixel_heights(where=None, **maps) -> None:
@@ -96,14 +127,18 @@ def pixel_heights(where=None, **maps) -> None:
     ground: NaN, infinite or negative values (a point below the ground) are
     impossible and would make the tracers' results meaningless. ``where``: a
     boolean (H, W) of the pixels that matter (e.g. the cutout's mask: its height
-    map is unused outside it); default all.
+    map is unused outside it); default all. A frozen map that was valid everywhere
+    before is not read again.
     """
     for name, h in maps.items():
-        if h is None:
+        if h is None or _passed("pixel_heights", h):
             continue
         h = np.asarray(h)
         finite = np.isfinite(h)
         bad = ~finite | (np.where(finite, h, 0.0) < 0.0)
+        if not bad.any():
+            _remember("pixel_heights", h)  # valid everywhere: valid under any ``where``
+            continue
         if where is not None:
             bad &= where
         n = int(np.count_nonzero(bad))

@@ -140,3 +140,48 @@ def test_own_photo_sweep_computes_the_upstream_once(tmp_path, cache_bytes):
         write_image(path, single["final"])
         assert path.read_bytes() == (out / f"{i}.png").read_bytes()
     assert np.isfinite(s.memory.limit_bytes)
+
+
+# -- per-row work: checks of the same frozen upstream arrays are not repeated ---------------------
+
+
+def test_checks_skip_frozen_arrays_that_passed_and_only_those():
+    from pixgraph.node import InputError
+    from pixgraph_nodes import _checks as C
+
+    a = np.ones((64, 48), np.float32)
+    C.finite(a=a)
+    assert not C._passed("finite", a)  # writable: anyone may change it, checked every time
+    a.flags.writeable = False
+    C.finite(a=a)
+    assert C._passed("finite", a)
+    a.flags.writeable = True  # thawed by its owner and changed: checked again, the NaN found
+    a[3, 5] = np.nan
+    with pytest.raises(InputError, match="u=5, v=3"):
+        C.finite(a=a)
+    # a read-only view of a writable array is not frozen
+    base = np.zeros((8, 8), np.float32)
+    view = base[:4]
+    view.flags.writeable = False
+    C.finite(v=view)
+    assert not C._passed("finite", view)
+    base[0, 0] = np.inf
+    with pytest.raises(InputError, match="'v'"):
+        C.finite(v=view)
+    # pixel heights: remembered only when valid everywhere, so any later ``where`` holds
+    h = np.full((16, 16), 3.0, np.float32)
+    h[0, 0] = -1.0  # outside the cutout: fine under this where, not remembered
+    h.flags.writeable = False
+    where = np.zeros((16, 16), bool)
+    where[4:, 4:] = True
+    C.pixel_heights(where, fg_height=h)
+    assert not C._passed("pixel_heights", h)
+    with pytest.raises(InputError, match="negative"):
+        C.pixel_heights(fg_height=h)
+    g = np.full((16, 16), 2.0, np.float32)
+    g.flags.writeable = False
+    C.pixel_heights(bg_height=g)
+    assert C._passed("pixel_heights", g)
+    key = ("pixel_heights", id(g))
+    del g  # forgotten with the array: a new array at the same address is checked
+    assert key not in C._PASSED
