@@ -40,6 +40,17 @@ def test_overlapped_writes_give_the_files_of_inline_writes(scene, tmp_path):
     assert not [n for n in os.listdir(tmp_path / "a") if ".tmp" in n]
 
 
+def test_cli_no_overlap_writes_the_same_files(scene, tmp_path, capsys):
+    from pixgraph.cli import main
+
+    for d, extra in (("a", []), ("b", ["--no-overlap"])):
+        rc = main(["batch", str(scene / "g.yaml"), "--no-disk-cache", "--sweep", "light.azimuth=-40,0,40",
+                   "-o", f"final={tmp_path / d}/{{index}}.png", *extra])
+        assert rc == 0, capsys.readouterr()
+    for i in range(3):
+        assert (tmp_path / "a" / f"{i}.png").read_bytes() == (tmp_path / "b" / f"{i}.png").read_bytes()
+
+
 def test_a_row_is_written_while_the_next_computes_one_write_at_a_time(scene, tmp_path, monkeypatch):
     """Row k's write waits (without a timeout that matters) until row k+1's compute has
     started: only a writer thread can see that; never two writes at once; results in order."""
