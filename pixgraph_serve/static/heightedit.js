@@ -1,0 +1,114 @@
+// The hand edit of the cutout's pixel height (a node declaring handles of kind
+// "height_edit", e.g. pixgraph.PixelHeightEdit), drawn over the placed cutout:
+//   contact points (orange): where the object touches the ground, in the cutout's
+//     pixels mapped to the image by the scene's `frame`; with none, one hollow
+//     handle at the cutout's foot (drag it to make it a contact point);
+//     "+ contact" then a click on the image adds one, "- contact" removes the last;
+//   tilt (orange diamond): the ground point under the object's top; dragged down
+//     the object stands taller, up it leans back (tilt, about the contact);
+//   "lying down" and "upright" (contact_mode) toggles in the toolbar.
+// The shadow follows every drag through the page's preview renders.
+"use strict";
+
+import {$} from "./app.js";
+import {extraHandles, handle, round, svgEl} from "./handles.js";
+import {finalize, ui} from "./render.js";
+import {eventToImage, toScreen} from "./view.js";
+
+let adding = false;
+
+const edit = () => ui.scene && ui.scene.height_edit;
+const param = (e, name, value) => ({params: {[`${e.id}.${e.params[name]}`]: value}});
+
+// cutout pixels <-> image pixels through the placement's similarity [sx, tx, sy, ty]
+const toCanvas = (e, [x, y]) => [e.frame[0] * x + e.frame[1], e.frame[2] * y + e.frame[3]];
+function toCutout(e, [u, v]) {
+  const [w, h] = e.size;
+  const x = (u - e.frame[1]) / e.frame[0], y = (v - e.frame[3]) / e.frame[2];
+  return [round(Math.min(w, Math.max(0, x))), round(Math.min(h, Math.max(0, y)))];
+}
+
+function pairs(flat) {
+  const out = [];
+  for (let i = 0; i + 1 < flat.length; i += 2) out.push([flat[i], flat[i + 1]]);
+  return out;
+}
+
+// The tilt [deg] that gives the top (height h0 before tilt) the height `target` [cutout px]:
+// tan(tilt) = (h0 / (target - lift) - 1) / tan(elevation) (pixgraph_nodes.ops.height_edit.tilt_for_height).
+function tiltFor(h0, target, lift, elevation) {
+  const ta = Math.tan(elevation * Math.PI / 180), want = target - lift;
+  if (h0 <= 0 || ta < 1e-9) return 0;
+  if (want <= 1e-6) return 80;
+  return round(Math.min(80, Math.max(-80, Math.atan((h0 / want - 1) / ta) * 180 / Math.PI)), 2);
+}
+
+function drawHeightEdit(s) {
+  const e = s.height_edit;
+  if (!e) return;
+  const vals = e.values;
+  const pts = pairs(vals.points || []);
+  const lying = !!vals.lying;
+  if (pts.length > 1) {
+    const line = [...pts].sort((a, b) => a[0] - b[0]).map((p) => toScreen(...toCanvas(e, p)).join(","));
+    svgEl("polyline", {class: `guide contact${lying ? " off" : ""}`, points: line.join(" ")});
+  }
+  if (pts.length === 0) {
+    const el = handle("contact ghost", "contact-0", toCanvas(e, e.foot), (p) =>
+      ({edits: param(e, "points", toCutout(e, p)), at: p}));
+    el.setAttribute("title", "the cutout's foot: drag to set where it touches the ground");
+  }
+  pts.forEach((pt, i) => {
+    const el = handle(`contact${lying ? " off" : ""}`, `contact-${i}`, toCanvas(e, pt), (p) => {
+      const next = (vals.points || []).slice();
+      [next[2 * i], next[2 * i + 1]] = toCutout(e, p);
+      return {edits: param(e, "points", next), at: p};
+    });
+    el.setAttribute("title", "a contact point: where the object touches the ground");
+  });
+  if (e.top && !lying) {
+    const [tu, tv, h, h0] = e.top;
+    const top = toCanvas(e, [tu, tv]), ground = toCanvas(e, [tu, tv + h]);
+    const guide = svgEl("line", {class: "guide tilt", x1: toScreen(...top)[0], y1: toScreen(...top)[1],
+                                 x2: toScreen(...ground)[0], y2: toScreen(...ground)[1]});
+    const el = handle("tilt", "tilt-handle", ground, ([, v]) => {
+      const target = (v - top[1]) / e.frame[2];        // the top's new height [cutout px]
+      const [, y2] = toScreen(top[0], v);
+      guide.setAttribute("y2", y2);
+      return {edits: param(e, "tilt", tiltFor(h0, target, vals.lift || 0, vals.elevation)), at: [top[0], v]};
+    }, "rect");
+    el.setAttribute("title", "the ground under the object's top: drag down = taller, up = leaning back");
+  }
+}
+
+export function syncHeightTools() {
+  const e = edit();
+  $("height-tools").hidden = !e;
+  if (!e) return;
+  $("lying").checked = !!e.values.lying;
+  $("upright").checked = e.values.mode === "upright";
+  $("remove-contact").disabled = !(e.values.points || []).length;
+  $("add-contact").classList.toggle("on", adding);
+}
+
+export function wireHeightTools() {
+  extraHandles.push(drawHeightEdit);
+  $("lying").addEventListener("change", () => finalize(param(edit(), "lying", $("lying").checked)));
+  $("upright").addEventListener("change", () =>
+    finalize(param(edit(), "mode", $("upright").checked ? "upright" : "shift")));
+  $("remove-contact").addEventListener("click", () => {
+    const e = edit();
+    finalize(param(e, "points", (e.values.points || []).slice(0, -2)));
+  });
+  $("add-contact").addEventListener("click", () => { adding = !adding; syncHeightTools(); });
+  // armed by "+ contact": the next press on the image adds a contact point there
+  $("handles").addEventListener("pointerdown", (ev) => {
+    const e = edit();
+    if (!adding || !e) return;
+    ev.preventDefault();
+    ev.stopPropagation();
+    adding = false;
+    syncHeightTools();
+    finalize(param(e, "points", [...(e.values.points || []), ...toCutout(e, eventToImage(ev))]));
+  }, true);
+}
