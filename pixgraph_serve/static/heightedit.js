@@ -4,8 +4,9 @@
 //     pixels mapped to the image by the scene's `frame`; with none, one hollow
 //     handle at the cutout's foot (drag it to make it a contact point);
 //     "+ contact" then a click on the image adds one, "- contact" removes the last;
-//   tilt (orange diamond): the ground point under the object's top; dragged down
-//     the object stands taller, up it leans back (tilt, about the contact);
+//   tilt (orange square): on the object's top, a guide down to the ground under it;
+//     pulled up the object stands taller, pushed down it leans back (tilt, about the
+//     contact);
 //   "lying down" and "upright" (contact_mode) toggles in the toolbar.
 // The shadow follows every drag through the page's preview renders.
 "use strict";
@@ -67,17 +68,19 @@ function drawHeightEdit(s) {
     el.setAttribute("title", "a contact point: where the object touches the ground");
   });
   if (e.top && !lying) {
+    // the tilt handle on the object's top, a guide down to the ground under it: pulled up
+    // the object stands taller (leans toward the camera), pushed down shorter (leans back)
     const [tu, tv, h, h0] = e.top;
-    const top = toCanvas(e, [tu, tv]), ground = toCanvas(e, [tu, tv + h]);
-    const guide = svgEl("line", {class: "guide tilt", x1: toScreen(...top)[0], y1: toScreen(...top)[1],
-                                 x2: toScreen(...ground)[0], y2: toScreen(...ground)[1]});
-    const el = handle("tilt", "tilt-handle", ground, ([, v]) => {
-      const target = (v - top[1]) / e.frame[2];        // the top's new height [cutout px]
-      const [, y2] = toScreen(top[0], v);
-      guide.setAttribute("y2", y2);
+    const top = toCanvas(e, [tu, tv]);
+    const foot = (hh) => toScreen(...toCanvas(e, [tu, tv + hh]));
+    const [x1, y1] = toScreen(...top), [x2, y2] = foot(h);
+    const guide = svgEl("line", {class: "guide tilt", x1, y1, x2, y2});
+    const el = handle("tilt", "tilt-handle", top, ([, v], start) => {
+      const target = h + (start[1] - v) / e.frame[2];    // the top's new height [cutout px]
+      guide.setAttribute("y2", foot(target)[1]);
       return {edits: param(e, "tilt", tiltFor(h0, target, vals.lift || 0, vals.elevation)), at: [top[0], v]};
     }, "rect");
-    el.setAttribute("title", "the ground under the object's top: drag down = taller, up = leaning back");
+    el.setAttribute("title", "the object's top: drag up = taller (leaning forward), down = shorter (leaning back)");
   }
 }
 

@@ -19,6 +19,7 @@ export const ui = {
 };
 
 window.pixgraphShown = [];   // what was displayed, for tests and timing
+window.pixgraphQueue = () => ({inflight: ui.inflight, pending: !!ui.pending, drag: !!ui.drag});
 
 // The integer downscale that still gives at least one image pixel per screen pixel.
 function screenScale() {
