@@ -269,7 +269,11 @@ def photo_browser(url: str, steps: int) -> list[float]:
         page.mouse.up()
         shown = page.evaluate(f"window.pixgraphShown.slice({n0})")
         b.close()
-        return [s["ms"] / 1000 for s in shown if s["mode"] == "preview"]
+        if os.environ.get("PIXGRAPH_BENCH_VERBOSE"):
+            for s in shown:
+                print(f"  {s['mode']} {s['width']}x{s['height']}: {s['ms']} ms drawn, {s['server_ms']:.0f} ms in "
+                      f"the server; ran {s.get('ran')}", flush=True)
+        return [s["ms"] / 1000 for s in shown if s["mode"] == "preview" and s.get("kind", "move") == "move"]
 
 
 def ms(xs) -> str:

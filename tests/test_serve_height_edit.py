@@ -168,3 +168,40 @@ def test_contact_points_move_the_shadow_and_save_and_load_back(photo_state):
     vals = {n["id"]: n["values"] for n in again.info()["nodes"]}["edit"]
     assert vals["contact_points"] == [fx, fy - 60.0] and vals["tilt"] == 15.0
     assert np.array_equal(again.run(["shadow.darkness"])["shadow.darkness"], after)
+
+
+# -- previews: their own cache, JPEG ------------------------------------------------------------
+
+def test_scaled_previews_keep_their_upstream_when_a_final_evicts_everything(photo_state):
+    """A full-size final cannot push a preview's upstream out: the previews' session has its
+    own memory cache (here the full-size one holds nothing at all)."""
+    state = photo_state
+    state.session.memory.limit_bytes = 0
+    state.session.memory.clear()
+    serve_app.apply_edits(state, {"params": {"light.azimuth": -20}})
+    first = state.run(["final"], "preview", scale=0.5)
+    assert "photo" in first.ran and first["final"].shape[:2] == (240, 320)
+    state.run(["final"], "final")                                  # a final at full size in between
+    serve_app.apply_edits(state, {"params": {"light.azimuth": -25}})
+    again = state.run(["final"], "preview", scale=0.5)
+    assert set(again.ran) == {"light", "shadow", "comp"}, again.ran
+    assert state.session_for(0.5) is not state.session and state.session_for(1.0) is state.session
+
+
+def test_render_answers_a_jpeg_preview(photo_state):
+    import io
+
+    from PIL import Image
+    from starlette.testclient import TestClient
+
+    with TestClient(serve_app.create_app(photo_state)) as c:
+        r = c.post("/api/render", json={"mode": "preview", "scale": 1, "work": 0.5, "format": "jpeg",
+                                        "params": {"light.azimuth": -28}})
+        assert r.status_code == 200 and r.headers["content-type"] == "image/jpeg"
+        img = Image.open(io.BytesIO(r.content))
+        assert img.format == "JPEG" and img.size == (320, 240)
+        png = c.post("/api/render", json={"mode": "preview", "scale": 1, "work": 0.5})
+        ref = np.asarray(Image.open(io.BytesIO(png.content)).convert("RGB"), np.float32)
+        assert np.abs(np.asarray(img, np.float32) - ref).mean() < 3.0      # the same picture, lossy
+        bad = c.post("/api/render", json={"mode": "preview", "format": "gif"})
+        assert bad.status_code == 400 and "format" in bad.json()["error"]
