@@ -61,7 +61,7 @@ def test_drag_the_cutouts_contact_and_tilt_in_the_page(browser, tmp_path):
         assert page.locator("#height-tools").is_visible()
         check_handles_visible(page)
         # the hollow contact handle sits on the cutout's foot, the tilt handle on its top
-        for sel, (u, v) in {"#contact-0": scene["place"]["foot"],
+        for sel, (u, v) in {"#contact-new": scene["place"]["foot"],
                             "#tilt-handle": to_canvas(e, e["top"][0], e["top"][1])}.items():
             b = page.locator(sel).bounding_box()
             assert 12 <= b["width"] <= 20, (sel, b)
@@ -86,7 +86,7 @@ def test_drag_the_cutouts_contact_and_tilt_in_the_page(browser, tmp_path):
         col = cols[np.argmin(np.abs(cols + 0.5 - fu))]      # on the figure (a leg), nearest the foot
         target = (col + 0.5, fv - 70)
         seq = last_seq(page)
-        page.mouse.move(*centre(page, "#contact-0"))
+        page.mouse.move(*centre(page, "#contact-new"))
         page.mouse.down()
         page.mouse.move(*screen(page, *target), steps=6)
         page.wait_for_function(f"window.pixgraphShown.some(s => s.mode === 'preview' && s.seq > {seq})",
@@ -120,6 +120,14 @@ def test_drag_the_cutouts_contact_and_tilt_in_the_page(browser, tmp_path):
         assert len(pts2) == 4 and pts2[:2] == pts
         assert pts2[2:] == pytest.approx(list(to_cutout(e, fu + 20, fv - 5)), abs=1.0 / k + 0.2)
         assert page.locator("#contact-1").is_visible()
+        # a drag from the foot's hollow handle adds a third; "- contact" takes it away again
+        drag(page, centre(page, "#contact-new"), screen(page, fu - 15, fv - 3))
+        pts3 = graph_params(url)["edit"]["contact_points"]
+        assert len(pts3) == 6 and pts3[:4] == pts2
+        assert pts3[4:] == pytest.approx(list(to_cutout(e, fu - 15, fv - 3)), abs=1.0 / k + 0.2)
+        seq = last_seq(page)
+        page.click("#remove-contact")
+        wait_final(page, seq)
         seq = last_seq(page)
         page.click("#remove-contact")
         wait_final(page, seq)

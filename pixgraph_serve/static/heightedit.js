@@ -1,9 +1,9 @@
 // The hand edit of the cutout's pixel height (a node declaring handles of kind
 // "height_edit", e.g. pixgraph.PixelHeightEdit), drawn over the placed cutout:
 //   contact points (orange): where the object touches the ground, in the cutout's
-//     pixels mapped to the image by the scene's `frame`; with none, one hollow
-//     handle at the cutout's foot (drag it to make it a contact point);
-//     "+ contact" then a click on the image adds one, "- contact" removes the last;
+//     pixels mapped to the image by the scene's `frame`; a drag from the hollow
+//     handle at the cutout's foot adds one (or "+ contact", then a press on the
+//     image), "- contact" removes the last; each point is dragged on its own;
 //   tilt (orange square): on the object's top, a guide down to the ground under it;
 //     pulled up the object stands taller, pushed down it leans back (tilt, about the
 //     contact);
@@ -54,10 +54,12 @@ function drawHeightEdit(s) {
     const line = [...pts].sort((a, b) => a[0] - b[0]).map((p) => toScreen(...toCanvas(e, p)).join(","));
     svgEl("polyline", {class: `guide contact${lying ? " off" : ""}`, points: line.join(" ")});
   }
-  if (pts.length === 0) {
-    const el = handle("contact ghost", "contact-0", toCanvas(e, e.foot), (p) =>
-      ({edits: param(e, "points", toCutout(e, p)), at: p}));
-    el.setAttribute("title", "the cutout's foot: drag to set where it touches the ground");
+  if (!lying) {
+    // the cutout's foot: dragged from there, a new contact point (the first replaces the
+    // input's implicit contact, the lowest row; more: a line, several feet)
+    const el = handle("contact ghost", "contact-new", toCanvas(e, e.foot), (p) =>
+      ({edits: param(e, "points", [...(vals.points || []), ...toCutout(e, p)]), at: p}));
+    el.setAttribute("title", "drag from the cutout's foot to where it touches the ground: a contact point");
   }
   pts.forEach((pt, i) => {
     const el = handle(`contact${lying ? " off" : ""}`, `contact-${i}`, toCanvas(e, pt), (p) => {

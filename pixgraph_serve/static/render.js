@@ -72,9 +72,13 @@ export async function render(edits, mode, kind = "move") {
   const ms = Math.round(performance.now() - t0);
   $("status").textContent = `${mode} ${bmp.width}x${bmp.height} (1/${round2(scale)}) in ${ms} ms; ` +
     `ran: ${r.headers.get("X-Pixgraph-Ran") || "nothing (cached)"}`;
-  window.pixgraphShown.push({seq, mode, kind: mode === "preview" ? kind : "final", ms, scale, width: bmp.width, height: bmp.height,
-                             server_ms: 1000 * Number(r.headers.get("X-Pixgraph-Seconds") || 0),
-                             ran: r.headers.get("X-Pixgraph-Ran") || ""});
+  const entry = {seq, mode, kind: mode === "preview" ? kind : "final", ms, scale, width: bmp.width,
+                 height: bmp.height, server_ms: 1000 * Number(r.headers.get("X-Pixgraph-Seconds") || 0),
+                 ran: r.headers.get("X-Pixgraph-Ran") || ""};
+  window.pixgraphShown.push(entry);
+  // painted: the next frame after the canvas was drawn (ms counts from the request, sent in
+  // the pointer event's handler when no preview is in flight)
+  requestAnimationFrame(() => { entry.painted_ms = Math.round(performance.now() - t0); });
   showError("");
   markBad(null);
   return true;
