@@ -3,7 +3,7 @@ examples (docs/height.md, "The real-photo check": our Mitsuba renders of held-ou
 named meshes with exact pixel heights), in headless Chromium, in at most 3 drags.
 
     python benchmarks/page_height_fix.py --shadows data/hreal/wall_named64 \\
-        [--samples 17,20,6] [--shots docs/img] [--steps 10]
+        [--samples 23:learned,21:contact_line,5:contact_line] [--shots docs/img]
 
 (``data/hreal/wall_named64`` is made by ``python -m pixgraph_lab.height.shadow_test
 --benchmark wall --n 80 --seed 0 --light-samples 64 --out data/hreal/wall_named64``;
@@ -18,21 +18,23 @@ graph is the own-photo template's chain: ``CutoutHeight`` (``method: learned``) 
 ``Composite``, with one light for all (azimuth -35, elevation 40 deg: the shadow
 falls on the floor and the wall behind, as in the own-photo template).
 
-The simulated user (rules fixed before any measurement; like real_photos.py's):
-1. drags the hollow contact handle at the cutout's foot to the visible pixel whose
-   true height is < 1 px lowest in the left third of those pixels' columns;
-2. drags that point's... no: "+ contact" then presses at the lowest such pixel of
-   the right third (a second foot: the ground line through both);
-3. drags the tilt handle on the object's top so its height is the true one there
-   (the user sees how far the shadow reaches and matches it).
-Each is one pointer drag or press in the page; between them the page shows the
-previews and the final. Then the saved graph's params are read back and the
-shadow of the edited heights is compared with the shadow of the *true* heights
-through the same graph (RMSE of the shadow darkness over the visible background,
-in-process, full size), next to the learned and the contact-line heights'.
+The simulated user (rules written before any measurement, like real_photos.py's):
+it knows where the object really touches the ground and how tall its top really
+is, and tries each plan of at most 3 page actions in ``PLANS`` (contact points
+dragged from the foot's hollow handle onto the lowest visible pixel with true height
+< 1 px in each of k column bins; the tilt handle dragged until the top's height is
+its true one; the upright and lying toggles), keeping the plan whose shadow is
+closest to the true heights' shadow (the user sees the shadow). That plan is then
+done in the page, in headless Chromium, each action a pointer drag (or a toggle)
+through the page's own handles, waiting for the previews and the final; the
+edit's params are read back from the server and the shadow compared, in-process
+at full size, with the shadow of the *true* heights through the same graph: RMSE
+of the darkness and IoU of the shadow regions (darkness > 0.3) over the pixels
+outside the cutout, before (the height as predicted) and after.
 
-Writes ``page_height_before.png`` / ``page_height_after.png`` (the page's stage,
-downscaled) for the first sample into --shots, and prints a table.
+Writes ``page_height_fix.png`` (before and after in the page, handles included,
+and the true heights' composite) for the first sample into --shots, and prints a
+markdown table. ``--explore 23,21`` prints every plan's numbers instead (no page).
 """
 from __future__ import annotations
 
@@ -58,7 +60,7 @@ def _srgb8(x):
     return (np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055) * 255 + 0.5).astype(np.uint8)
 
 
-def build_scene(sample: str, dest: str) -> dict:
+def build_scene(sample: str, dest: str, method: str = "learned") -> dict:
     """The page's scene of one benchmark sample in ``dest`` (module doc); returns facts."""
     from PIL import Image
 
@@ -91,7 +93,7 @@ def build_scene(sample: str, dest: str) -> dict:
                     "params": {"hfov": round(cam["hfov"], 4), "horizon": round(cam["horizon"] * S, 2),
                                "cam_height": cam["cam_height"]}},
             "fg_h": {"type": "pixgraph.CutoutHeight", "inputs": {"mask": "cutout.alpha", "image": "cutout.image"},
-                     "params": {"method": "learned"}},
+                     "params": {"method": method}},
             "edit": {"type": "pixgraph.PixelHeightEdit", "inputs": {"height": "fg_h.height", "mask": "cutout.alpha"}},
             "place": {"type": "pixgraph.PlaceCutout",
                       "inputs": {"cutout": "cutout.image", "background": "photo.image", "height": "edit.height"},
@@ -112,8 +114,10 @@ def build_scene(sample: str, dest: str) -> dict:
     import yaml
     with open(os.path.join(dest, "scene.yaml"), "w") as f:
         yaml.safe_dump(graph, f, sort_keys=False)
-    return {"graph": os.path.join(dest, "scene.yaml"), "object": meta["scene"]["object"], "true_h": true_h,
-            "mask": mask, "ground": g}
+    # the coverage as the graph reads it back (8-bit alpha > 0.5): the user's pixels and the edit's
+    seen = cut[..., 3].astype(np.float32) / 255.0 > 0.5
+    return {"graph": os.path.join(dest, "scene.yaml"), "object": meta["scene"]["object"],
+            "true_h": np.where(seen, true_h, 0.0), "mask": seen}
 
 
 def true_contacts(true_h: np.ndarray, mask: np.ndarray, k: int) -> list:
@@ -203,45 +207,147 @@ def _with_true_height(ses, graph: str):
     return ses.load(path)
 
 
-def rmse_vs_true(graph: str, edit_params: dict, height: str) -> float:
+def iou(a: np.ndarray, b: np.ndarray, keep: np.ndarray, level: float = 0.3) -> float:
+    """IoU of the two shadows' regions (darkness > level) over the pixels ``keep``."""
+    x, y = (a > level) & keep, (b > level) & keep
+    return float((x & y).sum() / max(1, (x | y).sum()))
+
+
+def measure(graph: str, params: dict, method: str) -> dict:
+    """RMSE and IoU of the shadow with ``params`` and height ``method`` vs the true heights'."""
     truth, alpha = shadow_rmse(graph, {}, "true")
-    got, _ = shadow_rmse(graph, edit_params, height)
+    got, _ = shadow_rmse(graph, params, method)
     keep = alpha < 0.02
-    return float(np.sqrt(np.mean((got[keep] - truth[keep]) ** 2)))
+    return {"rmse": float(np.sqrt(np.mean((got[keep] - truth[keep]) ** 2))), "iou": iou(got, truth, keep)}
+
+
+def choose_plan(sc: dict, method: str) -> tuple[str, dict, dict]:
+    """The plan (PLANS) whose shadow is closest to the true heights' (the user sees the
+    shadow): its name, params and numbers; and the numbers of every plan."""
+    ses = _session()
+    g = ses.load(sc["graph"])
+    m = sc["mask"]
+
+    def before_tilt(p):
+        q = {f"edit.{k}": v for k, v in p.items() if k != "tilt"}
+        q["fg_h.method"] = method
+        return ses.run(g, outputs=["edit.height"], params=q)["edit.height"]
+
+    every = {"none": ({}, measure(sc["graph"], {}, method))}
+    for name, plan in PLANS.items():
+        p = plan_params(plan, sc["true_h"], m, before_tilt)
+        every[name] = (p, measure(sc["graph"], p, method))
+    best = min(every, key=lambda k: every[k][1]["rmse"])
+    return best, every[best][0], every
+
+
+def in_page(url: str, plan: list, sc: dict, page_shot: str | None) -> tuple[dict, int, np.ndarray | None]:
+    """The plan's actions done in the page (headless Chromium): drags of the foot's hollow
+    handle to each contact point, of the tilt handle to the top's true height, toggles.
+    Returns the edit's params after, the number of pointer drags and presses, and the
+    before/after stage crops (when ``page_shot``)."""
+    import httpx
+    from PIL import Image
+
+    from pixgraph_nodes.ops.height_edit import top_point
+    sys.path.insert(0, os.path.join(REPO, "tests"))
+    from serve_helpers import chromium_browser  # noqa: E402
+    from test_page_photo import centre, drag, last_seq, open_page, screen, wait_final  # noqa: E402
+
+    shots, actions = [], 0
+    with chromium_browser() as b:
+        page, errors = open_page(b, url)
+        k = page.evaluate("window.pixgraphView.state.k")
+
+        def crop():
+            import io
+            png = page.locator("#stage").screenshot()
+            img = Image.open(io.BytesIO(png)).convert("RGB")
+            x0, y0 = page.evaluate("window.pixgraphView.toScreen(0, 0)")
+            x1, y1 = page.evaluate("window.pixgraphView.toScreen(512, 512)")
+            return img.crop((round(x0), round(y0), round(x1), round(y1)))
+
+        shots.append(crop())
+        e = httpx.get(url + "/api/scene", timeout=120).json()["height_edit"]
+        sx, tx, sy, ty = e["frame"]
+        m = sc["mask"]
+        for act in plan:
+            if act.startswith("contact:"):
+                for (cu, cv) in true_contacts(sc["true_h"], m, int(act[8:])):
+                    drag(page, centre(page, "#contact-new"), screen(page, sx * cu + tx, sy * cv + ty))
+                    actions += 1
+            elif act == "top":
+                e = httpx.get(url + "/api/scene", timeout=120).json()["height_edit"]
+                want = top_point(m, sc["true_h"])[2]
+                x, y = centre(page, "#tilt-handle")
+                drag(page, (x, y), (x, y - (want - e["top"][2]) * sy * k))
+                actions += 1
+            elif act in ("upright", "lying"):
+                seq = last_seq(page)
+                page.check(f"#{act}")
+                wait_final(page, seq)
+                actions += 1
+        shots.append(crop())
+        vals = {n["id"]: n["values"] for n in httpx.get(url + "/api/graph", timeout=120).json()["nodes"]}["edit"]
+        assert not errors, errors
+        page.close()
+    return vals, actions, shots
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--shadows", default=os.path.join(REPO, "data", "hreal", "wall_named64"))
-    ap.add_argument("--samples", default="17,20,6")
-    ap.add_argument("--shots", default=None, help="folder for page_height_before/after.png (first sample)")
-    ap.add_argument("--explore", action="store_true", help="in-process only: the numbers of the planned edits")
+    ap.add_argument("--samples", default="23:learned,21:contact_line,5:contact_line",
+                    help="index:height method of the samples to fix in the page")
+    ap.add_argument("--shots", default=None, help="folder for page_height_fix.png (the first sample)")
+    ap.add_argument("--explore", default=None, help="indices: print every plan's numbers, no page")
     a = ap.parse_args(argv)
     print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f}")
-    rows = []
-    for k, idx in enumerate(int(x) for x in a.samples.split(",")):
-        sample = os.path.join(a.shadows, f"{idx:05d}.npz")
-        with tempfile.TemporaryDirectory(prefix="pixgraph-hfix-") as d:
-            sc = build_scene(sample, d)
-            if a.explore:
-                ses = _session()
-                g = ses.load(sc["graph"])
-                m = ses.run(g, outputs=["cutout.alpha"])["cutout.alpha"] > 0.5
-                out = [f"{idx} {sc['object']}"]
+    if a.explore:
+        for idx in (int(x) for x in a.explore.split(",")):
+            with tempfile.TemporaryDirectory(prefix="pixgraph-hfix-") as d:
+                sc = build_scene(os.path.join(a.shadows, f"{idx:05d}.npz"), d)
                 for method in ("contact_line", "learned"):
-                    def before_tilt(p, method=method):
-                        q = {f"edit.{k}": v for k, v in p.items() if k != "tilt"}
-                        q["fg_h.method"] = method
-                        return ses.run(g, outputs=["edit.height"], params=q)["edit.height"]
-                    res = {"none": rmse_vs_true(sc["graph"], {}, method)}
-                    for name, plan in PLANS.items():
-                        res[name] = rmse_vs_true(sc["graph"], plan_params(plan, sc["true_h"], m, before_tilt), method)
-                    best = min(res, key=res.get)
-                    out.append(f"{method}: none {res['none']:.4f} best {best} {res[best]:.4f} ("
-                               + ", ".join(f"{k} {v:.3f}" for k, v in res.items() if k != "none") + ")")
-                print(" | ".join(out), flush=True)
-                continue
+                    best, _, every = choose_plan(sc, method)
+                    print(f"{idx} {sc['object']} {method}: best {best}; " + ", ".join(
+                        f"{k} {v[1]['rmse']:.3f}/{v[1]['iou']:.2f}" for k, v in every.items()), flush=True)
+        return 0
+    sys.path.insert(0, os.path.join(REPO, "tests"))
+    from serve_helpers import running_server  # noqa: E402
+    print("| sample | height | plan (page actions) | RMSE vs true-height shadow: before -> after (planned) "
+          "| IoU: before -> after |")
+    print("|---|---|---|---|---|")
+    for n, item in enumerate(a.samples.split(",")):
+        idx, method = item.split(":")
+        with tempfile.TemporaryDirectory(prefix="pixgraph-hfix-") as d:
+            sc = build_scene(os.path.join(a.shadows, f"{int(idx):05d}.npz"), d, method)
+            best, planned, every = choose_plan(sc, method)
+            with running_server(sc["graph"]) as (url, _):
+                vals, actions, shots = in_page(url, PLANS.get(best, []), sc, a.shots if n == 0 else None)
+            params = {k: vals[k] for k in ("contact_points", "contact_mode", "tilt", "lying")}
+            before, after = every["none"][1], measure(sc["graph"], params, method)
+            print(f"| {idx} {sc['object']} | {method} | {best} ({actions}) | {before['rmse']:.4f} -> "
+                  f"**{after['rmse']:.4f}** ({every[best][1]['rmse']:.4f}) | {before['iou']:.2f} -> "
+                  f"{after['iou']:.2f} |", flush=True)
+            if a.shots and n == 0:
+                write_figure(sc, shots, os.path.join(a.shots, "page_height_fix.png"))
     return 0
+
+
+def write_figure(sc: dict, shots, path: str) -> None:
+    """Before | after (the page's image, handles included) | the true heights' composite."""
+    from PIL import Image
+    ses = _session()
+    truth = ses.run(_with_true_height(ses, sc["graph"]), outputs=["final"])["final"]
+    true_img = Image.fromarray(_srgb8(truth[..., :3]))
+    w = 300
+    panels = [im.resize((w, w), Image.LANCZOS) for im in (*shots, true_img)]
+    fig = Image.new("RGB", (w * len(panels) + 8 * (len(panels) - 1), w), (30, 31, 34))
+    for i, p in enumerate(panels):
+        fig.paste(p, (i * (w + 8), 0))
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    fig.save(path, optimize=True)
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":
