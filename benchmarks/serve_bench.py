@@ -290,7 +290,7 @@ def photo_browser(url: str, steps: int) -> list[float]:
         b.close()
         if os.environ.get("PIXGRAPH_BENCH_VERBOSE"):
             for s in shown:
-                print(f"  {s['mode']} {s['width']}x{s['height']}: {s['painted_ms']} ms painted, {s['server_ms']:.0f} ms in "
+                print(f"  {s['mode']} {s['width']}x{s['height']}: {s.get('painted_ms', s['ms'])} ms painted, {s['server_ms']:.0f} ms in "
                       f"the server; ran {s.get('ran')}", flush=True)
         # from the pointer event (the request is sent in its handler) to the frame painted with the image
         return [s.get("painted_ms", s["ms"]) / 1000 for s in shown

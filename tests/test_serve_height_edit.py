@@ -58,6 +58,9 @@ def test_tilt_for_height_inverts_the_top_height(tilt, lift):
     assert h0 == pytest.approx(69.5 - 15.5, abs=1e-3)   # the contact row (height 0.5) is the new 0
     assert h == pytest.approx(he.tilt_gain(tilt, 25.0) * h0 + lift, abs=1e-3)
     assert he.tilt_for_height(h0, h, lift, 25.0) == pytest.approx(tilt, abs=1e-3)
+    # far taller than the gain allows: clamped where the object is MAX_GAIN times taller, a valid tilt
+    steep = he.tilt_for_height(h0, 50 * h0 + lift, lift, 25.0)
+    assert he.tilt_gain(steep, 25.0) == pytest.approx(he.MAX_GAIN)
 
 
 def test_defaults_pass_the_height_through_unchanged():

@@ -177,18 +177,25 @@ def top_point(mask: np.ndarray, edited: np.ndarray, tilt_deg: float = 0.0, eleva
     return c + 0.5, r + 0.5, h, h0
 
 
+#: the tallest ``tilt_for_height`` makes an object: this many times its height before the tilt
+MAX_GAIN = 10.0
+
+
 def tilt_for_height(h0: float, target: float, lift: float = 0.0, elevation_deg: float = 20.0,
                     limit_deg: float = 80.0) -> float:
     """The tilt [deg] that gives a point of height ``h0`` before tilt the height
     ``target`` [px] (``target = g h0 + lift``, step 3 inverted:
-    ``tan(tilt) = (h0 / (target - lift) - 1) / tan(elevation)``), within +-``limit_deg``."""
+    ``tan(tilt) = (h0 / (target - lift) - 1) / tan(elevation)``), within +-``limit_deg``
+    and at most ``MAX_GAIN`` times taller (toward the camera the gain grows without
+    bound as the object nears the view ray)."""
     ta = math.tan(math.radians(elevation_deg))
     want = float(target) - float(lift)
     if h0 <= 0 or ta < 1e-9:
         return 0.0
     if want <= 1e-6:
         return limit_deg
-    return float(np.clip(math.degrees(math.atan((h0 / want - 1.0) / ta)), -limit_deg, limit_deg))
+    lowest = max(-limit_deg, math.degrees(math.atan((1.0 / MAX_GAIN - 1.0) / ta)))
+    return float(np.clip(math.degrees(math.atan((h0 / want - 1.0) / ta)), lowest, limit_deg))
 
 
 def edit_pixel_height(height: np.ndarray, mask: np.ndarray, points=(), contact_mode: str = "shift",

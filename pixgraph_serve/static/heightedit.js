@@ -36,12 +36,15 @@ function pairs(flat) {
 }
 
 // The tilt [deg] that gives the top (height h0 before tilt) the height `target` [cutout px]:
-// tan(tilt) = (h0 / (target - lift) - 1) / tan(elevation) (pixgraph_nodes.ops.height_edit.tilt_for_height).
+// tan(tilt) = (h0 / (target - lift) - 1) / tan(elevation), within +-80 deg and at most
+// MAX_GAIN times taller (pixgraph_nodes.ops.height_edit.tilt_for_height).
+const MAX_GAIN = 10;
 function tiltFor(h0, target, lift, elevation) {
-  const ta = Math.tan(elevation * Math.PI / 180), want = target - lift;
+  const deg = 180 / Math.PI, ta = Math.tan(elevation / deg), want = target - lift;
   if (h0 <= 0 || ta < 1e-9) return 0;
   if (want <= 1e-6) return 80;
-  return round(Math.min(80, Math.max(-80, Math.atan((h0 / want - 1) / ta) * 180 / Math.PI)), 2);
+  const lowest = Math.max(-80, Math.atan((1 / MAX_GAIN - 1) / ta) * deg);
+  return round(Math.min(80, Math.max(lowest, Math.atan((h0 / want - 1) / ta) * deg)), 2);
 }
 
 function drawHeightEdit(s) {
