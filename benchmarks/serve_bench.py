@@ -284,14 +284,15 @@ def photo_browser(url: str, steps: int) -> list[float]:
             page.mouse.move(x - 15 * (i + 1), min(stage["y"] + stage["height"] - 20, y + 4 * (i + 1)))
             page.wait_for_function(f"window.pixgraphShown.length > {n0 + i}", timeout=900000)
         page.mouse.up()
-        page.wait_for_function(f"window.pixgraphShown.slice({n0}).every(s => s.painted_ms !== undefined || !('kind' in s))",
-                               timeout=60000)
+        # every image painted (a page from before painted_ms has no `kind`: it reports ms only)
+        page.wait_for_function(f"window.pixgraphShown.slice({n0}).every(s => s.painted_ms !== undefined"
+                               " || !('kind' in s))", timeout=60000)
         shown = page.evaluate(f"window.pixgraphShown.slice({n0})")
         b.close()
         if os.environ.get("PIXGRAPH_BENCH_VERBOSE"):
             for s in shown:
-                print(f"  {s['mode']} {s['width']}x{s['height']}: {s.get('painted_ms', s['ms'])} ms painted, {s['server_ms']:.0f} ms in "
-                      f"the server; ran {s.get('ran')}", flush=True)
+                print(f"  {s['mode']} {s['width']}x{s['height']}: {s.get('painted_ms', s['ms'])} ms painted, "
+                      f"{s['server_ms']:.0f} ms in the server; ran {s.get('ran')}", flush=True)
         # from the pointer event (the request is sent in its handler) to the frame painted with the image
         return [s.get("painted_ms", s["ms"]) / 1000 for s in shown
                 if s["mode"] == "preview" and s.get("kind", "move") == "move"]
