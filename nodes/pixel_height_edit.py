@@ -8,6 +8,7 @@ from pixgraph.node import InputError, Node, node, param, port
 
 from ._checks import same_size
 from .ops import height_edit
+from .ops.lights import foot_of_mask
 from .ops.height_edit import edit_pixel_height
 
 
@@ -69,6 +70,7 @@ class PixelHeightEdit(Node):
     #: the geometry of those handles (ops/height_edit.py), for shells that do not import nodes
     frame = staticmethod(height_edit.placed_frame)
     top_point = staticmethod(height_edit.top_point)
+    foot_point = staticmethod(foot_of_mask)
 
     def compute(self, ctx, inputs, params):
         h = np.asarray(inputs.height, np.float32)

@@ -19,7 +19,7 @@ attribute, a dict with a ``kind``):
   which the type's ``frame(mask, *those)`` turns into the map from its pixels to the
   canvas (``[sx, tx, sy, ty]``: ``X = sx x + tx``, ``Y = sy y + ty``); ``top_point(mask,
   edited, tilt, elevation, lift)`` is the object's top ``(u, v, h, h0)`` for the tilt
-  handle;
+  handle, ``foot_point(mask)`` the cutout's foot (where new contact points start);
 - any other kind (``shadow``): a node the page may switch between the types of
   that kind (``ServeState.alternatives``).
 
@@ -239,13 +239,15 @@ def _height_edit(state: ServeState, nid: str) -> dict:
     rows, cols = mask.shape[:2]
     place = next((pid for pid, p in g.nodes.items() if _kind(state, p.type) == "place"
                   and any(ref.node == nid for ref in p.inputs.values())), None)
-    box = _bbox(mask)
     if place is not None:
         pv = _values(state, place)
         sx, tx, sy, ty = spec.cls.frame(mask, *(pv[k] for k in h.get("placed_by", ())))
-        foot = [(pv[h["placed_by"][0]][0] - tx) / sx, (pv[h["placed_by"][0]][1] - ty) / sy]
     else:
         sx, tx, sy, ty = 1.0, 0.0, 1.0, 0.0
+    box = _bbox(mask)
+    if getattr(spec.cls, "foot_point", None) is not None and box is not None:
+        foot = list(spec.cls.foot_point(mask[..., 0] if mask.ndim == 3 else mask))
+    else:
         foot = [(box[0] + box[2]) / 2, box[3]] if box else [cols / 2, rows]
     names = {k: h.get(k, k) for k in ("points", "mode", "tilt", "elevation", "lying", "lift")}
     top = spec.cls.top_point(mask, edited, v[names["tilt"]], v[names["elevation"]], v[names["lift"]])
