@@ -48,7 +48,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 OUT = ROOT / "out" / "bench" / "photo"
 ASSETS = ROOT / "graphs" / "assets"
 #: (width, height) of each size; the own photo is 640x480 (4:3)
-SIZES = {"20mp": (5120, 3840), "512": (512, 384)}
+SIZES = {"20mp": (5120, 3840), "5mp": (2560, 1920), "1280": (1280, 960), "512": (512, 384)}
 
 GRAPH = """pixgraph: 1
 nodes:
