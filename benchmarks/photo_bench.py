@@ -151,7 +151,9 @@ def one(a) -> int:
         prof = None
         if a.profile:
             import cProfile
-            prof = cProfile.Profile()
+            # --profile-cpu: process CPU seconds (all threads) instead of wall-clock, the
+            # steadier number on a loaded machine
+            prof = cProfile.Profile(time.process_time) if a.profile_cpu else cProfile.Profile()
             prof.enable()
         import resource
         r0 = resource.getrusage(resource.RUSAGE_SELF)
@@ -270,6 +272,7 @@ def main() -> int:
     ap.add_argument("--shadow-proxy", type=int, default=None, help="SoftShadow's proxy param (default: its own)")
     ap.add_argument("--no-disk-cache", action="store_true")
     ap.add_argument("--profile", action="store_true", help="one run under cProfile (printed to stderr)")
+    ap.add_argument("--profile-cpu", action="store_true", help="--profile counts process CPU seconds, not wall-clock")
     ap.add_argument("--errors", action="store_true", help="each proxy's error against the full computation")
     ap.add_argument("--proxies", type=int, nargs="+", default=[512, 1024, 2048])
     ap.add_argument("--recompute", action="store_true", help="--errors: recompute the saved full computation")
@@ -298,6 +301,7 @@ def main() -> int:
                     cmd = [sys.executable, __file__, "--one", "--case", case, "--size", size, "--ext", ext]
                     cmd += ["--no-disk-cache"] if a.no_disk_cache else []
                     cmd += ["--profile"] if a.profile else []
+                    cmd += ["--profile-cpu"] if a.profile_cpu else []
                     if a.shadow_proxy is not None:
                         cmd += ["--shadow-proxy", str(a.shadow_proxy)]
                     p = subprocess.run(cmd, capture_output=True, text=True, env=env)

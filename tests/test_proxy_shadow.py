@@ -54,3 +54,23 @@ def test_soft_shadow_node_proxy_param(device):
     out = s.run(g, outputs=["cutout.alpha"])["cutout.alpha"] < 0.5
     # measured 0.009
     assert np.sqrt(np.mean((run(256) - full)[out] ** 2)) < 0.015
+
+
+@pytest.mark.parametrize("shape,side", [((300, 410), 128), ((384, 512), 256), ((333, 500), 97)])
+def test_proxy_scene_is_the_window_scene(shape, side):
+    """The proxy's scene, its coverage and height resized only over the cutout's box,
+    is bit for bit Window.scene (integer and odd shrink factors, a cutout off centre,
+    a non-finite background height)."""
+    from pixgraph_nodes.ops.resample import Window
+    from pixgraph_nodes.ops.upsample import proxy_scene
+    H, W = shape
+    m, fg, bg = figure(H, W)
+    m = np.roll(m, (H // 7, -W // 5), axis=(0, 1))
+    fg = np.roll(fg, (H // 7, -W // 5), axis=(0, 1))
+    bg = bg.copy()
+    bg[3, 5] = np.nan
+    win = Window.whole(H, W, side)
+    for a, b in zip(win.scene(m, fg, bg), proxy_scene(win, m, fg, bg)):
+        assert a.shape == b.shape and np.array_equal(a, b)
+    empty = proxy_scene(win, np.zeros_like(m), fg, bg)
+    assert not empty[0].any() and not empty[1].any() and np.array_equal(empty[2], win.scene(m, fg, bg)[2])

@@ -125,6 +125,23 @@ inline int may_hit(const occluder *o, float ru, float rv, float rh, float8 lb)
     return ph_segments_may_hit(ru, rv, rh, lb, o->rect, o->h_lo, o->h_hi, o->f_lo, o->f_hi);
 }
 
+/* 1 unless the ray r + t (r - L), t > 0, of every light point L with s = -1 within
+ * bounds lb (as may_hit's) provably misses the cutout's box: conservative, one
+ * coordinate c (u, v, h and the foot v + h) at a time -- along such a ray c runs
+ * from r_c away from L_c, so it can reach [lo, hi] only upward (some L_c < r_c,
+ * r_c <= hi), downward (some L_c > r_c, r_c >= lo) or staying (r_c inside). */
+inline int may_hit_away(const occluder *o, float ru, float rv, float rh, float8 lb)
+{
+    float rf = rv + rh;
+#define PH_AWAY(r, lmin, lmax, lo, hi) \
+    (((lmin) < (r) && (r) <= (hi)) || ((lmax) > (r) && (r) >= (lo)) || ((r) >= (lo) && (r) <= (hi)))
+    return PH_AWAY(ru, lb.s0, lb.s1, o->rect.x, o->rect.z)
+        && PH_AWAY(rv, lb.s2, lb.s3, o->rect.y, o->rect.w)
+        && PH_AWAY(rh, lb.s4, lb.s5, o->h_lo, o->h_hi)
+        && PH_AWAY(rf, lb.s6, lb.s7, o->f_lo, o->f_hi);
+#undef PH_AWAY
+}
+
 /* Bounds (u, u, v, v, h, h, foot, foot) of one light point, for may_hit. */
 inline float8 point_bounds(float4 L)
 {
@@ -265,10 +282,15 @@ inline int blocked_x8(const occluder *o, float ru, float rv, float rh,
     return nb;
 }
 
-/* Soft shadow, samples 8 at a time (see above). NDRange (W, H). */
+/* Soft shadow, samples 8 at a time (see above). NDRange (W, H).
+ * kinds: bit 1 some samples have s = +1 (front_bounds: their bounds), bit 2 some
+ * have s = -1 (back_bounds), bit 4 some are directions (s = 0) or invalid: then no
+ * receiver is rejected before its marches. A receiver none of whose sample rays can
+ * reach the cutout's box (may_hit, may_hit_away) is lit at once. */
 __kernel void soft_shadow(OCCLUDER_ARGS, __global const float *recv,
                              __global const float *soa, const int n, const int n8,
-                             const int all_front, const float8 light_bounds, __global float *lit)
+                             const int kinds, const float8 front_bounds, const float8 back_bounds,
+                             __global float *lit)
 {
     int j = get_global_id(0), i = get_global_id(1);
     if (j >= W || i >= H) return;
@@ -276,7 +298,11 @@ __kernel void soft_shadow(OCCLUDER_ARGS, __global const float *recv,
     float rh = recv[i * W + j];
     if (!(rh > PH_NO_SURFACE_TEST) || n <= 0) { lit[i * W + j] = 1.0f; return; }
     float ru = (float)j + 0.5f, rv = (float)i + 0.5f;
-    if (all_front && !may_hit(&o, ru, rv, rh, light_bounds)) { lit[i * W + j] = 1.0f; return; }
+    if (!(kinds & 4) && !((kinds & 1) && may_hit(&o, ru, rv, rh, front_bounds))
+        && !((kinds & 2) && may_hit_away(&o, ru, rv, rh, back_bounds))) {
+        lit[i * W + j] = 1.0f;
+        return;
+    }
     int nb = 0;
     for (int g = 0; g < n8 / 8; ++g)
         nb += blocked_x8(&o, ru, rv, rh, vload8(g, soa), vload8(g, soa + n8), vload8(g, soa + 2 * n8),

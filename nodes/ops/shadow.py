@@ -429,23 +429,33 @@ class ShadowScene:
 
     def soft_inputs(self, light_samples):
         """Upload light samples (N, 4) for the soft-shadow kernel: structure of
-        arrays padded to a multiple of 8 with refused lights, plus the bounds
-        of all samples when they all have s = +1 (one test then rejects every
-        sample for receivers whose segments miss the cutout's box)."""
+        arrays padded to a multiple of 8 with refused lights, plus the bounds of
+        the samples with s = +1 and of those with s = -1 (one test per kind then
+        rejects every sample for receivers whose rays miss the cutout's box;
+        shadow.cl: soft_shadow's ``kinds``)."""
         import pyopencl.cltypes as cltypes
         samples = light_samples_array(light_samples)
         n = samples.shape[0]
         n8 = max(8, -(-n // 8) * 8)
         soa = np.zeros((4, n8), np.float32)
         soa[:, :n] = samples.T
-        all_front = n > 0 and bool(np.all(samples[:, 3] > 0.5))
-        if all_front:
-            u, v, h = samples[:, 0], samples[:, 1], samples[:, 2]
-            f = v + h
-            bounds = cltypes.make_float8(u.min(), u.max(), v.min(), v.max(), h.min(), h.max(), f.min(), f.max())
-        else:
-            bounds = cltypes.make_float8(0, 0, 0, 0, 0, 0, 0, 0)
-        return (self.samples_buffer(soa), np.int32(n), np.int32(n8), np.int32(all_front), bounds)
+        s = samples[:, 3]
+        # a zeroed (invalid) sample is lit by every march: it needs no bit
+        invalid = np.all(samples == 0.0, axis=1)
+        kinds = 0
+        bounds = []
+        for bit, sel in ((1, s > 0.5), (2, s < -0.5)):
+            if sel.any():
+                kinds |= bit
+                u, v, h = samples[sel, 0], samples[sel, 1], samples[sel, 2]
+                f = v + h
+                bounds.append(cltypes.make_float8(u.min(), u.max(), v.min(), v.max(), h.min(), h.max(),
+                                                  f.min(), f.max()))
+            else:
+                bounds.append(cltypes.make_float8(0, 0, 0, 0, 0, 0, 0, 0))
+        if np.any((np.abs(s) <= 0.5) & ~invalid):
+            kinds |= 4
+        return (self.samples_buffer(soa), np.int32(n), np.int32(n8), np.int32(kinds), *bounds)
 
     def launch_soft(self, inputs, progress=None, check_cancelled=None):
         """Enqueue the soft-shadow kernel on inputs from :meth:`soft_inputs`;
