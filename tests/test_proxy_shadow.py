@@ -74,3 +74,20 @@ def test_proxy_scene_is_the_window_scene(shape, side):
         assert a.shape == b.shape and np.array_equal(a, b)
     empty = proxy_scene(win, np.zeros_like(m), fg, bg)
     assert not empty[0].any() and not empty[1].any() and np.array_equal(empty[2], win.scene(m, fg, bg)[2])
+
+
+@pytest.mark.parametrize("box", [(0, 200, 0, 260), (37, 121, 50, 199), (150, 200, 0, 13)])
+def test_masked_resize_of_a_box_is_that_part_of_the_whole(box):
+    """Made on a box of output pixels (reading only the proxy rows that box needs),
+    the enlargement is bit for bit that part of the whole-image enlargement."""
+    from pixgraph_nodes.ops.resample import resize
+    from pixgraph_nodes.ops.upsample import masked_resize
+    rng = np.random.default_rng(3)
+    H, W = 200, 260
+    yy, xx = np.mgrid[0:H, 0:W]
+    hi = (((yy - 90) / 50.0) ** 2 + ((xx - 120) / 40.0) ** 2 < 1).astype(np.float32)
+    mlo = resize(hi, (41, 53))
+    lo = rng.random((41, 53)).astype(np.float32)
+    whole = masked_resize(lo, mlo, hi, (H, W))
+    r0, r1, c0, c1 = box
+    assert np.array_equal(masked_resize(lo, mlo, hi, (H, W), band=17, box=box), whole[r0:r1, c0:c1])

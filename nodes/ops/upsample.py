@@ -55,7 +55,15 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
     H, W = (int(s) for s in shape)
     h, w = lo.shape
     r0b, r1b, c0b, c1b = (0, H, 0, W) if box is None else (int(b) for b in box)
-    inside_lo = np.asarray(mask_lo) > 0.5
+    if h == H:
+        idx, wts = np.arange(H)[:, None], np.ones((H, 1), np.float32)
+    else:
+        idx, wts = _axis_weights(h, H)
+    # only the rows of `lo` the box's output rows read
+    q0, q1 = int(idx[r0b:r1b].min()), int(idx[r0b:r1b].max()) + 1
+    idx = idx - q0
+    lo = lo[q0:q1]
+    inside_lo = np.asarray(mask_lo)[q0:q1] > 0.5
     sides = [s for s in (~inside_lo, inside_lo) if s.any()]
     planes = [lo]
     for side in sides:
@@ -66,11 +74,7 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
     else:
         cidx, cwt = _axis_weights(w, W)
         cidx, cwt = cidx[c0b:c1b], cwt[c0b:c1b]
-        cols = [np.einsum("rot,ot->ro", p_[:, cidx], cwt) for p_ in planes]      # (h, c1 - c0) each
-    if h == H:
-        idx, wts = np.arange(H)[:, None], np.ones((H, 1), np.float32)
-    else:
-        idx, wts = _axis_weights(h, H)
+        cols = [np.einsum("rot,ot->ro", p_[:, cidx], cwt) for p_ in planes]      # (q1 - q0, c1 - c0) each
     out = np.empty((r1b - r0b, c1b - c0b), np.float32)
     for r0 in range(r0b, r1b, band):
         r1 = min(r1b, r0 + band)
