@@ -11,8 +11,9 @@
  *         receivers are reported lit).
  *   rect  (u0, v0, u1, v1) pixel edges of the cutout's bounding box, and
  *   h_lo, h_hi: the ray heights that can hit the cutout (min height - thickness,
- *         max height), and f_lo, f_hi: the same for the ray's foot v + h. Every
- *         march is clipped to that box and foot band (march.h).
+ *         max height, each widened by shadow.py's EDGE_BAND for the run edges), and
+ *         f_lo, f_hi: the same for the ray's foot v + h. Every march is clipped to
+ *         that box and foot band (march.h), plus a second margin sample each side.
  *   tiles (TH, TW) float2 foot bounds for exact skipping (march.h, tile_bounds).
  *   light (u, v, h, s): s = +1 march from the receiver toward (u, v) and stop
  *         there; s = -1 the light is behind the camera plane: march away from
@@ -76,16 +77,71 @@ inline int shadow_trace(const occluder *o, ph_march *m, int *hit_k, float *hit_s
         }
     }
     /* the foot band first: one slab, and the most selective for upright cutouts */
+    int k_lo0 = m->k_lo, k_hi0 = m->k_hi;
     if (!ph_march_clip_foot(m, o->f_lo, o->f_hi)) return 0;
     if (!ph_march_clip_box(m, o->rect, o->h_lo, o->h_hi)) return 0;
+    /* a second margin sample each side: the edges of a run at the ends of the
+     * clipped range then cannot block (march_loop), so clipping changes nothing */
+    m->k_lo = max(m->k_lo - 1, k_lo0);
+    m->k_hi = min(m->k_hi + 1, k_hi0);
     return march_loop(o, m, hit_k, hit_s);
 }
 
-/* The sample loop of shadow_trace over m's (clipped) range k_lo .. k_hi. */
+/* Occlusion within the half step beyond a sample at a run's edge (numpy:
+ * shadow.py edge_hit). d: surface height - ray height at the sample (px); df: the
+ * ray's foot step per sample (sv + sh); sigma -1: the half step before the sample,
+ * +1 after. The surface is upright over the half step (its foot constant) and the
+ * ray's foot moves by sigma df / 2: blocked when the depth d - tau df, tau from 0
+ * to sigma / 2, passes in (PH_BEHIND_EPS, thickness]. */
+inline int edge_hit(float d, float df, float sigma, float thickness)
+{
+    float e = d - sigma * (0.5f * df);
+    return fmax(d, e) > PH_BEHIND_EPS && fmin(d, e) <= thickness;
+}
+
+/* A run of samples on one surface whose foot changes by at most this per sample
+ * (px) is upright (shadow.py: UPRIGHT_STEP). */
+#define PH_UPRIGHT_STEP 0.5f
+
+/* 1 when sample k - 1 blocks within the half steps at the edges of its run,
+ * decided at sample k (numpy: shadow.py run_end_hits). had: k - 1 is on the cutout;
+ * cont: k continues its surface (slope: their foot step); pcont: k - 1 continued
+ * the surface of k - 2 (pslope). A run's first sample is tested before it, its last
+ * after it, where the run is upright or one sample long. */
+inline int run_end_hit(int had, int cont, int pcont, float pslope, float slope, float pd, float df,
+                       float thickness)
+{
+    if (!had) return 0;
+    int bwd = !pcont && (!cont || fabs(slope) <= PH_UPRIGHT_STEP);
+    int fwd = !cont && (!pcont || fabs(pslope) <= PH_UPRIGHT_STEP);
+    return (bwd && edge_hit(pd, df, -1.0f, thickness)) || (fwd && edge_hit(pd, df, 1.0f, thickness));
+}
+
+/* ph_span_skippable with the ray's foot range widened by ext (px) each side: no
+ * sample of the span, nor the half steps at the edges of its runs (edge_hit), can
+ * occlude. */
+inline int span_skippable_edges(const occluder *o, const ph_march *m, int k, int e, float ext)
+{
+    int ti = ph_floordiv((int)floor(ph_sample_v(m, k)), o->tile);
+    int tj = ph_floordiv((int)floor(ph_sample_u(m, k)), o->tile);
+    ti = clamp(ti, 0, o->TH - 1);
+    tj = clamp(tj, 0, o->TW - 1);
+    float2 b = o->tiles[ti * o->TW + tj];
+    float fa = ph_ray_foot(m, k), fb = ph_ray_foot(m, e);
+    float lo = fmin(fa, fb) - ext, hi = fmax(fa, fb) + ext;
+    return lo >= b.y || hi < b.x - fmax(o->thickness, PH_BEHIND_EPS);
+}
+
+/* The sample loop of shadow_trace over m's (clipped) range k_lo .. k_hi: the
+ * occlusion test of ph_occludes at each sample (side flips only within one
+ * continuous surface), and the edges of each run of samples on the cutout
+ * (run_end_hit), so that a part one sample wide blocks at any resolution. */
 inline int march_loop(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
 {
-    int prev = 0;
-    float prev_foot = 0.0f;
+    int prev = 0, pcont = 0;
+    float pfoot = 0.0f, pd = 0.0f, pslope = 0.0f, ps = 0.0f;
+    float df = m->sv + m->sh;
+    float ext = 0.5f * fabs(df);
     int k = m->k_lo;
     int next_test = k;
     while (k <= m->k_hi) {
@@ -94,18 +150,28 @@ inline int march_loop(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
         float rh = ph_ray_height(m, k);
         int sd = ph_side(rh, s);
         float foot = ph_sample_v(m, k) + s;
-        /* a side change across a depth discontinuity is no crossing */
-        if (prev != 0 && !ph_continuous(prev_foot, foot, o->jump)) prev = 0;
-        if (ph_occludes(rh, s, o->thickness, sd, prev)) {
+        /* one surface with k - 1: a side change across a depth discontinuity is no crossing */
+        int cont = prev != 0 && sd != 0 && ph_continuous(pfoot, foot, o->jump);
+        float slope = foot - pfoot;
+        if (run_end_hit(prev != 0, cont, pcont, pslope, slope, pd, df, o->thickness)) {
+            *hit_k = k - 1;
+            *hit_s = ps;
+            return 1;
+        }
+        if (ph_occludes(rh, s, o->thickness, sd, cont ? prev : 0)) {
             *hit_k = k;
             *hit_s = s;
             return 1;
         }
         prev = sd;
-        prev_foot = foot;
+        pfoot = foot;
+        pd = s - rh;
+        pcont = cont;
+        pslope = slope;
+        ps = s;
         if (k == next_test) {
             int e = min(m->k_hi, ph_span_end(m, k, o->tile));
-            if (e > k + 1 && ph_span_skippable(o->tiles, o->TW, o->TH, o->tile, m, k, e, o->thickness)) {
+            if (e > k + 1 && span_skippable_edges(o, m, k, e, ext)) {
                 k = e;        /* evaluate e next, as the first of a new run */
                 prev = 0;
                 next_test = e + 1;
@@ -114,6 +180,12 @@ inline int march_loop(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
             next_test = e + 1;
         }
         ++k;
+    }
+    /* the last sample ends its run */
+    if (run_end_hit(prev != 0, 0, pcont, pslope, 0.0f, pd, df, o->thickness)) {
+        *hit_k = k - 1;
+        *hit_s = ps;
+        return 1;
     }
     return 0;
 }
@@ -253,6 +325,7 @@ inline int blocked_x8(const occluder *o, float ru, float rv, float rh,
     int8 big = kmax >= (float8)((float)PH_K_UNBOUNDED);
     int8 k_hi = select(convert_int8(floor(select(kmax, (float8)(0.0f), big))), (int8)(PH_K_UNBOUNDED), big);
     int8 k_lo = (int8)(1);
+    int8 k_hi0 = k_hi;
     ok &= k_hi >= k_lo;
     /* ph_march_clip_foot */
     float8 t0 = convert_float8(k_lo - 1), t1 = convert_float8(k_hi + 1);
@@ -267,6 +340,9 @@ inline int blocked_x8(const occluder *o, float ru, float rv, float rh,
     vclip_slab(Rh, sh, o->h_lo, o->h_hi, &t0, &t1, &ok);
     vrange(t0, t1, ok, &k_lo, &k_hi);
     ok &= k_lo <= k_hi;
+    /* the second margin sample each side (as shadow_trace) */
+    k_lo = max(k_lo - 1, (int8)(1));
+    k_hi = min(k_hi + 1, k_hi0);
     int8 major_u = adu >= adv;
     int nb = 0;
     for (int q = 0; q < 8; ++q) {

@@ -11,7 +11,14 @@ consecutive cutout samples of one continuous surface. Where the surface's foot
 samples -- the outline of a cutout in front of another, or of a part in front
 of the rest -- a side change is the ray passing through the gap, not a
 crossing, and does not count (SSG's rule counts it and draws a phantom wedge
-joining the front cutout to its shadow on the one behind). Each walk is
+joining the front cutout to its shadow on the one behind). A run of samples on
+one upright surface is traced half a step beyond its first and last samples
+(``run_end_hits``: the ray's depth behind the surface over that half step, the
+surface's foot taken constant), so a part one sample wide blocks the rays that
+pass through it between two samples: without it a thin part's shadow shrank
+with the resolution (a 1-px bar's shadow 189/234/256 px^2 at 128/256/512 px,
+now 279/278/278; tests/test_shadow_thin_parts.py), and a proxy lost thin parts
+a photo's full trace has. Each walk is
 clipped to the cutout's bounding box and to the bands of heights and feet the
 cutout spans (march.h), so receivers whose ray never meets the cutout cost a
 few flops.
@@ -73,6 +80,16 @@ F32 = np.float32
 #: feet (v + h) differ by at most thickness + FLIP_JUMP pixels (march.h:
 #: ph_continuous); mirrors PH_FLIP_JUMP in shadow.cl.
 FLIP_JUMP = 1.0
+#: A run of samples on one surface whose foot (v + h) changes by at most this per
+#: sample (pixels) is upright: its edges are traced half a step beyond its first
+#: and last samples (``run_end_hits``), so that a thin part blocks the rays that
+#: pass through it between two samples, at any resolution. Mirrors
+#: PH_UPRIGHT_STEP in shadow.cl.
+UPRIGHT_STEP = F32(0.5)
+#: The cutout's height band is widened by this (pixels) each side: a run's edge
+#: reaches half a step past its sample, where an upright surface's height differs
+#: by up to half a pixel (measured along v).
+EDGE_BAND = 1.0
 #: Stand-in for "no far end" of a march (s = -1 or 0), in units of t.
 _T_FAR = F32(1.0e30)
 #: Pixel-light-sample pairs per band of a banded launch (ShadowScene.bands):
@@ -169,8 +186,8 @@ class Prepared:
             # thickness; reach >= BEHIND_EPS because a sample up to BEHIND_EPS below
             # a surface still counts as in front (and can start a side flip)
             reach = max(self.thickness, float(M.BEHIND_EPS))
-            self.h_lo = F32(h_min - reach)
-            self.h_hi = F32(h_max)
+            self.h_lo = F32(h_min - reach - EDGE_BAND)
+            self.h_hi = F32(h_max + EDGE_BAND)
             self.f_lo = F32(f_min - reach)
             self.f_hi = F32(f_max)
 
@@ -219,19 +236,44 @@ def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
     rh = prep.recv[ii, jj]
     m, ok = light_march_ref(ru, rv, rh, light)
     if clip_to_cutout:
+        k_lo0, k_hi0 = m.k_lo.copy(), m.k_hi.copy()
         ok &= M.march_clip_box(m, prep.rect, prep.h_lo, prep.h_hi)
         ok &= M.march_clip_foot(m, prep.f_lo, prep.f_hi)
+        # a second margin sample each side: the edges of a run (run_end_hits) at the
+        # clipped range's ends then cannot block, so clipping changes nothing
+        m.k_lo, m.k_hi = np.maximum(m.k_lo - 1, k_lo0), np.minimum(m.k_hi + 1, k_hi0)
     else:
         ok &= M.march_clip_box(m, (0, 0, W, H), F32(-1e30), F32(1e30))
     sel = np.flatnonzero(ok)
-    prev = np.zeros(sel.size, np.int8)
-    prev_foot = np.zeros(sel.size, np.float32)
+    z = np.zeros(sel.size, np.float32)
+    # state of the previous sample k - 1: side (0: no surface), surface foot, depth
+    # d = surface height - ray height, whether it continued the surface of k - 2 and
+    # the foot step from k - 2, and its position and surface height (for the hit)
+    st = {"prev": np.zeros(sel.size, np.int8), "pfoot": z, "pd": z, "pcont": np.zeros(sel.size, bool),
+          "pslope": z, "pu": z, "pv": z, "ps": z}
     jump = F32(prep.thickness + FLIP_JUMP)
+    T = prep.thickness
+
+    def record(where, u, v, s_):
+        b = sel[where]
+        blocked[ii[b], jj[b]] = True
+        hit[0, ii[b], jj[b]] = u[where]
+        hit[1, ii[b], jj[b]] = v[where]
+        hit[2, ii[b], jj[b]] = s_[where]
+
     n = 0
     while sel.size:
         k = m.k_lo[sel] + n
         live = k <= m.k_hi[sel]
-        sel, prev, prev_foot, k = sel[live], prev[live], prev_foot[live], k[live]
+        if not live.all():
+            # the last sample of these marches ends its run (edges, see edge_hit)
+            end = ~live
+            df = (m.sv[sel] + m.sh[sel]).astype(np.float32)
+            e_hit = run_end_hits(st["prev"] != 0, np.zeros(sel.size, bool), st["pcont"], st["pslope"], z[:0],
+                                 st["pd"], df, T)
+            record(end & e_hit, st["pu"], st["pv"], st["ps"])
+            sel, k = sel[live], k[live]
+            st = {key: a[live] for key, a in st.items()}
         if not sel.size:
             break
         kf = k.astype(np.float32)
@@ -241,18 +283,52 @@ def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
         h = (m.h[sel] + kf * m.sh[sel]).astype(np.float32)
         sd = M.side(h, s)
         foot = (v + s).astype(np.float32)
-        # a side change across a depth discontinuity is no crossing
-        prev = np.where(M.continuous(prev_foot, foot, jump), prev, 0).astype(np.int8)
-        occ = M.occludes(h, s, prep.thickness, sd, prev)
-        if occ.any():
-            b = sel[occ]
-            blocked[ii[b], jj[b]] = True
-            hit[0, ii[b], jj[b]] = u[occ]
-            hit[1, ii[b], jj[b]] = v[occ]
-            hit[2, ii[b], jj[b]] = s[occ]
-        sel, prev, prev_foot = sel[~occ], sd[~occ], foot[~occ]
+        had = st["prev"] != 0
+        # one surface with k - 1: a side change across a depth discontinuity is no crossing
+        cont = had & (sd != 0) & M.continuous(st["pfoot"], foot, jump)
+        slope = (foot - st["pfoot"]).astype(np.float32)
+        df = (m.sv[sel] + m.sh[sel]).astype(np.float32)
+        prev_hit = run_end_hits(had, cont, st["pcont"], st["pslope"], slope, st["pd"], df, T)
+        occ = M.occludes(h, s, T, sd, np.where(cont, st["prev"], 0).astype(np.int8)) & ~prev_hit
+        record(prev_hit, st["pu"], st["pv"], st["ps"])
+        record(occ, u, v, s)
+        keep = ~(occ | prev_hit)
+        sel = sel[keep]
+        st = {"prev": sd[keep], "pfoot": foot[keep], "pd": (s - h).astype(np.float32)[keep], "pcont": cont[keep],
+              "pslope": slope[keep], "pu": u[keep], "pv": v[keep], "ps": s[keep]}
+        z = np.zeros(sel.size, np.float32)
         n += 1
     return blocked, hit[0], hit[1], hit[2]
+
+
+def edge_hit(d, df, sigma, thickness) -> np.ndarray:
+    """Occlusion within the half step beyond a sample at a run's edge (mirror of
+    shadow.cl: edge_hit). d: surface height - ray height at the sample (px); df: the
+    ray's foot step per sample (sv + sh, px); sigma: -1 the half step before the
+    sample, +1 after. The surface is taken upright over the half step (its foot
+    constant), the ray's foot moves by sigma df / 2: blocked when the depth
+    d(tau) = d - tau df, tau from 0 to sigma / 2, passes in (BEHIND_EPS, thickness]."""
+    d = np.asarray(d, np.float32)
+    e = (d - F32(sigma) * (F32(0.5) * np.asarray(df, np.float32))).astype(np.float32)
+    return (np.maximum(d, e) > M.BEHIND_EPS) & (np.minimum(d, e) <= F32(thickness))
+
+
+def run_end_hits(had, cont, pcont, pslope, slope, pd, df, thickness) -> np.ndarray:
+    """Whether sample k - 1 blocks within its half steps at the edges of its run
+    (mirror of shadow.cl: run_end_hit), decided at sample k. had: k - 1 is on the
+    cutout; cont: k continues its surface (``slope`` = their foot step); pcont: k - 1
+    continued the surface of k - 2 (``pslope``). A run's first sample is tested
+    before it (once its slope to the next is known), its last after it, with the
+    upright half step of :func:`edge_hit`, where the run is upright (foot step at
+    most UPRIGHT_STEP px per sample) or one sample long; a slanted run (a surface
+    lying on the ground) is left as the samples show it."""
+    start = had & ~pcont
+    if slope.size:
+        bwd = start & (~cont | (np.abs(slope) <= UPRIGHT_STEP))
+    else:
+        bwd = start
+    fwd = had & ~cont & (~pcont | (np.abs(pslope) <= UPRIGHT_STEP))
+    return (bwd & edge_hit(pd, df, -1, thickness)) | (fwd & edge_hit(pd, df, 1, thickness))
 
 
 def hard_shadow_ref(mask, fg_height, bg_height, light, thickness=1.0, *,
