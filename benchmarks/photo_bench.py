@@ -4,6 +4,7 @@ reflection on a 20-megapixel photo (5120x3840) and on the same photo at 512x384.
     python benchmarks/photo_bench.py                      # both graphs, both sizes, 3 runs each
     python benchmarks/photo_bench.py --case soft --size 20mp --repeat 1
     python benchmarks/photo_bench.py --case soft --size 20mp --profile   # where the time goes (cProfile)
+    python benchmarks/photo_bench.py --case soft --size 20mp --profile --profile-cpu   # ... in CPU seconds
 
 The photo is made here, from the repository's own asset (graphs/assets/own_photo.jpg,
 rendered by graphs/assets/make_own_photo.py): enlarged 8x and given a deterministic
@@ -19,6 +20,9 @@ Cases (the graphs are written next to the photo):
   SoftShadow (48 samples), Composite; the final is written as PNG and as JPEG.
 * ``glossy``: the same scene with the floor glossy (Reflection: roughness 0.2,
   dielectric, receivers ground) and ReflectionComposite, as graphs/glossy_floor.yaml.
+
+Sizes: ``20mp`` (5120x3840), ``5mp`` (2560x1920), ``1280`` (1280x960), ``512``
+(512x384); the cutout is placed at 0.8x (640 / photo width) its size.
 
 Each run is a fresh process (``pixgraph run`` as a user runs it) with an empty
 memory cache and a disk cache folder of its own: ``s`` is the wall-clock of
