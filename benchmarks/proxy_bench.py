@@ -134,7 +134,8 @@ def photo(a) -> int:
             full, cpu, wall = trace(0)
             saved.parent.mkdir(parents=True, exist_ok=True)
             np.save(saved, full.astype(np.float32))
-        print(f"| {W}x{H} | full | {cpu:.2f} | {wall:.2f} | — | — |", flush=True)
+        took = f"{cpu:.2f} | {wall:.2f}" if cpu == cpu else f"(read from {saved.name}) | —"
+        print(f"| {W}x{H} | full | {took} | — | — |", flush=True)
         for side in a.proxy or [1024]:
             d, cpu, wall = trace(side)
             e = (d.astype(np.float64) - full)[bgpx]
