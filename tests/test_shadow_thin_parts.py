@@ -59,3 +59,28 @@ def test_edge_hit_is_the_depth_interval_over_the_half_step():
     assert S.edge_hit(-0.5, 2.0, -1, T) and not S.edge_hit(-0.5, 2.0, 1, T)
     # a ray parallel to the surface's foot (df 0) changes nothing
     assert not S.edge_hit(-0.5, 0.0, -1, T) and not S.edge_hit(2.5, 0.0, 1, T)
+
+
+@pytest.mark.parametrize("light", [(3000.0, 95.0, 5.0, 1.0), (80.0, -3000.0, 30.0, 1.0), (-2000.0, 60.0, 40.0, 1.0)])
+def test_a_cutout_lying_on_the_ground_casts_nothing_with_grazing_light(device, light):
+    """A flat cutout lying on the ground (heights 0 over a disk, receivers the ground)
+    is part of the ground: no shadow on it or around it, however low the light.
+    The run edges apply only where the surface stands upright (the foot changes by
+    1 px per row here); applied everywhere, they shaded 1,036 of its pixels and 42
+    around it for the first light."""
+    N = 160
+    y, x = np.mgrid[0:N, 0:N] + 0.5
+    mask = (((x - 80) ** 2 + (y - 90) ** 2) < 30 ** 2).astype(np.float32)
+    zero = np.zeros((N, N), np.float32)
+    for th in (1.0, 3.0):
+        assert S.hard_shadow(device, mask, zero, zero, light, th).min() == 1.0
+        assert S.hard_shadow_ref(mask, zero, zero, light, th).min() == 1.0
+
+
+def test_pixel_upright():
+    surf = np.full((6, 4), -1.0e30, np.float32)
+    surf[1:5, 0] = [40.0, 39.0, 38.0, 37.0]      # upright: the foot stays at 41.5
+    surf[1:5, 1] = 0.0                           # lying: the foot moves 1 px per row
+    surf[2, 2] = 7.0                             # one pixel tall: upright
+    got = S.pixel_upright(surf, np.array([0.5, 0.5, 1.5, 2.5]), np.array([1.5, 4.5, 3.5, 2.5]))
+    assert got.tolist() == [True, True, False, True]

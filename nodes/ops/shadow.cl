@@ -99,22 +99,36 @@ inline int edge_hit(float d, float df, float sigma, float thickness)
     return fmax(d, e) > PH_BEHIND_EPS && fmin(d, e) <= thickness;
 }
 
-/* A run of samples on one surface whose foot changes by at most this per sample
- * (px) is upright (shadow.py: UPRIGHT_STEP). */
+/* A cutout pixel whose foot (row centre + height) differs from the next row's by at
+ * most this (px) stands upright (shadow.py: UPRIGHT_STEP). */
 #define PH_UPRIGHT_STEP 0.5f
 
-/* 1 when sample k - 1 blocks within the half steps at the edges of its run,
- * decided at sample k (numpy: shadow.py run_end_hits). had: k - 1 is on the cutout;
- * cont: k continues its surface (slope: their foot step); pcont: k - 1 continued
- * the surface of k - 2 (pslope). A run's first sample is tested before it, its last
- * after it, where the run is upright or one sample long. */
-inline int run_end_hit(int had, int cont, int pcont, float pslope, float slope, float pd, float df,
-                       float thickness)
+/* 1 when the cutout's surface at the pixel of image point (u, v) stands upright
+ * (numpy: shadow.py pixel_upright): its foot changes by at most PH_UPRIGHT_STEP to
+ * the pixel below (or, without one on the cutout, above); a pixel with neither
+ * counts as upright. A surface lying on the ground changes its foot by 1 per row. */
+inline int pixel_upright(const occluder *o, float u, float v)
 {
-    if (!had) return 0;
-    int bwd = !pcont && (!cont || fabs(slope) <= PH_UPRIGHT_STEP);
-    int fwd = !cont && (!pcont || fabs(pslope) <= PH_UPRIGHT_STEP);
-    return (bwd && edge_hit(pd, df, -1.0f, thickness)) || (fwd && edge_hit(pd, df, 1.0f, thickness));
+    int i = (int)floor(v), j = (int)floor(u);
+    float s = o->surf[i * o->W + j];
+    float b = i + 1 < o->H ? o->surf[(i + 1) * o->W + j] : PH_NO_SURFACE;
+    if (b > PH_NO_SURFACE_TEST) return fabs(1.0f + b - s) <= PH_UPRIGHT_STEP;
+    float a = i >= 1 ? o->surf[(i - 1) * o->W + j] : PH_NO_SURFACE;
+    if (a > PH_NO_SURFACE_TEST) return fabs(1.0f + s - a) <= PH_UPRIGHT_STEP;
+    return 1;
+}
+
+/* 1 when sample k - 1 (at pu, pv) blocks within the half steps at the edges of its
+ * run, decided at sample k (numpy: shadow.py run_end_hits). test: k - 1 is a sample
+ * on the cutout; cont: k continues its surface; pcont: k - 1 continued the surface
+ * of k - 2. A run's first sample is tested before it, its last after it, where the
+ * surface stands upright. */
+inline int run_end_hit(const occluder *o, int test, int cont, int pcont, float pu, float pv, float pd,
+                       float df)
+{
+    if (!test || (pcont && cont)) return 0;
+    if (!pixel_upright(o, pu, pv)) return 0;
+    return (!pcont && edge_hit(pd, df, -1.0f, o->thickness)) || (!cont && edge_hit(pd, df, 1.0f, o->thickness));
 }
 
 /* ph_span_skippable with the ray's foot range widened by ext (px) each side: no
@@ -138,22 +152,33 @@ inline int span_skippable_edges(const occluder *o, const ph_march *m, int k, int
  * (run_end_hit), so that a part one sample wide blocks at any resolution. */
 inline int march_loop(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
 {
-    int prev = 0, pcont = 0;
-    float pfoot = 0.0f, pd = 0.0f, pslope = 0.0f, ps = 0.0f;
+    /* the previous sample k - 1: side for flips, on the cutout, whether its edges may
+     * be tested, whether it continued k - 2, foot, depth, position, height. Before
+     * an unclipped march's first sample, k - 1 is the receiver's own pixel when it
+     * lies on the cutout: its surface's run does not start at k = 1, and the
+     * receiver itself is never tested. */
+    int prev = 0, pon = 0, ptest = 0, pcont = 0;
+    float pfoot = 0.0f, pd = 0.0f, pu = 0.0f, pv = 0.0f, ps = 0.0f;
+    if (m->k_lo == 1) {
+        float s0 = o->surf[(int)floor(m->v) * o->W + (int)floor(m->u)];
+        if (s0 > PH_NO_SURFACE_TEST) {
+            pon = 1;
+            pfoot = m->v + s0;
+        }
+    }
     float df = m->sv + m->sh;
     float ext = 0.5f * fabs(df);
     int k = m->k_lo;
     int next_test = k;
     while (k <= m->k_hi) {
-        float s = ph_surface_height(o->surf, o->W, o->H, ph_sample_u(m, k), ph_sample_v(m, k),
-                                    m->major_u);
+        float u = ph_sample_u(m, k), v = ph_sample_v(m, k);
+        float s = ph_surface_height(o->surf, o->W, o->H, u, v, m->major_u);
         float rh = ph_ray_height(m, k);
         int sd = ph_side(rh, s);
-        float foot = ph_sample_v(m, k) + s;
+        float foot = v + s;
         /* one surface with k - 1: a side change across a depth discontinuity is no crossing */
-        int cont = prev != 0 && sd != 0 && ph_continuous(pfoot, foot, o->jump);
-        float slope = foot - pfoot;
-        if (run_end_hit(prev != 0, cont, pcont, pslope, slope, pd, df, o->thickness)) {
+        int cont = pon && sd != 0 && ph_continuous(pfoot, foot, o->jump);
+        if (run_end_hit(o, pon && ptest, cont, pcont, pu, pv, pd, df)) {
             *hit_k = k - 1;
             *hit_s = ps;
             return 1;
@@ -164,16 +189,20 @@ inline int march_loop(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
             return 1;
         }
         prev = sd;
+        pon = sd != 0;
+        ptest = 1;
+        pcont = cont;
         pfoot = foot;
         pd = s - rh;
-        pcont = cont;
-        pslope = slope;
+        pu = u;
+        pv = v;
         ps = s;
         if (k == next_test) {
             int e = min(m->k_hi, ph_span_end(m, k, o->tile));
             if (e > k + 1 && span_skippable_edges(o, m, k, e, ext)) {
                 k = e;        /* evaluate e next, as the first of a new run */
                 prev = 0;
+                pon = 0;
                 next_test = e + 1;
                 continue;
             }
@@ -182,7 +211,7 @@ inline int march_loop(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
         ++k;
     }
     /* the last sample ends its run */
-    if (run_end_hit(prev != 0, 0, pcont, pslope, 0.0f, pd, df, o->thickness)) {
+    if (run_end_hit(o, pon && ptest, 0, pcont, pu, pv, pd, df)) {
         *hit_k = k - 1;
         *hit_s = ps;
         return 1;

@@ -80,11 +80,11 @@ F32 = np.float32
 #: feet (v + h) differ by at most thickness + FLIP_JUMP pixels (march.h:
 #: ph_continuous); mirrors PH_FLIP_JUMP in shadow.cl.
 FLIP_JUMP = 1.0
-#: A run of samples on one surface whose foot (v + h) changes by at most this per
-#: sample (pixels) is upright: its edges are traced half a step beyond its first
-#: and last samples (``run_end_hits``), so that a thin part blocks the rays that
-#: pass through it between two samples, at any resolution. Mirrors
-#: PH_UPRIGHT_STEP in shadow.cl.
+#: A cutout pixel whose foot (row centre + height) differs from the next row's by
+#: at most this (pixels) stands upright (``pixel_upright``): the runs of samples on
+#: it are traced half a step beyond their first and last samples
+#: (``run_end_hits``), so that a thin part blocks the rays that pass through it
+#: between two samples, at any resolution. Mirrors PH_UPRIGHT_STEP in shadow.cl.
 UPRIGHT_STEP = F32(0.5)
 #: The cutout's height band is widened by this (pixels) each side: a run's edge
 #: reaches half a step past its sample, where an upright surface's height differs
@@ -245,12 +245,20 @@ def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
     else:
         ok &= M.march_clip_box(m, (0, 0, W, H), F32(-1e30), F32(1e30))
     sel = np.flatnonzero(ok)
+    # state of the previous sample k - 1: side for the flip test (0: none), on the
+    # cutout, its surface foot, depth d = surface height - ray height, whether it
+    # continued the surface of k - 2, whether its run edges may be tested, and its
+    # position and surface height (for the hit). Before the first sample of an
+    # unclipped march, "k - 1" is the receiver's own pixel when it lies on the
+    # cutout: the run of its own surface does not start at k = 1 (no edge there),
+    # and the receiver itself is never tested.
+    own = prep.surf[ii[sel], jj[sel]]
+    start_here = (m.k_lo[sel] == 1) & (own > M.NO_SURFACE_TEST)
     z = np.zeros(sel.size, np.float32)
-    # state of the previous sample k - 1: side (0: no surface), surface foot, depth
-    # d = surface height - ray height, whether it continued the surface of k - 2 and
-    # the foot step from k - 2, and its position and surface height (for the hit)
-    st = {"prev": np.zeros(sel.size, np.int8), "pfoot": z, "pd": z, "pcont": np.zeros(sel.size, bool),
-          "pslope": z, "pu": z, "pv": z, "ps": z}
+    st = {"prev": np.zeros(sel.size, np.int8), "pon": start_here,
+          "pfoot": np.where(start_here, (rv[sel] + own).astype(np.float32), F32(0)).astype(np.float32),
+          "pd": z, "pcont": np.zeros(sel.size, bool), "ptest": np.zeros(sel.size, bool),
+          "pu": z, "pv": z, "ps": z}
     jump = F32(prep.thickness + FLIP_JUMP)
     T = prep.thickness
 
@@ -261,17 +269,23 @@ def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
         hit[1, ii[b], jj[b]] = v[where]
         hit[2, ii[b], jj[b]] = s_[where]
 
+    def edges(cont):
+        """run_end_hits of sample k - 1 (``cont``: k continues its surface)."""
+        df = (m.sv[sel] + m.sh[sel]).astype(np.float32)
+        test = st["pon"] & st["ptest"]
+        up = np.zeros(sel.size, bool)
+        if test.any():
+            up[test] = pixel_upright(prep.surf, st["pu"][test], st["pv"][test])
+        return run_end_hits(test, cont, st["pcont"], up, st["pd"], df, T)
+
     n = 0
     while sel.size:
         k = m.k_lo[sel] + n
         live = k <= m.k_hi[sel]
         if not live.all():
-            # the last sample of these marches ends its run (edges, see edge_hit)
-            end = ~live
-            df = (m.sv[sel] + m.sh[sel]).astype(np.float32)
-            e_hit = run_end_hits(st["prev"] != 0, np.zeros(sel.size, bool), st["pcont"], st["pslope"], z[:0],
-                                 st["pd"], df, T)
-            record(end & e_hit, st["pu"], st["pv"], st["ps"])
+            # the last sample of these marches ends its run
+            e_hit = ~live & edges(np.zeros(sel.size, bool))
+            record(e_hit, st["pu"], st["pv"], st["ps"])
             sel, k = sel[live], k[live]
             st = {key: a[live] for key, a in st.items()}
         if not sel.size:
@@ -283,22 +297,36 @@ def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
         h = (m.h[sel] + kf * m.sh[sel]).astype(np.float32)
         sd = M.side(h, s)
         foot = (v + s).astype(np.float32)
-        had = st["prev"] != 0
         # one surface with k - 1: a side change across a depth discontinuity is no crossing
-        cont = had & (sd != 0) & M.continuous(st["pfoot"], foot, jump)
-        slope = (foot - st["pfoot"]).astype(np.float32)
-        df = (m.sv[sel] + m.sh[sel]).astype(np.float32)
-        prev_hit = run_end_hits(had, cont, st["pcont"], st["pslope"], slope, st["pd"], df, T)
+        cont = st["pon"] & (sd != 0) & M.continuous(st["pfoot"], foot, jump)
+        prev_hit = edges(cont)
         occ = M.occludes(h, s, T, sd, np.where(cont, st["prev"], 0).astype(np.int8)) & ~prev_hit
         record(prev_hit, st["pu"], st["pv"], st["ps"])
         record(occ, u, v, s)
         keep = ~(occ | prev_hit)
         sel = sel[keep]
-        st = {"prev": sd[keep], "pfoot": foot[keep], "pd": (s - h).astype(np.float32)[keep], "pcont": cont[keep],
-              "pslope": slope[keep], "pu": u[keep], "pv": v[keep], "ps": s[keep]}
-        z = np.zeros(sel.size, np.float32)
+        st = {"prev": sd[keep], "pon": (sd != 0)[keep], "pfoot": foot[keep], "pd": (s - h).astype(np.float32)[keep],
+              "pcont": cont[keep], "ptest": np.ones(sel.size, bool), "pu": u[keep], "pv": v[keep], "ps": s[keep]}
         n += 1
     return blocked, hit[0], hit[1], hit[2]
+
+
+def pixel_upright(surf: np.ndarray, u, v) -> np.ndarray:
+    """Whether the cutout's surface at the pixels of image points (u, v) stands upright
+    (mirror of shadow.cl: pixel_upright): its foot (row centre + height) changes by at
+    most UPRIGHT_STEP px to the pixel below (or, without one on the cutout, above).
+    A pixel with neither (a part one pixel tall) counts as upright: a surface lying
+    on the ground changes its foot by 1 px per row."""
+    H, W = surf.shape
+    i = np.floor(np.asarray(v, np.float32)).astype(np.int64)
+    j = np.floor(np.asarray(u, np.float32)).astype(np.int64)
+    s = surf[i, j]
+    below = np.where(i + 1 < H, surf[np.minimum(i + 1, H - 1), j], M.NO_SURFACE)
+    above = np.where(i >= 1, surf[np.maximum(i - 1, 0), j], M.NO_SURFACE)
+    has_b, has_a = below > M.NO_SURFACE_TEST, above > M.NO_SURFACE_TEST
+    step_b = np.abs(F32(1.0) + below - s)
+    step_a = np.abs(F32(1.0) + s - above)
+    return np.where(has_b, step_b <= UPRIGHT_STEP, np.where(has_a, step_a <= UPRIGHT_STEP, True))
 
 
 def edge_hit(d, df, sigma, thickness) -> np.ndarray:
@@ -313,22 +341,17 @@ def edge_hit(d, df, sigma, thickness) -> np.ndarray:
     return (np.maximum(d, e) > M.BEHIND_EPS) & (np.minimum(d, e) <= F32(thickness))
 
 
-def run_end_hits(had, cont, pcont, pslope, slope, pd, df, thickness) -> np.ndarray:
+def run_end_hits(test, cont, pcont, upright, pd, df, thickness) -> np.ndarray:
     """Whether sample k - 1 blocks within its half steps at the edges of its run
-    (mirror of shadow.cl: run_end_hit), decided at sample k. had: k - 1 is on the
-    cutout; cont: k continues its surface (``slope`` = their foot step); pcont: k - 1
-    continued the surface of k - 2 (``pslope``). A run's first sample is tested
-    before it (once its slope to the next is known), its last after it, with the
-    upright half step of :func:`edge_hit`, where the run is upright (foot step at
-    most UPRIGHT_STEP px per sample) or one sample long; a slanted run (a surface
-    lying on the ground) is left as the samples show it."""
-    start = had & ~pcont
-    if slope.size:
-        bwd = start & (~cont | (np.abs(slope) <= UPRIGHT_STEP))
-    else:
-        bwd = start
-    fwd = had & ~cont & (~pcont | (np.abs(pslope) <= UPRIGHT_STEP))
-    return (bwd & edge_hit(pd, df, -1, thickness)) | (fwd & edge_hit(pd, df, 1, thickness))
+    (mirror of shadow.cl: run_end_hit), decided at sample k. test: k - 1 is on the
+    cutout (and is a sample, not the receiver); cont: k continues its surface;
+    pcont: k - 1 continued the surface of k - 2; upright: :func:`pixel_upright` of
+    k - 1. A run's first sample is tested before it, its last after it, with the
+    upright half step of :func:`edge_hit`, where the surface stands upright; a
+    surface lying on the ground is left as the samples show it (the upright half
+    step would shade rays grazing it)."""
+    t = test & upright
+    return (t & ~pcont & edge_hit(pd, df, -1, thickness)) | (t & ~cont & edge_hit(pd, df, 1, thickness))
 
 
 def hard_shadow_ref(mask, fg_height, bg_height, light, thickness=1.0, *,
