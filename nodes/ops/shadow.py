@@ -12,16 +12,16 @@ samples -- the outline of a cutout in front of another, or of a part in front
 of the rest -- a side change is the ray passing through the gap, not a
 crossing, and does not count (SSG's rule counts it and draws a phantom wedge
 joining the front cutout to its shadow on the one behind). A run of samples on
-one upright surface is traced half a step beyond its first and last samples
-(``run_end_hits``: the ray's depth behind the surface over that half step, the
-surface's foot taken constant), so a part one sample wide blocks the rays that
-pass through it between two samples: without it a thin part's shadow shrank
-with the resolution (a 1-px bar's shadow 189/234/256 px^2 at 128/256/512 px,
-now 279/278/278; tests/test_shadow_thin_parts.py), and a proxy lost thin parts
-a photo's full trace has. Each walk is
-clipped to the cutout's bounding box and to the bands of heights and feet the
-cutout spans (march.h), so receivers whose ray never meets the cutout cost a
-few flops.
+the cutout is traced half a step beyond its first and last samples where the
+cutout's pixel stands upright (``run_end_hits``, ``pixel_upright``: the ray's
+depth behind the surface over that half step, the surface's foot taken
+constant), so a part one sample wide blocks the rays that pass through it
+between two samples: without it a thin part's shadow shrank with the resolution
+(a 1-px bar's shadow 189/234/256 px^2 at 128/256/512 px, now 279/278/278;
+tests/test_shadow_thin_parts.py), and a proxy lost thin parts a photo's full
+trace has. Each walk is clipped to the cutout's bounding box and to the bands of
+heights and feet the cutout spans (march.h), so receivers whose ray never meets
+the cutout cost a few flops.
 
 Units: all positions and heights in pixels. Arrays: float32 (H, W).
 
