@@ -385,7 +385,8 @@ def trace_rays_cl(device, surf, p0, e, s_max, thickness, *, hiz=True, clip_box=T
 def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, roughness=0.0, eta=1.5,
                   conductor=False, f0=(1.0, 1.0, 1.0), strength=1.0, thickness=4.0, min_spp=16,
                   max_spp=256, target_se=0.002, seed=0, mask=None, hiz=True, planar=True,
-                  probe_spp=4, probe_radius=4, band_rows=64, progress=None, check_cancelled=None):
+                  probe_spp=4, probe_radius=4, band_rows=64, receive=None, progress=None,
+                  check_cancelled=None):
     """Glossy reflection layer of the cutout on the background, on the device.
 
     Sampling: ``min_spp == max_spp`` takes that many samples everywhere. Otherwise
@@ -399,7 +400,9 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
     adaptive pixel also spent its probe's samples), ``steps`` int32 (H, W) march
     iterations of all passes, ``planar`` bool (H, W) pixels done by the
     closed form. ``planar`` (roughness 0 only) uses :func:`planar_mirror` on flat
-    ground, where it is exact. Work is enqueued in bands of ``band_rows`` rows so
+    ground, where it is exact. ``receive``: bool (H, W) of the receivers to trace
+    (None: all); the others stay 0 and cost nothing (a wall that is masked off
+    afterwards). Work is enqueued in bands of ``band_rows`` rows so
     that progress and cancellation are checked between bands."""
     import pyopencl as cl
     ctx, queue = device.context, device.queue
@@ -420,6 +423,8 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
     v_centre = np.arange(H, dtype=np.float64)[:, None] + 0.5
     bgh = np.asarray(bg_height, np.float64)
     valid = np.isfinite(bgh) & (v_centre + bgh - camera.horizon > 1e-9)
+    # pixels not to trace; `valid` itself stays whole (rt_normal differences read it)
+    off = ~valid if receive is None else ~(valid & np.asarray(receive, bool))
     alpha = float(roughness) ** 2
     if alpha == 0.0 and planar:
         done = flat_ground(bg_height, valid)
@@ -435,8 +440,9 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
         col = cutout.reshape(-1, 4)[hit.ravel()[got]]
         c = np.concatenate([w * col[:, :3], w.mean(-1, keepdims=True) * col[:, 3:]], -1)
         layer.reshape(-1, 4)[got] = np.where((cos_o > 1e-4)[:, None], strength * c, 0.0)
-        spp = (done & valid).astype(np.int32)
-        if (done | ~valid).all():
+        layer[off] = 0.0
+        spp = (done & ~off).astype(np.int32)
+        if (done | off).all():
             return {"layer": layer, "spp": spp, "steps": steps, "planar": done}
     S = _Surface(cl, ctx, surf, thickness, hiz)
     prg = _program(device)
@@ -471,7 +477,7 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
         return _read(cl, queue, (d_out, (H, W, 4), np.float32), (d_spp, (H, W), np.int32),
                      (d_steps, (H, W), np.int32))
 
-    skip = done | ~valid
+    skip = done | off
     if alpha == 0.0:
         band_rows = H
     if alpha > 0.0 and max_spp > min_spp and probe_spp < min_spp:
@@ -493,9 +499,9 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
         st_out = st1 + np.where(hot, st2, 0)
     else:
         out, s_out, st_out = run(skip, min_spp, max_spp, 0.0, 1.0)
-    layer = np.where(done[..., None], layer, np.where(valid[..., None], out, 0.0)).astype(np.float32)
-    spp = np.where(done, spp, np.where(valid, s_out, 0)).astype(np.int32)
-    steps = np.where(valid, st_out, 0).astype(np.int32)
+    layer = np.where(done[..., None], layer, np.where(off[..., None], 0.0, out)).astype(np.float32)
+    spp = np.where(done, spp, np.where(off, 0, s_out)).astype(np.int32)
+    steps = np.where(off, 0, st_out).astype(np.int32)
     return {"layer": layer, "spp": spp, "steps": steps, "planar": done}
 
 
