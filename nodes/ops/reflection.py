@@ -123,21 +123,24 @@ def setup_rays(p0, e, s_max, W, H, box=None, h_lo=-SOLID, h_hi=SOLID):
     return m, ok
 
 
-def trace_closest(surf: np.ndarray, m: march.March, ok: np.ndarray, thickness: float):
+def trace_closest(surf: np.ndarray, m: march.March, ok: np.ndarray, thickness: float, with_k: bool = False):
     """Closest hit of every march against a pixel-height surface (plain marching).
 
     Returns ``(hit, last)``: flat pixel index of the first sample where the ray
     passes behind the surface by at most ``thickness`` pixels or crosses it between
     two consecutive surface samples (``march.occludes``), -1 for none; and the last
-    in-image sample pixel visited (-1 for none)."""
+    in-image sample pixel visited (-1 for none). ``with_k``: also the sample index
+    of the hit, or with none of the last in-image sample (-1 for none), as
+    ``rt_trace_k``'s ``kout``: ``(hit, last, k)``."""
     H, W = surf.shape
     n = m.u.shape[0]
     hit = np.full(n, -1, np.int64)
     last = np.full(n, -1, np.int64)
     prev = np.zeros(n, np.int8)
+    kout = np.full(n, -1, np.int64)
     active = ok & (m.k_lo <= m.k_hi)
     if not active.any():
-        return hit, last
+        return (hit, last, kout) if with_k else (hit, last)
     k = m.k_lo.astype(np.int64).copy()
     while active.any():
         idx = np.flatnonzero(active)
@@ -151,6 +154,7 @@ def trace_closest(surf: np.ndarray, m: march.March, ok: np.ndarray, thickness: f
         inside = (j >= 0) & (j < W) & (i >= 0) & (i < H)
         pix = np.where(inside, i * W + j, -1)
         last[idx] = np.where(inside, pix, last[idx])
+        kout[idx] = np.where(inside, kk, kout[idx])
         sh = march.surface_height(surf, u, v, sub.major_u)
         rh = sub.ray_height(kk)
         side = march.side(rh, sh)
@@ -160,7 +164,7 @@ def trace_closest(surf: np.ndarray, m: march.March, ok: np.ndarray, thickness: f
         k[idx] += 1
         active[idx[occ]] = False
         active &= k <= m.k_hi
-    return hit, last
+    return (hit, last, kout) if with_k else (hit, last)
 
 
 # ---------------------------------------------------------------------------
