@@ -218,20 +218,26 @@ def _background_pix(camera, p0, d, bgs):
     return _background_pos(camera, p0, d, bgs)[1]
 
 
-def _setup(device, camera, glass, glass_height, bg_height, back_surface, hiz):
+def _setup(device, camera, glass, glass_height, bg_height, back_surface, hiz, normal=None, radius=None):
     """Uploads shared by rt_refract and rt_refract_hits: ``(prg, head, keep)`` with
     ``head`` the kernels' common leading arguments (through ``nlev``) and ``keep``
-    what must stay alive until the last launch."""
+    what must stay alive until the last launch. ``normal`` (H, W, 3) and
+    ``radius`` (H, W) replace those reconstructed from ``glass_height`` (the
+    proxy passes the full-resolution ones, shrunk)."""
     import pyopencl as cl
     ctx = device.context
     H, W = bg_height.shape
     if back_surface not in ("none", "local_sphere"):
         raise ValueError(f"back_surface must be 'none' or 'local_sphere', got {back_surface!r}")
     geo = reconstruct(camera, glass_height)
+    if normal is not None:
+        geo["normal"] = np.ascontiguousarray(normal, np.float32)
     bgs = march.surface_buffer(np.ones_like(bg_height), bg_height)
     S = _Surface(cl, ctx, bgs, float(SOLID), hiz)
-    radius = (local_radius(geo, glass[..., 3]) if back_surface == "local_sphere"
-              else np.zeros((H, W), np.float32))
+    if back_surface != "local_sphere":
+        radius = np.zeros((H, W), np.float32)
+    elif radius is None:
+        radius = local_radius(geo, glass[..., 3])
     head = [np.int32(W), np.int32(H), np.float32(camera.focal),
             np.float32(camera.horizon), np.float32(camera.cam_height), _buf(cl, ctx, glass[..., 3]),
             _buf(cl, ctx, glass_height), _buf(cl, ctx, geo["normal"]),
@@ -302,12 +308,15 @@ def refraction_cl(device, camera: Camera, glass, glass_height, background, bg_he
 
 
 def refraction_hits_cl(device, camera: Camera, glass, glass_height, bg_height, *, eta=1.5, fresnel=True,
-                       hiz=True, back_surface="none", band_rows=None, progress=None, check_cancelled=None):
+                       hiz=True, back_surface="none", band_rows=None, progress=None, check_cancelled=None,
+                       normal=None, radius=None):
     """``rt_refract_hits`` on the device (numpy reference :func:`refraction_hits_numpy`):
     a dict with ``pos`` float32 (H, W, 4) ``(u_T, v_T, u_R, v_R)`` [px] where the
     transmitted and the reflected ray meet the background (the pixel's centre
     where there is no such ray), ``wts`` float32 (H, W, 2) their weights ``(T, F)``,
-    ``tir``, ``hit`` and ``steps`` as :func:`refraction_cl`'s."""
+    ``tir``, ``hit`` and ``steps`` as :func:`refraction_cl`'s. ``normal`` (H, W, 3),
+    ``radius`` (H, W): the glass's normals and local radius [world units] to use
+    instead of those reconstructed from ``glass_height``."""
     import pyopencl as cl
     ctx, queue = device.context, device.queue
     glass = np.asarray(glass, np.float32)
@@ -315,7 +324,7 @@ def refraction_hits_cl(device, camera: Camera, glass, glass_height, bg_height, *
     bg_height = np.asarray(bg_height, np.float32)
     check_shapes(camera, glass=glass, glass_height=glass_height, bg_height=bg_height)
     H, W = bg_height.shape
-    prg, head, keep = _setup(device, camera, glass, glass_height, bg_height, back_surface, hiz)
+    prg, head, keep = _setup(device, camera, glass, glass_height, bg_height, back_surface, hiz, normal, radius)
     mf = cl.mem_flags
     d_pos = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 16)
     d_wts = cl.Buffer(ctx, mf.WRITE_ONLY, H * W * 16)
@@ -379,13 +388,22 @@ def refraction_proxy(device, camera: Camera, glass, glass_height, background, bg
     ins = on[r0:r1, c0:c1]
     part = np.stack([a[r0:r1, c0:c1], ins.astype(np.float32),
                      np.where(ins, np.nan_to_num(glass_height[r0:r1, c0:c1]), 0.0).astype(np.float32)], 2)
-    cov, cover, hsum = np.moveaxis(_shrink_part(part, (r0, c0), (H, W), (h, w)), 2, 0)
+    n_full, R_full = _box_geometry(camera, glass_height, a, (r0, r1, c0, c1), back_surface == "local_sphere")
+    part = np.concatenate([part, n_full * ins[..., None], (R_full * (R_full > 0))[..., None],
+                           (ins & (R_full > 0)).astype(np.float32)[..., None]], axis=2)
+    shrunk = np.moveaxis(_shrink_part(part, (r0, c0), (H, W), (h, w)), 2, 0)
+    cov, cover, hsum = shrunk[:3]
+    # the full-resolution normals and local radius, averaged over each proxy pixel's glass
+    n_lo = np.moveaxis(shrunk[3:6], 0, 2)
+    n_len = np.linalg.norm(n_lo, axis=2, keepdims=True)
+    n_lo = np.where(n_len > 1e-6, n_lo / np.maximum(n_len, 1e-6), 0.0).astype(np.float32)
+    R_lo = np.where(shrunk[7] > 1e-6, shrunk[6] / np.maximum(shrunk[7], 1e-6), 0.0).astype(np.float32)
     g_lo = np.zeros((h, w, 4), np.float32)
     g_lo[..., 3] = np.where(cover > 1e-6, cov, 0.0)
     gh_lo = (np.where(cover > 1e-6, hsum / np.maximum(cover, 1e-6), 0.0) * win.ky).astype(np.float32)
     bg_lo = (resize(np.nan_to_num(bg_height, nan=0.0, posinf=0.0, neginf=0.0), (h, w)) * win.ky).astype(np.float32)
     cam = dataclasses.replace(camera, width=w, height=h, horizon=camera.horizon * win.ky)
-    r = refraction_hits_cl(device, cam, g_lo, gh_lo, bg_lo, **kw)
+    r = refraction_hits_cl(device, cam, g_lo, gh_lo, bg_lo, normal=n_lo, radius=R_lo, **kw)
     # displacement of each hit from the pixel's own centre, in full-resolution pixels
     u, v = np.meshgrid(np.arange(w, dtype=np.float32) + 0.5, np.arange(h, dtype=np.float32) + 0.5)
     kx, ky = W / w, H / h
@@ -414,6 +432,27 @@ def refraction_proxy(device, camera: Camera, glass, glass_height, background, bg
     hit[r0:r1, c0:c1] = r["hit"][:, ix][iy] & ins
     steps[r0:r1, c0:c1] = np.where(ins, r["steps"][:, ix][iy], 0)
     return {"layer": layer, "tir": tir, "hit": hit, "steps": steps, "proxy": (h, w)}
+
+
+def _box_geometry(camera: Camera, glass_height, alpha, box, radius: bool):
+    """Normals (h, w, 3) and local radius (h, w) [world units; 0 without ``radius``]
+    of the glass over ``box`` = (r0, r1, c0, c1) at full resolution: the numbers of
+    ``reconstruct`` and :func:`local_radius` on the whole image, computed on the box
+    and a margin of 3 pixels (what their differences and erosions read)."""
+    from .camera import surface_normals
+    H, W = glass_height.shape
+    r0, r1, c0, c1 = box
+    R0, R1, C0, C1 = max(0, r0 - 3), min(H, r1 + 3), max(0, c0 - 3), min(W, c1 + 3)
+    hh = np.asarray(glass_height[R0:R1, C0:C1], np.float64)
+    u, v = np.meshgrid(np.arange(C0, C1, dtype=np.float64) + 0.5, np.arange(R0, R1, dtype=np.float64) + 0.5)
+    P, valid = camera.back_project(u, v, hh)
+    valid &= np.isfinite(hh)
+    n = surface_normals(P, valid)
+    geo = {"position": np.where(valid[..., None], P, 0.0), "normal": n, "valid": valid.astype(np.float32)}
+    rad = (local_radius(geo, alpha[R0:R1, C0:C1]) if radius
+           else np.zeros(hh.shape, np.float32))
+    sl = (slice(r0 - R0, r1 - R0), slice(c0 - C0, c1 - C0))
+    return n[sl].astype(np.float32), rad[sl].astype(np.float32)
 
 
 def _bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
