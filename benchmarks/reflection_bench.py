@@ -4,6 +4,7 @@ noise-free 512x512 glossy reflection at 200 spp on a CUDA GPU).
     python benchmarks/reflection_bench.py            # full run, a few minutes
     python benchmarks/reflection_bench.py --quick    # fewer points, one repeat
     python benchmarks/reflection_bench.py --proxy-errors --size 1280 --size 20mp   # the proxies' error
+    python benchmarks/reflection_bench.py --proxy-errors --size 1280 --seed-floor  # + the sampling noise
 
 ``--proxy-errors``: the error of Reflection's and Refraction's ``proxy`` against the
 full computation (``proxy: 0``) on the photo of benchmarks/photo_bench.py at each
@@ -170,6 +171,17 @@ def proxy_errors(args) -> int:
                 print(f"{name:10s} {W}x{H} hits traced at full size, looked up as the proxy does: RMSE "
                       f"{row['rmse']:.4f}  max {row['max']:.3f}  (the lookup's own difference)", flush=True)
                 del hh, o
+            if name == "reflection" and args.seed_floor:
+                # the sampling noise: the full computation with another seed
+                other = np.asarray(s.run(g, outputs=[port], params={f"{node}.proxy": 0, f"{node}.seed": 1})[port])
+                d = other.astype(np.float64) - full
+                where = ((other != 0).any(-1) | (full != 0).any(-1)) & (cover < 0.5)
+                row = {"case": name, "size": f"{W}x{H}", "proxy": "full size, seed 1", "pixels": "affected",
+                       "n": int(where.sum()), "rmse": float(np.sqrt(np.mean(d[where] ** 2))),
+                       "max": float(np.abs(d[where]).max())}
+                rows.append(row)
+                print(f"{name:10s} {W}x{H} full computation with another seed: RMSE {row['rmse']:.4f}  "
+                      f"max {row['max']:.3f}  (the sampling noise)", flush=True)
             for side in args.proxies:
                 ts = []
                 for _ in range(repeat):
@@ -211,6 +223,8 @@ def main(argv=None):
     ap.add_argument("--size", action="append", choices=("512", "1280", "20mp"), help="--proxy-errors: photo size")
     ap.add_argument("--proxies", type=int, nargs="+", default=[1024, 512], help="--proxy-errors: proxy sides")
     ap.add_argument("--recompute", action="store_true", help="--proxy-errors: recompute the kept full layers")
+    ap.add_argument("--seed-floor", action="store_true",
+                    help="--proxy-errors: also the full reflection with another seed (its sampling noise)")
     args = ap.parse_args(argv)
     if args.proxy_errors:
         return proxy_errors(args)
