@@ -141,6 +141,8 @@ def proxy_errors(args) -> int:
         cases = [("reflection", PB.make_graph("glossy", size), "refl", "refl.layer"),
                  ("refraction", refr, "refr", "refr.layer")]
         for name, path, node, port in cases:
+            if args.case and name not in args.case:
+                continue
             s = Session(disk_cache=None, allow_paths=[str(ROOT)], cache_bytes=3 << 30)
             g = s.graph(path)
             cover = (s.run(g, outputs=["place.alpha"])["place.alpha"] if name == "reflection"
@@ -223,6 +225,8 @@ def main(argv=None):
     ap.add_argument("--size", action="append", choices=("512", "1280", "20mp"), help="--proxy-errors: photo size")
     ap.add_argument("--proxies", type=int, nargs="+", default=[1024, 512], help="--proxy-errors: proxy sides")
     ap.add_argument("--recompute", action="store_true", help="--proxy-errors: recompute the kept full layers")
+    ap.add_argument("--case", action="append", choices=("reflection", "refraction"),
+                    help="--proxy-errors: only these (default both)")
     ap.add_argument("--seed-floor", action="store_true",
                     help="--proxy-errors: also the full reflection with another seed (its sampling noise)")
     args = ap.parse_args(argv)
