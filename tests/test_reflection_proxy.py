@@ -64,6 +64,15 @@ def test_the_proxy_pieces_give_the_numbers_of_the_whole_image_versions():
                      for c in range(4)], -1) * wt[..., None]
     np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-7)
     assert (got[:40] == 0).all()                       # tiles over an empty proxy stay 0
+    # an outline in one place: the tiles away from it take the one-sided (plain) path
+    m_lo = np.zeros((h, w), np.float32)
+    m_lo[20:30, 30:40] = 1.0
+    m_hi = np.zeros((H, W), bool)
+    m_hi[100:150, 150:200] = True
+    got = enlarge_sparse(lo, m_lo, m_hi, (H, W), tile=32)
+    want = np.stack([np.maximum(masked_resize(lo[..., c], m_lo, m_hi.astype(np.float32), (H, W)), 0)
+                     for c in range(4)], -1)
+    np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-7)
     img = np.zeros((413, 297, 4), np.float32)
     img[100:180, 50:90] = rng.random((80, 40, 4))
     for shape in [(80, 60), (77, 59)]:

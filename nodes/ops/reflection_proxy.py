@@ -119,17 +119,25 @@ def enlarge_sparse(lo: np.ndarray, side_lo: np.ndarray, side_hi: np.ndarray, sha
             if acc[pr1, pc1] - acc[pr0, pc1] - acc[pr1, pc0] + acc[pr0, pc0] == 0:
                 continue
             sub = lo[pr0:pr1, pc0:pc1]
-            s_in = inside_lo[pr0:pr1, pc0:pc1, None].astype(np.float32)
-            s_out = 1.0 - s_in
-            planes = np.concatenate([sub, s_out, sub * s_out, s_in, sub * s_in], axis=2)   # (pr, pc, 3C + 2)
-            cols = np.einsum("rotp,ot->rop", planes[:, ci - pc0], cw)
-            full = np.einsum("otcp,ot->ocp", cols[ri - pr0], rw)                          # (nr, nc, 3C + 2)
-            res = full[..., :C]
+            s_lo = inside_lo[pr0:pr1, pc0:pc1]
             hi_in = np.asarray(side_hi[r0:r1, c0:c1]) > 0.5
-            for k, here in ((C, ~hi_in), (2 * C + 1, hi_in)):
-                den = full[..., k]
-                ok = here & (den > 1e-3)
-                res[ok] = full[..., k + 1:k + 1 + C][ok] / den[ok][:, None]
+            one_side = (not s_lo.any() and not hi_in.any()) or (s_lo.all() and hi_in.all())
+            if one_side:
+                # no outline within reach: every weight is on the pixel's own side,
+                # so the renormalised interpolation is the plain one (den = 1)
+                cols = np.einsum("rotp,ot->rop", sub[:, ci - pc0], cw)
+                res = np.einsum("otcp,ot->ocp", cols[ri - pr0], rw)
+            else:
+                s_in = s_lo[..., None].astype(np.float32)
+                s_out = 1.0 - s_in
+                planes = np.concatenate([sub, s_out, sub * s_out, s_in, sub * s_in], axis=2)   # (pr, pc, 3C + 2)
+                cols = np.einsum("rotp,ot->rop", planes[:, ci - pc0], cw)
+                full = np.einsum("otcp,ot->ocp", cols[ri - pr0], rw)                          # (nr, nc, 3C + 2)
+                res = full[..., :C]
+                for k, here in ((C, ~hi_in), (2 * C + 1, hi_in)):
+                    den = full[..., k]
+                    ok = here & (den > 1e-3)
+                    res[ok] = full[..., k + 1:k + 1 + C][ok] / den[ok][:, None]
             np.maximum(res, 0.0, out=res)       # bilinear weights are >= 0; only rounding dips below
             if weight is not None:
                 res *= np.asarray(weight[r0:r1, c0:c1], np.float32)[..., None]
