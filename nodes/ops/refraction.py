@@ -414,7 +414,10 @@ def refraction_proxy(device, camera: Camera, glass, glass_height, background, bg
     side_lo = (g_lo[..., 3] > 0.5).astype(np.float32)
     box = (r0, r1, c0, c1)
     big = [masked_resize(p, side_lo, a, (H, W), box=box) for p in planes]
-    sel = ins
+    # glass whose foot lies below the horizon (reconstruct's validity; elsewhere 0, as refraction_cl)
+    gh_box = glass_height[r0:r1, c0:c1].astype(np.float64)
+    v_mid = np.arange(r0, r1, dtype=np.float64)[:, None] + 0.5
+    sel = ins & np.isfinite(gh_box) & (v_mid + gh_box - camera.horizon > 1e-9)
     yy, xx = np.nonzero(sel)
     uc, vc = xx + c0 + 0.5, yy + r0 + 0.5
     alpha = ins * a[r0:r1, c0:c1]
@@ -426,11 +429,11 @@ def refraction_proxy(device, camera: Camera, glass, glass_height, background, bg
     sub = layer[r0:r1, c0:c1]
     sub[sel, :3] = alpha[sel, None] * col
     sub[sel, 3] = alpha[sel]
-    tir[r0:r1, c0:c1] = (big[-1] > 0.5) & ins
+    tir[r0:r1, c0:c1] = (big[-1] > 0.5) & sel
     iy = np.minimum((np.arange(r0, r1) * h) // H, h - 1)
     ix = np.minimum((np.arange(c0, c1) * w) // W, w - 1)
-    hit[r0:r1, c0:c1] = r["hit"][:, ix][iy] & ins
-    steps[r0:r1, c0:c1] = np.where(ins, r["steps"][:, ix][iy], 0)
+    hit[r0:r1, c0:c1] = r["hit"][:, ix][iy] & sel
+    steps[r0:r1, c0:c1] = np.where(sel, r["steps"][:, ix][iy], 0)
     return {"layer": layer, "tir": tir, "hit": hit, "steps": steps, "proxy": (h, w)}
 
 
