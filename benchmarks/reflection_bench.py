@@ -195,6 +195,12 @@ def proxy_errors(args) -> int:
                 if name == "reflection":
                     where = ((out != 0).any(-1) | (full != 0).any(-1)) & (cover < 0.5)
                     parts = [("affected", where)]
+                    # where the layer's energy is: its alpha summed over bands of rows below the horizon
+                    top = int(PB.SIZES[size][1] * 0.5)
+                    edges = np.linspace(top, H, 7).astype(int)
+                    print(f"  alpha sum per band of rows {', '.join(f'{a}-{b}' for a, b in zip(edges, edges[1:]))}: "
+                          f"full {[round(float(full[a:b, :, 3].sum()), 1) for a, b in zip(edges, edges[1:])]}, "
+                          f"proxy {side} {[round(float(out[a:b, :, 3].sum()), 1) for a, b in zip(edges, edges[1:])]}")
                 else:
                     on = cover > 0
                     inner = on.copy()
