@@ -4,15 +4,15 @@ A glossy reflection (GGX roughness > 0) is blurred by its lobe: away from the
 contact it is as low-frequency as a soft shadow's penumbra, and its cost grows
 with the pixels traced times the samples each takes. So, as the soft shadow
 (``upsample.proxy_soft_shadow``), an image whose longer side is over ``max_side``
-is traced on a shrunken copy of the scene and enlarged with
-``upsample.masked_resize`` against the full-resolution mask (the floor's
+is traced on a shrunken copy of the scene and enlarged with the numbers of
+``upsample.masked_resize`` against the full-resolution mask (``enlarge_sparse``; the floor's
 reflection and the cutout are not mixed across its outline). A mirror
 (roughness 0) is as sharp as the cutout and is traced at full size.
 
 The copy is the same scene: the camera keeps its field of view (its focal
 length and horizon row scale with the image), pixel heights scale with the rows,
 so the 3D scene the tracer reconstructs is unchanged. Error against the full
-trace: docs/reflection.md (``benchmarks/photo_bench.py --errors``).
+trace: docs/reflection.md (``benchmarks/reflection_bench.py --proxy-errors``).
 """
 from __future__ import annotations
 
