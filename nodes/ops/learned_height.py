@@ -194,6 +194,74 @@ def pin_contact(height: np.ndarray, mask: np.ndarray, lift: float = 0.0, band: f
     return np.where(m, np.maximum(h - off, 0.0), 0.0).astype(np.float32)
 
 
+def lower_hull_rows(bottom_edge: np.ndarray) -> np.ndarray:
+    """The lower convex hull (in the image: the envelope from below, largest v)
+    of a silhouette's column bottoms. ``bottom_edge``: (W,) the bottom edge of
+    each column's lowest mask pixel [rows, the row below it], NaN for empty
+    columns. Returns (W,) the hull's row at each column centre (NaN where
+    empty). A straight or convex-from-below bottom (a base's near rim, a
+    brick's two bottom edges) lies on its hull; the underside of a table top
+    between its legs or the gap between two feet lies above it."""
+    b = np.asarray(bottom_edge, np.float64)
+    cols = np.nonzero(np.isfinite(b))[0]
+    out = np.full(b.shape, np.nan)
+    if len(cols) == 0:
+        return out
+    pts = [(float(c) + 0.5, float(b[c])) for c in cols]
+    hull: list[tuple[float, float]] = []
+    for u, v in pts:                  # monotone chain, keeping the upper envelope of v(u)
+        while len(hull) >= 2:
+            (u1, v1), (u2, v2) = hull[-2], hull[-1]
+            if (u2 - u1) * (v - v1) - (v2 - v1) * (u - u1) >= 0:   # hull[-1] is not above the chord
+                hull.pop()
+            else:
+                break
+        hull.append((u, v))
+    hu = np.array([q[0] for q in hull]); hv = np.array([q[1] for q in hull])
+    out[cols] = np.interp(cols + 0.5, hu, hv)
+    return out
+
+
+def snap_feet(height: np.ndarray, mask: np.ndarray, tol: float, hull: bool = False,
+              fade: float = 0.25) -> np.ndarray:
+    """The rest of a grounded object's contact, after ``pin_contact``.
+
+    The contact band is only the silhouette's two lowest rows; a standing
+    object also touches the ground higher in the image (the far side of a round
+    base, a turned brick's two bottom edges, the back legs of a table). Every
+    column whose lowest mask pixel the map already puts below ``tol`` px is
+    taken to stand on the ground there (with ``hull``: only if that pixel is
+    also within 1 px of the silhouette's lower convex hull, ``lower_hull_rows``):
+    the column is shifted down by that pixel's height, the shift fading
+    linearly to 0 at ``fade`` box heights above it, so the pixel is exactly 0 and
+    the shape above it is kept. Heights stay >= 0 and 0 outside ``mask``.
+    ``tol <= 0`` returns the map unchanged (masked). [px in, px out]"""
+    m = np.asarray(mask, bool)
+    h = np.where(m, np.asarray(height, np.float32), 0.0).astype(np.float32)
+    if tol <= 0 or not m.any():
+        return h
+    H, W = m.shape
+    has = m.any(0)
+    low = (H - 1 - np.argmax(m[::-1], axis=0)).astype(np.int64)        # lowest mask row per column
+    cols = np.nonzero(has)[0]
+    hb = h[low[cols], cols]
+    take = hb < tol
+    if hull:
+        edge = np.where(has, low + 1.0, np.nan)
+        hr = lower_hull_rows(edge)
+        take &= (hr[cols] - edge[cols]) <= 1.0
+    rows = np.nonzero(m.any(1))[0]
+    bh = float(rows.max() - rows.min() + 1)
+    v = np.arange(H, dtype=np.float64)[:, None]
+    for c, off in zip(cols[take], hb[take]):
+        if off <= 0:
+            continue
+        w = np.clip(1.0 - (low[c] - v[:, 0]) / (fade * bh), 0.0, 1.0)
+        w[low[c] + 1:] = 0.0
+        h[:, c] = np.maximum(h[:, c] - off * w, 0.0)
+    return np.where(m, h, 0.0).astype(np.float32)
+
+
 def split_output(y):
     """(height / bh (N, S, S), error heads (N, 2, S, S) or None) of a model output:
     a 1-output model returns the height alone; a 3-output one also returns the
@@ -257,7 +325,7 @@ class LearnedHeightPredictor:
 
     def __init__(self, path: str | pathlib.Path = WEIGHTS, threads: int | None = 1,
                  flip_average: bool | None = None, heuristic_detail: bool | None = None,
-                 pin_fade: float | None | str = "checkpoint"):
+                 pin_fade: float | None | str = "checkpoint", foot_snap: dict | None | str = "checkpoint"):
         import torch
         ck = torch.load(path, map_location="cpu", weights_only=True)
         cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else ck["config"]
@@ -281,6 +349,9 @@ class LearnedHeightPredictor:
         # how the contact pin shifts the map (pin_contact's fade): the checkpoint's choice
         # (lab/height/inference_study.py --pin), else a constant shift
         self.pin_fade = inf.get("pin_fade", None) if pin_fade == "checkpoint" else pin_fade
+        # the rest of the contact (snap_feet): the checkpoint's choice (lab/height/foot_study.py), else off
+        fs = inf.get("foot_snap") if foot_snap == "checkpoint" else foot_snap
+        self.foot_snap = dict(fs) if fs else None
 
     def predict_normalised(self, x: np.ndarray, aux: bool = False):
         """(N, 6, S, S) inputs -> (N, S, S) height / bh; with ``aux`` also the
@@ -367,6 +438,8 @@ class LearnedHeightPredictor:
         if contact != "free":
             lv = float(lift) if contact == "lifted" else 0.0
             h = pin_contact(h, mask, lv, fade=self.pin_fade)
+            if contact == "ground" and self.foot_snap:
+                h = snap_feet(h, mask, float(self.foot_snap["tol"]), bool(self.foot_snap.get("hull", False)))
             out["heuristic"] = pin_contact(heur, mask, lv)
         out["height"] = h
         return out
