@@ -8,8 +8,8 @@
    per map (``learned``: ``--weights`` through ``LearnedHeightPredictor.predict``
    with ``contact="ground"``; ``learned_free``: the same network without the
    contact pin; ``baseline``: ``--baseline`` pinned the same way; ``heuristic``:
-   the contact line; ``auto``: the ``CutoutHeight`` auto rule, learned when the
-   confidence is >= 0.5) the mean |predicted - true| over the object's pixels
+   the contact line; ``auto``: the ``CutoutHeight`` auto rule, ``use_learned`` of
+   ``predict_full``) the mean |predicted - true| over the object's pixels
    (the centre-ray mask); the share of samples where ``learned`` beats the
    heuristic; the foot error: how high above the ground the map puts the
    object's visible foot, the mean predicted height over the pixels whose true
@@ -61,7 +61,7 @@ def eval_heights(data_dir, predictor, baseline=None, limit=0):
         free = predictor.predict(rgba, contact="free")
         conf = r["confidence"]
         maps = {"learned": r["height"], "learned_free": free, "heuristic": r["heuristic"]}
-        maps["auto"] = r["height"] if conf is None or conf >= 0.5 else r["heuristic"]
+        maps["auto"] = r["height"] if r.get("use_learned", True) else r["heuristic"]
         if baseline is not None:
             maps["baseline"] = baseline.predict(rgba)
         row = {"index": meta["index"], "category": meta.get("category", "?"), "object": meta["object"],
@@ -109,7 +109,7 @@ def eval_shadows(data_dir, predictor, n_samples=64, limit=0, thickness=1.0, ssn=
         r = predictor.predict_full(rgba)
         conf = r["confidence"]
         heights = {"true": s["fg_height"].astype(np.float32), "learned": r["height"], "heuristic": r["heuristic"]}
-        heights["auto"] = r["height"] if conf is None or conf >= 0.5 else r["heuristic"]
+        heights["auto"] = r["height"] if r.get("use_learned", True) else r["heuristic"]
         row = {"index": s["meta"]["index"], "object": s["meta"]["scene"]["object"],
                "confidence": float("nan") if conf is None else conf}
         for k, h in heights.items():

@@ -262,6 +262,87 @@ def snap_feet(height: np.ndarray, mask: np.ndarray, tol: float, hull: bool = Fal
     return np.where(m, h, 0.0).astype(np.float32)
 
 
+def convex_hull_area(mask: np.ndarray) -> float:
+    """Area [px^2] of the convex hull of a mask's pixel squares (0 for an empty mask)."""
+    m = np.asarray(mask, bool)
+    rows = np.nonzero(m.any(1))[0]
+    if len(rows) == 0:
+        return 0.0
+    first = np.argmax(m[rows], axis=1)
+    last = m.shape[1] - np.argmax(m[rows][:, ::-1], axis=1)
+    pts = sorted({(float(c), float(r + d)) for r, c0, c1 in zip(rows, first, last)
+                  for c in (c0, c1) for d in (0, 1)})
+
+    def half(points):
+        h: list[tuple[float, float]] = []
+        for p in points:
+            while len(h) >= 2 and ((h[-1][0] - h[-2][0]) * (p[1] - h[-2][1])
+                                   - (h[-1][1] - h[-2][1]) * (p[0] - h[-2][0])) <= 0:
+                h.pop()
+            h.append(p)
+        return h
+    hull = half(pts)[:-1] + half(pts[::-1])[:-1]
+    x = np.array([q[0] for q in hull]); y = np.array([q[1] for q in hull])
+    return float(0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+SIGNALS = ("disagreement_px", "disagreement_rel", "flip_px", "head_gain_px", "overhang_share", "solidity")
+
+
+def confidence_signals(height: np.ndarray, heuristic: np.ndarray, mask: np.ndarray,
+                       flip_height: np.ndarray | None = None, est_mae_learned: float | None = None,
+                       est_mae_heuristic: float | None = None) -> dict:
+    """Per-cutout signals of how far to trust the learned map (docs/height.md,
+    "Confidence rule"), each a float (NaN when its inputs are missing):
+
+    * ``disagreement_px``: mean |height - heuristic| over the mask [px];
+    * ``disagreement_rel``: the same divided by the mask's box height;
+    * ``flip_px``: mean |height - flip_height| [px] (``flip_height``: the map
+      predicted for the mirrored cutout, mirrored back);
+    * ``head_gain_px``: ``est_mae_learned - est_mae_heuristic`` (the error heads) [px];
+    * ``overhang_share``: the share of the mask's columns whose lowest pixel lies
+      more than 2 px above the contact line (where the heuristic is wrong by design);
+    * ``solidity``: mask area / its convex hull's area.
+    """
+    m = np.asarray(mask, bool)
+    nan = float("nan")
+    if not m.any():
+        return {k: nan for k in SIGNALS}
+    rows = np.nonzero(m.any(1))[0]
+    bh = float(rows.max() - rows.min() + 1)
+    dis = float(np.abs(height[m] - heuristic[m]).mean())
+    cols = np.nonzero(m.any(0))[0]
+    low = m.shape[0] - 1 - np.argmax(m[::-1], axis=0)
+    # the contact line's height at a column's lowest pixel centre = v_contact - (low + 0.5)
+    from .heightmaps import contact_line_height as _clh
+    hc = _clh(m)[low[cols], cols]
+    return {"disagreement_px": dis, "disagreement_rel": dis / bh,
+            "flip_px": nan if flip_height is None else float(np.abs(height[m] - flip_height[m]).mean()),
+            "head_gain_px": nan if est_mae_learned is None else float(est_mae_learned - est_mae_heuristic),
+            "overhang_share": float(np.mean(hc - 0.5 > 2.0)),
+            "solidity": float(m.sum()) / max(convex_hull_area(m), 1e-9)}
+
+
+def confidence_value(signals: dict, rule: dict) -> float:
+    """The chosen signal of a confidence rule (``config["inference"]["confidence"]``),
+    oriented so that larger means "the learned map is more likely worse than the
+    contact line": ``sign * signals[name]``, or for ``name == "combined"`` the
+    linear combination ``b + sum w_k (signals[k] - mean_k) / std_k``."""
+    if rule["signal"] == "combined":
+        z = [(signals[k] - mu) / sd for k, mu, sd in zip(rule["features"], rule["mean"], rule["std"])]
+        return float(rule["bias"] + np.dot(rule["weights"], z))
+    return float(rule["sign"]) * float(signals[rule["signal"]])
+
+
+def calibrated_confidence(value: float, rule: dict) -> float:
+    """The validation win rate of the learned map among cutouts with a similar
+    signal: ``rule["bins"]`` are signal quantile edges, ``rule["win_rate"]`` the
+    share of validation cutouts in each bin where the learned map's MAE was below
+    the contact line's."""
+    k = int(np.searchsorted(rule["bins"], value, side="right"))
+    return float(rule["win_rate"][min(max(k, 0), len(rule["win_rate"]) - 1)])
+
+
 def split_output(y):
     """(height / bh (N, S, S), error heads (N, 2, S, S) or None) of a model output:
     a 1-output model returns the height alone; a 3-output one also returns the
@@ -352,6 +433,8 @@ class LearnedHeightPredictor:
         # the rest of the contact (snap_feet): the checkpoint's choice (lab/height/foot_study.py), else off
         fs = inf.get("foot_snap") if foot_snap == "checkpoint" else foot_snap
         self.foot_snap = dict(fs) if fs else None
+        # auto's rule (lab/height/confidence_study.py): which signal, its threshold and calibration
+        self.confidence_rule = inf.get("confidence")
 
     def predict_normalised(self, x: np.ndarray, aux: bool = False):
         """(N, 6, S, S) inputs -> (N, S, S) height / bh; with ``aux`` also the
@@ -386,7 +469,7 @@ class LearnedHeightPredictor:
         return self.predict_full(rgba, threshold, contact, lift)["height"]
 
     def predict_full(self, rgba: np.ndarray, threshold: float = 0.5, contact: str = "ground",
-                     lift: float = 0.0) -> dict:
+                     lift: float = 0.0, signals: bool = False) -> dict:
         """``predict`` plus the confidence: a dict with ``height`` (H, W) [px],
         ``heuristic`` (the contact-line height under the same contact
         constraint), and, for a checkpoint with confidence heads (``outputs``
@@ -394,7 +477,16 @@ class LearnedHeightPredictor:
         estimate of each map's mean absolute error over the cutout) and
         ``confidence`` = est_mae_heuristic / (est_mae_learned + est_mae_heuristic)
         in (0, 1): above 0.5 the learned map is expected to be the better one
-        (None without heads).
+        (None without heads), and ``use_learned`` (auto's choice: confidence >= 0.5).
+
+        A checkpoint with a confidence rule (``config["inference"]["confidence"]``,
+        chosen on validation by ``lab/height/confidence_study.py``) replaces that:
+        ``signal`` is the rule's signal (``confidence_value`` of
+        ``confidence_signals``; larger = the learned map more likely worse),
+        ``use_learned`` is ``signal <= rule["threshold"]`` and ``confidence`` the
+        validation win rate of the learned map at that signal
+        (``calibrated_confidence``). ``signals=True`` also returns every candidate
+        signal (``signals``; runs the mirrored crop for ``flip_px``).
 
         ``flip_average``: the network also reads the mirrored crop and the two
         outputs (the second mirrored back) are averaged; training saw mirrored
@@ -413,22 +505,22 @@ class LearnedHeightPredictor:
         heur = contact_line_height(mask)
         out = {"height": np.zeros(alpha.shape, np.float32), "heuristic": heur.astype(np.float32),
                "confidence": None, "est_mae_learned": None, "est_mae_heuristic": None}
+        rule = self.confidence_rule
+        need_flip = signals or bool(rule and (rule["signal"] == "flip_px" or "flip_px" in rule.get("features", ())))
+        lv = float(lift) if contact == "lifted" else 0.0
         with self._threads():
             x, box, bh = prepare(colour, alpha, self.size, threshold)
             if box is None:
                 return out
+            xs = [x, x[:, :, ::-1]] if (self.flip_average or need_flip) else [x]
+            ys, e = self.predict_normalised(np.stack(xs).copy(), aux=True)
             if self.flip_average:
-                both, e = self.predict_normalised(np.stack([x, x[:, :, ::-1]]).copy(), aux=True)
-                pred = 0.5 * (both[0] + both[1][:, ::-1])
+                pred = 0.5 * (ys[0] + ys[1][:, ::-1])
             else:
-                p1, e = self.predict_normalised(x[None], aux=True)
-                pred = p1[0]
-            if not self.heuristic_detail:
-                h = paste(pred, box, bh, mask)
-            else:
-                # paste is linear in its input for one mask: paste(pred) - paste(x[4]) in one call
-                h = paste(pred - x[4], box, bh, mask, clip=False) + heur
-                h = np.where(mask, np.maximum(h, 0.0), 0.0).astype(np.float32)
+                pred = ys[0]
+            h = self._finish(pred, x, box, bh, mask, heur, contact, lv)
+            # the mirrored crop's own map, mirrored back (a second guess; flip_px)
+            h_flip = self._finish(ys[1][:, ::-1], x, box, bh, mask, heur, contact, lv) if need_flip else None
         if e is not None:
             w = np.clip(x[3], 0, 1)
             ws = max(float(w.sum()), 1e-6)
@@ -436,10 +528,31 @@ class LearnedHeightPredictor:
             eh = float((np.exp(e[0, 1]) * w).sum() / ws * bh)
             out.update(est_mae_learned=el, est_mae_heuristic=eh, confidence=eh / max(el + eh, 1e-9))
         if contact != "free":
-            lv = float(lift) if contact == "lifted" else 0.0
+            out["heuristic"] = pin_contact(heur, mask, lv)
+        out["height"] = h
+        if out["confidence"] is not None:
+            out["use_learned"] = out["confidence"] >= 0.5
+        if rule or signals:
+            sig = confidence_signals(h, out["heuristic"], mask, h_flip, out["est_mae_learned"],
+                                     out["est_mae_heuristic"])
+            if signals:
+                out["signals"] = sig
+            if rule:
+                val = confidence_value(sig, rule)
+                out.update(signal=val, use_learned=bool(val <= rule["threshold"]),
+                           confidence=calibrated_confidence(val, rule))
+        return out
+
+    def _finish(self, pred, x, box, bh, mask, heur, contact, lv):
+        """A network output (S, S) -> the full-size map [px] under the contact constraint."""
+        if not self.heuristic_detail:
+            h = paste(pred, box, bh, mask)
+        else:
+            # paste is linear in its input for one mask: paste(pred) - paste(x[4]) in one call
+            h = paste(pred - x[4], box, bh, mask, clip=False) + heur
+            h = np.where(mask, np.maximum(h, 0.0), 0.0).astype(np.float32)
+        if contact != "free":
             h = pin_contact(h, mask, lv, fade=self.pin_fade)
             if contact == "ground" and self.foot_snap:
                 h = snap_feet(h, mask, float(self.foot_snap["tol"]), bool(self.foot_snap.get("hull", False)))
-            out["heuristic"] = pin_contact(heur, mask, lv)
-        out["height"] = h
-        return out
+        return h
