@@ -44,11 +44,15 @@ def srgb_encode(x: np.ndarray) -> np.ndarray:
 
 
 def straight_srgb(rgba: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(straight sRGB colour in [0, 1], alpha) of a linear premultiplied RGBA (H, W, 4)."""
+    """(straight sRGB colour in [0, 1], alpha) of a linear premultiplied RGBA (H, W, 4);
+    the colour is 0 where alpha is 0 (only the covered pixels are encoded)."""
     rgba = np.asarray(rgba, np.float32)
     a = np.clip(rgba[..., 3], 0.0, 1.0)
-    rgb = rgba[..., :3] / np.maximum(a, 1e-6)[..., None]
-    return srgb_encode(np.where(a[..., None] > 0, rgb, 0.0)).astype(np.float32), a
+    out = np.zeros(rgba.shape[:2] + (3,), np.float32)
+    cov = a > 0
+    ac = a[cov]
+    out[cov] = srgb_encode(rgba[..., :3][cov] / np.maximum(ac, 1e-6)[:, None]).astype(np.float32)
+    return out, a
 
 
 def crop_box(mask: np.ndarray):
@@ -250,15 +254,16 @@ def snap_feet(height: np.ndarray, mask: np.ndarray, tol: float, hull: bool = Fal
         edge = np.where(has, low + 1.0, np.nan)
         hr = lower_hull_rows(edge)
         take &= (hr[cols] - edge[cols]) <= 1.0
+    take &= hb > 0
+    if not take.any():
+        return h
     rows = np.nonzero(m.any(1))[0]
     bh = float(rows.max() - rows.min() + 1)
+    sel, off = cols[take], hb[take]
     v = np.arange(H, dtype=np.float64)[:, None]
-    for c, off in zip(cols[take], hb[take]):
-        if off <= 0:
-            continue
-        w = np.clip(1.0 - (low[c] - v[:, 0]) / (fade * bh), 0.0, 1.0)
-        w[low[c] + 1:] = 0.0
-        h[:, c] = np.maximum(h[:, c] - off * w, 0.0)
+    d = low[sel][None, :] - v                        # rows above each column's lowest pixel
+    w = np.where(d >= 0, np.clip(1.0 - d / (fade * bh), 0.0, 1.0), 0.0)
+    h[:, sel] = np.maximum(h[:, sel] - off[None, :] * w, 0.0)
     return np.where(m, h, 0.0).astype(np.float32)
 
 
@@ -291,7 +296,7 @@ SIGNALS = ("disagreement_px", "disagreement_rel", "flip_px", "head_gain_px", "ov
 
 def confidence_signals(height: np.ndarray, heuristic: np.ndarray, mask: np.ndarray,
                        flip_height: np.ndarray | None = None, est_mae_learned: float | None = None,
-                       est_mae_heuristic: float | None = None) -> dict:
+                       est_mae_heuristic: float | None = None, which=SIGNALS) -> dict:
     """Per-cutout signals of how far to trust the learned map (docs/height.md,
     "Confidence rule"), each a float (NaN when its inputs are missing):
 
@@ -303,24 +308,32 @@ def confidence_signals(height: np.ndarray, heuristic: np.ndarray, mask: np.ndarr
     * ``overhang_share``: the share of the mask's columns whose lowest pixel lies
       more than 2 px above the contact line (where the heuristic is wrong by design);
     * ``solidity``: mask area / its convex hull's area.
+
+    ``which``: compute only these (the others are left out of the dict).
     """
     m = np.asarray(mask, bool)
     nan = float("nan")
     if not m.any():
-        return {k: nan for k in SIGNALS}
-    rows = np.nonzero(m.any(1))[0]
-    bh = float(rows.max() - rows.min() + 1)
-    dis = float(np.abs(height[m] - heuristic[m]).mean())
-    cols = np.nonzero(m.any(0))[0]
-    low = m.shape[0] - 1 - np.argmax(m[::-1], axis=0)
-    # the contact line's height at a column's lowest pixel centre = v_contact - (low + 0.5)
-    from .heightmaps import contact_line_height as _clh
-    hc = _clh(m)[low[cols], cols]
-    return {"disagreement_px": dis, "disagreement_rel": dis / bh,
-            "flip_px": nan if flip_height is None else float(np.abs(height[m] - flip_height[m]).mean()),
-            "head_gain_px": nan if est_mae_learned is None else float(est_mae_learned - est_mae_heuristic),
-            "overhang_share": float(np.mean(hc - 0.5 > 2.0)),
-            "solidity": float(m.sum()) / max(convex_hull_area(m), 1e-9)}
+        return {k: nan for k in which}
+    out = {}
+    if "disagreement_px" in which or "disagreement_rel" in which:
+        rows = np.nonzero(m.any(1))[0]
+        bh = float(rows.max() - rows.min() + 1)
+        dis = float(np.abs(height[m] - heuristic[m]).mean())
+        out.update(disagreement_px=dis, disagreement_rel=dis / bh)
+    if "flip_px" in which:
+        out["flip_px"] = nan if flip_height is None else float(np.abs(height[m] - flip_height[m]).mean())
+    if "head_gain_px" in which:
+        out["head_gain_px"] = nan if est_mae_learned is None else float(est_mae_learned - est_mae_heuristic)
+    if "overhang_share" in which:
+        cols = np.nonzero(m.any(0))[0]
+        low = m.shape[0] - 1 - np.argmax(m[::-1], axis=0)
+        # the contact line's height at a column's lowest pixel centre = v_contact - (low + 0.5)
+        hc = contact_line_height(m)[low[cols], cols]
+        out["overhang_share"] = float(np.mean(hc - 0.5 > 2.0))
+    if "solidity" in which:
+        out["solidity"] = float(m.sum()) / max(convex_hull_area(m), 1e-9)
+    return {k: out[k] for k in which}
 
 
 def confidence_value(signals: dict, rule: dict) -> float:
@@ -398,6 +411,42 @@ def build_model(base: int = 8, levels: int = 4, outputs: int = 1):
     return UNet()
 
 
+def fold_batchnorm(model):
+    """The same network for inference with every BatchNorm folded into the
+    convolution before it (eval mode: ``y = gamma (W x - mean) / sqrt(var + eps) + beta``
+    is a convolution with weights ``W gamma / s`` and bias ``beta - gamma mean / s``,
+    ``s = sqrt(var + eps)``): fewer passes over the activations, same output up to
+    float rounding. Modifies and returns ``model`` (call after loading the weights)."""
+    import torch
+    from torch import nn
+
+    def fold(seq):
+        mods, out, i = list(seq), [], 0
+        while i < len(mods):
+            conv = mods[i]
+            if isinstance(conv, nn.Conv2d) and i + 1 < len(mods) and isinstance(mods[i + 1], nn.BatchNorm2d):
+                bn = mods[i + 1]
+                scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
+                new = nn.Conv2d(conv.in_channels, conv.out_channels, conv.kernel_size, conv.stride,
+                                conv.padding, bias=True)
+                with torch.no_grad():
+                    new.weight.copy_(conv.weight * scale[:, None, None, None])
+                    b0 = conv.bias if conv.bias is not None else torch.zeros_like(bn.running_mean)
+                    new.bias.copy_(bn.bias + (b0 - bn.running_mean) * scale)
+                out.append(new)
+                i += 2
+            else:
+                out.append(conv)
+                i += 1
+        return nn.Sequential(*out)
+
+    model.eval()
+    for lst in (model.down, model.up):
+        for k in range(len(lst)):
+            lst[k] = fold(lst[k])
+    return model
+
+
 class LearnedHeightPredictor:
     """``HeightPredictor`` from a trained checkpoint (``predict(rgba)`` -> (H, W) px).
 
@@ -414,7 +463,7 @@ class LearnedHeightPredictor:
         self.outputs = int(cfg.get("outputs", 1))
         self.model = build_model(int(cfg["base"]), int(cfg["levels"]), self.outputs)
         self.model.load_state_dict({k: v.float() for k, v in ck["model"].items()})
-        self.model.eval()
+        self.model = fold_batchnorm(self.model)       # inference only: BatchNorm folded into the convs
         self.device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
         self.model.to(self.device)
         self.config = cfg
@@ -533,8 +582,9 @@ class LearnedHeightPredictor:
         if out["confidence"] is not None:
             out["use_learned"] = out["confidence"] >= 0.5
         if rule or signals:
+            which = SIGNALS if signals else tuple(rule.get("features", [rule["signal"]]))
             sig = confidence_signals(h, out["heuristic"], mask, h_flip, out["est_mae_learned"],
-                                     out["est_mae_heuristic"])
+                                     out["est_mae_heuristic"], which)
             if signals:
                 out["signals"] = sig
             if rule:
