@@ -31,7 +31,7 @@ from .node import InputError, Namespace, NodeSpec
 from .paths import PathError, PathPolicy
 from .plan import NodeContext, Plan, RunResult, Step, files_upstream  # noqa: F401 (re-exported)
 from .registry import Registry
-from .resolve import check_overwrites, check_scale, checked_path, resolve_params, scale_params
+from .resolve import PlanMemo, check_overwrites, check_scale, checked_path, resolve_params, scale_params
 from .scheduler import DeviceGate, execute
 from .types import nbytes
 from .unusable import refuse_unusable_inputs
@@ -74,6 +74,7 @@ class Engine:
         self.memory_only: dict[str, str] = {}
         #: cache key -> what the node logged when it computed that key (this process)
         self._logs_by_key: dict[str, list[str]] = {}
+        self._planned = PlanMemo()  # nodes that read no file, as planned before
         #: nodes computed at once on independent branches (``scheduler``); 1 = in order
         self.workers = _env_int("PIXGRAPH_WORKERS", 1)
 
@@ -114,15 +115,20 @@ class Engine:
                     parts[nid] = KeyParts("bind", 0, "", {"array": keys[nid]}, {})
                     bound[nid] = {spec.outputs[0].name: bind[nid]}
                 continue
+            inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
+            memo = self._planned.key(spec, inst, inputs, scale)
+            if (hit := self._planned.get(memo)) is not None:  # as planned before: no checks again
+                params[nid], parts[nid], keys[nid] = hit
+                continue
             p, relevant = resolve_params(graph, nid, spec, inst.params, policy, self._hash_file, self.max_file_bytes)
             if scale != 1.0:
                 scale_params(spec, p, relevant, scale)
             params[nid] = p
-            inputs = {port: f"{keys[ref.node]}:{ref.output}" for port, ref in inst.inputs.items()}
             if "affects" in spec.hooks:  # params and inputs ignored in this mode stay out of the key
                 relevant, inputs = _affecting(nid, spec, p, relevant, inputs)
             parts[nid] = KeyParts(spec.type_id, spec.version, codehash.impl_version(spec), relevant, inputs)
             keys[nid] = parts[nid].key()
+            self._planned.put(memo, p, parts[nid], keys[nid])
         check_overwrites(self.registry, graph, params, order, bind)
         refuse_unusable_inputs(graph, self.registry, order, params, bind)
         steps = self._steps(graph, requested, order, keys, parts, bind, params)
@@ -134,14 +140,11 @@ class Engine:
         """Check what the needed nodes will get, from file headers only, before anything
         runs: returns ``{node: {output: info}}`` (a ``types.Shape`` where known).
 
-        Each node's ``infer(self, ctx, inputs, params)`` hook (``node.Node.infer``)
-        turns its inputs' infos into its outputs' (a loader reads its file's header;
-        ``ctx.node_id`` names the node) and raises ``InputError`` for inputs that
-        cannot work; the default needs inputs of one size and gives it to the sized
-        outputs. The first problem is a ``GraphError`` naming the node, its line,
-        and the files. What an infer hook logs (``ctx.log``: something
-        plausible-looking that is probably wrong) is appended to ``notes``, named
-        like an error, when given.
+        Each node's ``infer`` hook (``node.Node.infer``) turns its inputs' infos into
+        its outputs' (a loader reads its file's header) and raises ``InputError`` for
+        inputs that cannot work; the first problem is a ``GraphError`` naming the
+        node, its line and the files. What an infer hook logs (``ctx.log``: plausible
+        but probably wrong) is appended to ``notes``, named like an error, when given.
         """
         requested = self._requested(graph, outputs)
         order = self._ancestors(graph, [r.node for r in requested.values()], {})
@@ -593,3 +596,4 @@ def _ignore(event) -> None:
 
 def _no_device():
     raise RuntimeError("this engine has no OpenCL device")
+

@@ -315,6 +315,9 @@ class GraphBuilder:
         self._outputs: dict[str, Ref] = {}
         self._file: str | None = None
         self._lines: dict[str, int] = {}
+        #: the graph this builder came from while only params changed (same nodes,
+        #: connections and outputs): the built graph shares its remembered orders
+        self._same_shape: Graph | None = graph
         if graph is not None:
             for nid, inst in graph.nodes.items():
                 self._nodes[nid] = {"type": inst.type, "params": dict(inst.params), "inputs": dict(inst.inputs)}
@@ -331,16 +334,19 @@ class GraphBuilder:
         if node_id in self._nodes:
             raise GraphError("a node with this id already exists", node=node_id)
         self._nodes[node_id] = {"type": type_id, "params": dict(params), "inputs": {}}
+        self._same_shape = None
         return node_id
 
     def connect(self, src: str, dst: str) -> None:
         """Feed output ``src`` (``"node.output"``) into input ``dst`` (``"node.input"``)."""
         s, d = self._ref(src), self._ref(dst)
         self._node(d.node)["inputs"][d.output] = s
+        self._same_shape = None
 
     def disconnect(self, dst: str) -> None:
         d = self._ref(dst)
         self._node(d.node)["inputs"].pop(d.output, None)
+        self._same_shape = None
 
     def set(self, node_id: str, **params: Any) -> None:
         """Set params on a node (validated at ``build()``)."""
@@ -356,15 +362,20 @@ class GraphBuilder:
     def remove(self, node_id: str) -> None:
         self._node(node_id)
         del self._nodes[node_id]
+        self._same_shape = None
 
     def output(self, name: str, ref: str) -> None:
         """Name an output of the graph: ``output("final", "comp.image")``."""
         self._outputs[name] = self._ref(ref)
+        self._same_shape = None
 
     def build(self) -> Graph:
         g = Graph({nid: NodeInstance(nid, n["type"], n["params"], n["inputs"]) for nid, n in self._nodes.items()},
                   self._outputs, file=self._file, base_dir=self.base_dir, lines=self._lines)
-        return validate(g, self.registry)
+        g = validate(g, self.registry)
+        if self._same_shape is not None:  # an edit of params only: the same dependency orders
+            g.__dict__["_upstream"] = self._same_shape.__dict__.setdefault("_upstream", {})
+        return g
 
     def _node(self, node_id: str) -> dict:
         try:

@@ -42,6 +42,7 @@ its own size from files (a loader) sets ``uses_scale = True`` and reads
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import pathlib
 import typing
@@ -299,6 +300,15 @@ class NodeSpec:
     #: False: results stay in the memory cache only (``Node.disk_cache``)
     disk_cache: bool = True
 
+    @functools.cached_property
+    def has_paths(self) -> bool:
+        """Whether a param names a file (read or written)."""
+        return any(p.kind == "path" for p in self.params)
+
+    @functools.cached_property
+    def _params_by_name(self) -> dict:
+        return {p.name: p for p in self.params}
+
     @property
     def summary(self) -> str:
         """The first paragraph of the doc, on one line."""
@@ -312,7 +322,7 @@ class NodeSpec:
         return next((p for p in self.outputs if p.name == name), None)
 
     def param(self, name: str) -> ParamSpec | None:
-        return next((p for p in self.params if p.name == name), None)
+        return self._params_by_name.get(name)
 
     def coerce_params(self, values: typing.Mapping[str, Any]) -> dict[str, Any]:
         """Defaults filled in, every value checked and canonical. Raises ParamError."""

@@ -5,7 +5,7 @@ may not write over a file it reads). ``Engine.plan`` and ``Engine.check`` use it
 from __future__ import annotations
 
 import os
-from typing import Callable
+from typing import Callable, Mapping
 
 from .graph import Graph, GraphError
 from .node import NodeSpec
@@ -118,3 +118,41 @@ def scale_params(spec: NodeSpec, params: dict, relevant: dict, scale: float) -> 
             relevant[p.name] = list(params[p.name]) if p.kind == "floats" else params[p.name]
     if spec.cls.uses_scale:  # declared on node.Node
         relevant["@scale"] = scale
+
+
+
+class PlanMemo:
+    """What ``Engine.plan`` worked out for a node (checked params, key parts, key),
+    by what it depends on when the node reads no file: its class, params as set,
+    input keys and the working scale (the code hash is fixed per process). A warm
+    plan of an edited graph then re-checks and re-hashes only the nodes that changed."""
+
+    #: entries kept (the memo is emptied whole when full)
+    size = 20000
+
+    def __init__(self):
+        self._memo: dict[tuple, tuple] = {}
+
+    @staticmethod
+    def key(spec, inst, inputs: Mapping[str, str], scale: float):
+        """None for a node with path params (a file can change between plans) or
+        with unhashable param values."""
+        if spec.has_paths:
+            return None
+        try:
+            k = (spec.cls, spec.type_id, spec.version, tuple(inst.params.items()), tuple(inputs.items()), scale)
+            hash(k)
+        except TypeError:
+            return None
+        return k
+
+    def get(self, key):
+        hit = self._memo.get(key) if key is not None else None
+        return None if hit is None else (dict(hit[0]), hit[1], hit[2])
+
+    def put(self, key, params: dict, parts, node_key: str) -> None:
+        if key is None:
+            return
+        if len(self._memo) >= self.size:
+            self._memo.clear()
+        self._memo[key] = (dict(params), parts, node_key)

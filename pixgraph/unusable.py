@@ -25,15 +25,20 @@ def refuse_unusable_inputs(graph: Graph, registry: Registry, nodes: Iterable[str
     unusable; ``params`` holds the checked params of the source nodes. Bound nodes
     (a host's array) are not asked: their outputs come from the array."""
     reasons: dict[str, dict[str, str]] = {}
+    hooked: dict[str, bool] = {}  # node type -> declares the hook (most types do not)
+    nodes_of = graph.nodes
     for nid in nodes:
         if nid in bind:
             continue
-        for port, ref in graph.nodes[nid].inputs.items():
+        for port, ref in nodes_of[nid].inputs.items():
             src = ref.node
             if src in bind or src not in params:
                 continue
             if src not in reasons:
-                reasons[src] = _unusable(graph, registry, src, params[src])
+                t = nodes_of[src].type
+                if t not in hooked:
+                    hooked[t] = getattr(registry.get(t).cls, "unusable_outputs", None) is not None
+                reasons[src] = _unusable(graph, registry, src, params[src]) if hooked[t] else {}
             why = reasons[src].get(ref.output)
             if why:
                 raise graph.error(why, node=nid, field=f"inputs.{port}")

@@ -288,3 +288,25 @@ def test_outputs_are_read_only_so_cached_values_cannot_be_corrupted(session, cal
     out = session.run(g, outputs=["a.out"])["a.out"]
     with pytest.raises(ValueError, match="read-only"):
         out[0, 0] = 99.0
+
+
+def test_warm_plans_give_the_keys_and_params_of_a_fresh_engine(calls):
+    """The engine remembers what it planned for nodes that read no file; across a
+    random walk of param edits and a scaled plan, every key and every param a node
+    gets equal those of a new engine planning the same graph from nothing."""
+    import random
+
+    rng = random.Random(3)
+    warm = Session(registry=make_registry(calls), cache_bytes=1 << 26)
+    g = diamond(warm)
+    for step in range(40):
+        edits = {f"{rng.choice(['a', 'b2', 'top', 'other2'])}.k": float(rng.randrange(4)),
+                 "src.value": float(rng.randrange(3)), "s1.factor": rng.choice([1.0, 3.0])}
+        g = warm.graph(g, edits)
+        scale = rng.choice([1.0, 0.5])
+        fresh = Session(registry=make_registry([]), cache_bytes=1 << 26)
+        pw, pf = warm.plan(g, scale=scale), fresh.plan(g, scale=scale)
+        assert pw.keys == pf.keys
+        assert pw.params == pf.params
+        if step % 10 == 0:
+            assert float(warm.run(g)["final"][0, 0]) == float(fresh.run(g)["final"][0, 0])

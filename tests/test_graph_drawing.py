@@ -128,3 +128,31 @@ def test_cycles_found_whatever_the_file_order():
     b.output("o", f"n{n - 1}.out")
     with pytest.raises(GraphError, match=r"cycle: n0 <- n299 <- n298 <- n297"):
         b.build()
+
+
+def test_edited_graph_keeps_the_order_only_while_the_connections_stay():
+    """A graph edited in its params alone shares its parent's remembered dependency
+    orders (a warm run plans without walking the graph); an edit of a connection
+    does not, so the new graph's order follows its new connections."""
+    from pixgraph.graph import GraphBuilder
+
+    s = Session(registry=make_registry())
+    b = s.builder()
+    b.add("t.Source", "a")
+    b.add("t.Source", "b")
+    b.add("t.Add", "c")
+    b.connect("a.out", "c.a")
+    b.connect("b.out", "c.b")
+    b.output("o", "c.out")
+    g = b.build()
+    assert upstream(g, ["c"]) == ["a", "b", "c"]
+    edited = s.graph(g, {"a.value": 3.0})
+    assert edited.nodes["a"].params["value"] == 3.0
+    assert edited.__dict__["_upstream"] is g.__dict__["_upstream"]
+    assert upstream(edited, ["c"]) == ["a", "b", "c"]
+    rewired = GraphBuilder.from_graph(g, s.registry)
+    rewired.disconnect("c.b")
+    g2 = rewired.build()
+    assert "_upstream" not in g2.__dict__
+    assert upstream(g2, ["c"]) == ["a", "c"]
+    assert upstream(g, ["c"]) == ["a", "b", "c"]   # the parent's memo is untouched
