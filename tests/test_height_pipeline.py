@@ -146,7 +146,7 @@ def test_category_meshes_rest_on_the_ground_with_a_slot_per_face():
 
 def test_confidence_heads_pin_and_real_evaluation(tmp_path):
     d = tmp_path / "data"
-    for split, n in (("train", 3), ("val", 2), ("test", 2)):
+    for split, n in (("train", 3), ("val", 3), ("test", 2)):
         assert generate.main(["--split", split, "--n", str(n), "--res", "64", "--mix", "real",
                               "--out", str(d / split)]) == 0
     run = tmp_path / "run"
@@ -168,3 +168,16 @@ def test_confidence_heads_pin_and_real_evaluation(tmp_path):
     assert pin_study.main(["--weights", str(run / "best.pt"), "--heights", str(d / "val"),
                            "--out", str(tmp_path / "pin"), "--write"]) == 0
     assert "pin_fade" in LearnedHeightPredictor(run / "best.pt").config["inference"]
+    # the foot and confidence rules are chosen on validation and written into the checkpoint
+    from pixgraph_lab.height import confidence_study, foot_study
+    assert foot_study.main(["--weights", str(run / "best.pt"), "--heights", str(d / "val"),
+                            "--out", str(tmp_path / "foot"), "--write"]) == 0
+    assert "chosen:" in (tmp_path / "foot" / "foot_study.md").read_text()
+    assert "foot_snap" in LearnedHeightPredictor(run / "best.pt").config["inference"]
+    assert confidence_study.main(["--weights", str(run / "best.pt"), "--heights", str(d / "val"),
+                                  "--out", str(tmp_path / "conf"), "--write"]) == 0
+    p2 = LearnedHeightPredictor(run / "best.pt")
+    assert p2.confidence_rule["signal"] in ("combined", "disagreement_px", "disagreement_rel", "flip_px",
+                                            "head_gain_px", "overhang_share", "solidity")
+    r2 = p2.predict_full(rgba)
+    assert isinstance(r2["use_learned"], bool) and 0.0 <= r2["confidence"] <= 1.0
