@@ -66,7 +66,8 @@ def eval_heights(data_dir, predictor, baseline=None, limit=0):
             maps["baseline"] = baseline.predict(rgba)
         row = {"index": meta["index"], "category": meta.get("category", "?"), "object": meta["object"],
                "pose": meta["pose"], "overhang": int(meta["overhang"]), "object_px": float(true[mask].max()),
-               "confidence": float("nan") if conf is None else conf, "ms": ms, "foot_px": int(band.sum())}
+               "confidence": float("nan") if conf is None else conf, "ms": ms, "foot_px": int(band.sum()),
+               "fallback": int(not r.get("use_learned", True))}
         for k, h in maps.items():
             row[f"mae_{k}"], row[f"foot_{k}"] = _errs(h, true, mask, band)
         rows.append(row)
@@ -76,9 +77,9 @@ def eval_heights(data_dir, predictor, baseline=None, limit=0):
 def height_table(rows, keys) -> str:
     cats = ["all"] + sorted({r["category"] for r in rows})
     head = " | ".join(f"MAE {k}" for k in keys)
-    lines = [f"| category | n (with a visible foot) | {head} | learned < heuristic | foot learned (median) | foot free (median) "
-             f"| foot heuristic (median) |",
-             "|---|---|" + "---|" * (len(keys) + 4)]
+    lines = [f"| category | n (with a visible foot) | {head} | learned < heuristic | auto falls back "
+             f"| foot learned (median) | foot free (median) | foot heuristic (median) |",
+             "|---|---|" + "---|" * (len(keys) + 5)]
     for c in cats:
         rs = [r for r in rows if c == "all" or r["category"] == c]
         m = lambda k: float(np.mean([r[k] for r in rs]))  # noqa: E731
@@ -86,7 +87,8 @@ def height_table(rows, keys) -> str:
         win = float(np.mean([r["mae_learned"] < r["mae_heuristic"] for r in rs]))
         nf = sum(r["foot_px"] > 0 for r in rs)
         cells = " | ".join(f"{m('mae_' + k):.2f}" for k in keys)
-        lines.append(f"| {c} | {len(rs)} ({nf}) | {cells} | {win:.0%} | {med('foot_learned'):.2f} | "
+        fb = float(np.mean([r.get("fallback", 0) for r in rs]))
+        lines.append(f"| {c} | {len(rs)} ({nf}) | {cells} | {win:.0%} | {fb:.0%} | {med('foot_learned'):.2f} | "
                      f"{med('foot_learned_free'):.2f} | {med('foot_heuristic'):.2f} |")
     return "\n".join(lines) + "\n"
 
