@@ -165,6 +165,19 @@ def test_confidence_heads_pin_and_real_evaluation(tmp_path):
                                "--out", str(tmp_path / "ev")]) == 0
     rep = (tmp_path / "ev" / "report.md").read_text()
     assert "learned < heuristic" in rep and "named:" in rep
+    # two shards merged: the same rows and table as one run
+    for i in (0, 1):
+        assert evaluate_real.main(["--heights", str(d / "test"), "--weights", str(run / "best.pt"),
+                                   "--shard", f"{i}/2", "--out", str(tmp_path / f"ev{i}")]) == 0
+    assert evaluate_real.main(["--merge", str(tmp_path / "ev0"), str(tmp_path / "ev1"),
+                               "--out", str(tmp_path / "evm")]) == 0
+    one = (tmp_path / "ev" / "heights.csv").read_text().splitlines()
+    merged = (tmp_path / "evm" / "heights.csv").read_text().splitlines()
+    assert len(merged) == len(one) == 3
+    col = one[0].split(",").index("mae_learned")
+    assert [float(r.split(",")[col]) for r in merged[1:]] == pytest.approx([float(r.split(",")[col]) for r in one[1:]])
+    table = lambda t: [ln for ln in t.splitlines() if ln.startswith("| all")]  # noqa: E731
+    assert table((tmp_path / "evm" / "report.md").read_text()) == table(rep)
     assert pin_study.main(["--weights", str(run / "best.pt"), "--heights", str(d / "val"),
                            "--out", str(tmp_path / "pin"), "--write"]) == 0
     assert "pin_fade" in LearnedHeightPredictor(run / "best.pt").config["inference"]
