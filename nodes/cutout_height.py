@@ -109,7 +109,7 @@ class CutoutHeight(Node):
         confidence: T.Scalar = port(doc="learned / auto: the estimated chance (0-1) that the learned height "
                                         "beats the contact line; NaN when the network did not run")
 
-    impl_version = "3+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence
+    impl_version = "4+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence; 4: foot snap, confidence rule
 
     def compute(self, ctx, inputs, params):
         mask = np.asarray(inputs.mask, dtype=np.float32)
