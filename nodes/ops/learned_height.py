@@ -275,8 +275,13 @@ def convex_hull_area(mask: np.ndarray) -> float:
         return 0.0
     first = np.argmax(m[rows], axis=1)
     last = m.shape[1] - np.argmax(m[rows][:, ::-1], axis=1)
-    pts = sorted({(float(c), float(r + d)) for r, c0, c1 in zip(rows, first, last)
-                  for c in (c0, c1) for d in (0, 1)})
+    # only a row whose left (right) edge is a running minimum (maximum) from the top or
+    # from the bottom can be on the hull: any other edge point lies between a point
+    # further out above it, one further out below it and its row's other edge
+    keep_l = (first <= np.minimum.accumulate(first)) | (first <= np.minimum.accumulate(first[::-1])[::-1])
+    keep_r = (last >= np.maximum.accumulate(last)) | (last >= np.maximum.accumulate(last[::-1])[::-1])
+    pts = sorted({(float(c), float(r + d)) for r, c in zip(rows[keep_l], first[keep_l]) for d in (0, 1)}
+                 | {(float(c), float(r + d)) for r, c in zip(rows[keep_r], last[keep_r]) for d in (0, 1)})
 
     def half(points):
         h: list[tuple[float, float]] = []
