@@ -4,6 +4,7 @@ reflection on a 20-megapixel photo (5120x3840) and on the same photo at 512x384.
     python benchmarks/photo_bench.py                      # both graphs, both sizes, 3 runs each
     python benchmarks/photo_bench.py --case soft --size 20mp --repeat 1
     python benchmarks/photo_bench.py --case soft --size 20mp --profile   # where the time goes (cProfile)
+    python benchmarks/photo_bench.py --case soft --size 20mp --profile --profile-cpu   # ... in CPU seconds
 
 The photo is made here, from the repository's own asset (graphs/assets/own_photo.jpg,
 rendered by graphs/assets/make_own_photo.py): enlarged 8x and given a deterministic
@@ -19,6 +20,9 @@ Cases (the graphs are written next to the photo):
   SoftShadow (48 samples), Composite; the final is written as PNG and as JPEG.
 * ``glossy``: the same scene with the floor glossy (Reflection: roughness 0.2,
   dielectric, receivers ground) and ReflectionComposite, as graphs/glossy_floor.yaml.
+
+Sizes: ``20mp`` (5120x3840), ``5mp`` (2560x1920), ``1280`` (1280x960), ``512``
+(512x384); the cutout is placed at 0.8x (640 / photo width) its size.
 
 Each run is a fresh process (``pixgraph run`` as a user runs it) with an empty
 memory cache and a disk cache folder of its own: ``s`` is the wall-clock of
@@ -48,7 +52,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 OUT = ROOT / "out" / "bench" / "photo"
 ASSETS = ROOT / "graphs" / "assets"
 #: (width, height) of each size; the own photo is 640x480 (4:3)
-SIZES = {"20mp": (5120, 3840), "512": (512, 384)}
+SIZES = {"20mp": (5120, 3840), "5mp": (2560, 1920), "1280": (1280, 960), "512": (512, 384)}
 
 GRAPH = """pixgraph: 1
 nodes:
@@ -151,7 +155,9 @@ def one(a) -> int:
         prof = None
         if a.profile:
             import cProfile
-            prof = cProfile.Profile()
+            # --profile-cpu: process CPU seconds (all threads) instead of wall-clock, the
+            # steadier number on a loaded machine
+            prof = cProfile.Profile(time.process_time) if a.profile_cpu else cProfile.Profile()
             prof.enable()
         import resource
         r0 = resource.getrusage(resource.RUSAGE_SELF)
@@ -270,6 +276,7 @@ def main() -> int:
     ap.add_argument("--shadow-proxy", type=int, default=None, help="SoftShadow's proxy param (default: its own)")
     ap.add_argument("--no-disk-cache", action="store_true")
     ap.add_argument("--profile", action="store_true", help="one run under cProfile (printed to stderr)")
+    ap.add_argument("--profile-cpu", action="store_true", help="--profile counts process CPU seconds, not wall-clock")
     ap.add_argument("--errors", action="store_true", help="each proxy's error against the full computation")
     ap.add_argument("--proxies", type=int, nargs="+", default=[512, 1024, 2048])
     ap.add_argument("--recompute", action="store_true", help="--errors: recompute the saved full computation")
@@ -298,6 +305,7 @@ def main() -> int:
                     cmd = [sys.executable, __file__, "--one", "--case", case, "--size", size, "--ext", ext]
                     cmd += ["--no-disk-cache"] if a.no_disk_cache else []
                     cmd += ["--profile"] if a.profile else []
+                    cmd += ["--profile-cpu"] if a.profile_cpu else []
                     if a.shadow_proxy is not None:
                         cmd += ["--shadow-proxy", str(a.shadow_proxy)]
                     p = subprocess.run(cmd, capture_output=True, text=True, env=env)

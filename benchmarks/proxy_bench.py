@@ -18,6 +18,15 @@ Benchmark scenes (256^2) are enlarged ``--factor`` times (``pixgraph_lab.rescale
   process (torch, OpenCL, the full-size inputs) held just before it (Linux:
   the peak is reset through /proc/self/clear_refs).
 
+With ``--photo SIZE`` (``20mp``, ``5mp``, ``1280``: the own-photo scene of
+``benchmarks/photo_bench.py``, its cutout placed on a photo of that size, 48
+samples as that graph) the inputs come from the graph instead, and each
+``--proxy`` (0: the full trace, always run first and kept under out/bench/photo/)
+is compared with the full trace: darkness RMSE over background pixels, max
+|error|, and the CPU and wall seconds of ``proxy_soft_shadow``:
+
+    python benchmarks/proxy_bench.py --photo 20mp --photo 5mp --proxy 512 --proxy 768 --proxy 1024 --proxy 2048
+
 Machine and medians are printed. Nothing here is asserted by the tests.
 """
 from __future__ import annotations
@@ -89,6 +98,58 @@ def _rss_mib() -> float:
         return int(fh.read().split()[1]) * resource.getpagesize() / 2 ** 20
 
 
+def photo(a) -> int:
+    """``--photo``: each proxy against the full trace on the own-photo scene (see the docstring)."""
+    import pathlib
+    sys.path.insert(0, str(pathlib.Path(__file__).parent))
+    import photo_bench as PB
+    from pixgraph.device import Device
+    from pixgraph.session import Session
+    from pixgraph_nodes.ops.lights import disk_samples
+    from pixgraph_nodes.ops.upsample import proxy_soft_shadow
+    dev = Device.open()
+    print(f"# proxy soft shadow on the own-photo scene; {cpu_model()}; load average {os.getloadavg()[0]:.2f}")
+    print("| photo | trace | CPU s | wall s | darkness RMSE vs full | max abs. error |")
+    print("|---|---|---|---|---|---|")
+    rows = []
+    for size in a.photo:
+        g = PB.make_graph("soft", size)
+        s = Session(disk_cache=None, allow_paths=[str(PB.ROOT)])
+        r = s.run(g, outputs=["place.alpha", "place.height", "bg_h.height", "light.light", "cam.camera"])
+        mask, fg, bg = r["place.alpha"], r["place.height"], r["bg_h.height"]
+        samples = disk_samples(r["light.light"], r["cam.camera"], 48, 0)
+        thickness = 6.0 * mask.shape[1] / 640.0               # photo_bench's graph: 6 px at 640 px
+        H, W = mask.shape
+        bgpx = mask < 0.5
+        saved = PB.OUT / f"full_trace_{size}.npy"
+
+        def trace(side):
+            c0, t0 = time.process_time(), time.perf_counter()
+            d = 1.0 - proxy_soft_shadow(dev, mask, fg, bg, samples, thickness, side if side > 0 else max(H, W))
+            return d, time.process_time() - c0, time.perf_counter() - t0
+        if saved.exists() and not a.recompute:
+            full = np.load(saved)
+            cpu = wall = float("nan")
+        else:
+            full, cpu, wall = trace(0)
+            saved.parent.mkdir(parents=True, exist_ok=True)
+            np.save(saved, full.astype(np.float32))
+        took = f"{cpu:.2f} | {wall:.2f}" if cpu == cpu else f"(read from {saved.name}) | —"
+        print(f"| {W}x{H} | full | {took} | — | — |", flush=True)
+        for side in a.proxy or [1024]:
+            d, cpu, wall = trace(side)
+            e = (d.astype(np.float64) - full)[bgpx]
+            row = {"size": f"{W}x{H}", "proxy": side, "cpu_s": cpu, "s": wall,
+                   "rmse": float(np.sqrt(np.mean(e ** 2))), "max": float(np.abs(e).max())}
+            rows.append(row)
+            print(f"| {W}x{H} | proxy {side} | {cpu:.2f} | {wall:.2f} | {row['rmse']:.4f} | {row['max']:.3f} |",
+                  flush=True)
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump({"machine": cpu_model(), "args": vars(a), "rows": rows}, fh, indent=1)
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", default="data/wall_test")
@@ -99,12 +160,17 @@ def main(argv=None) -> int:
     ap.add_argument("--no-full", action="store_true", help="skip the full-resolution trace (time only)")
     ap.add_argument("--memory", action="store_true", help="also measure peak RSS in fresh processes")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--photo", action="append", choices=("20mp", "5mp", "1280"),
+                    help="the own-photo scene of photo_bench.py at this size instead of --data")
+    ap.add_argument("--recompute", action="store_true", help="--photo: trace the full resolution again")
     ap.add_argument("--one", type=int, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--index", type=int, default=0, help=argparse.SUPPRESS)
     ap.add_argument("--save", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.one is not None:
         return one(a)
+    if a.photo:
+        return photo(a)
     import torch
     torch.set_num_threads(1)
     from pixgraph_lab.metrics import shadow_metrics

@@ -25,12 +25,14 @@ A photo of that size (photo_files: made from the repo's own assets in a temporar
 folder, never kept) opened as the page opens it: uploaded with an RGB cutout and
 a mask file, the own-photo graph built from the template (POST /api/open), then:
   open -> first final      POST /api/open until the first final PNG has arrived
-  drag -> preview (work 1/s) one light-drag step as the page sends it: the whole
-                           graph at working resolution 1/s (--scales, default 2
-                           and 5: what the page asks for with the photo fitted in
-                           a 1280x800 window)
-  --browser                the same drag in headless Chromium on the page: from
-                           sending each preview to drawing it
+  drag -> preview (work 1/s) one light-drag step: the whole graph at working
+                           resolution 1/s (--scales, default 2 and 5), PNG
+  drag -> preview (the page) the same as the page asks while the pointer moves:
+                           at most 0.5 MP of work, JPEG
+  --browser                the same drag in headless Chromium on the page: from the
+                           pointer event (the preview is sent in its handler) to
+                           the next frame painted after the image was drawn
+CPU: the server process's user+sys seconds per drag step (median), next to wall.
 Goal from issue 22: light drag -> preview image in the page <= 150 ms at 20 MP.
 """
 from __future__ import annotations
@@ -211,8 +213,16 @@ def start_photo(width: int, height: int, folder: str):
     return proc, line.split(" at ", 1)[1].strip().rstrip("/"), files
 
 
-def photo_drags(url: str, files: dict, width: int, height: int, steps: int, scales) -> list:
-    """Rows for the opened photo: open -> first final, and drag -> preview per scale."""
+def cpu_seconds(pid: int) -> float:
+    """user + sys CPU seconds of a process so far (its threads included), from /proc."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def photo_drags(url: str, files: dict, width: int, height: int, steps: int, scales, pid: int) -> list:
+    """Rows for the opened photo: open -> first final, and drag -> preview per scale;
+    with the server's CPU seconds per step (process ``pid``)."""
     nodelay = httpx.HTTPTransport(socket_options=[(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)])
     rows = []
     with httpx.Client(base_url=url, timeout=900, transport=nodelay) as c:
@@ -228,21 +238,28 @@ def photo_drags(url: str, files: dict, width: int, height: int, steps: int, scal
         rows.append(("open -> first final", [time.perf_counter() - t0], "1 open"))
         foot = c.get("/api/scene").json()["place"]["foot"]
         seq = 0
-        for k, s in enumerate(scales):
-            times, inside = [], []
+        # as the page asks while the pointer moves: <= 0.5 MP of work, JPEG (render.js PREVIEW_PIXELS)
+        page_work = min(0.5, math.sqrt(0.5e6 / (width * height)))
+        cases = [(1 / s, "png", f"work 1/{s}, PNG") for s in scales] + [(page_work, "jpeg",
+                                                                          f"work {page_work:.3f}, JPEG: the page")]
+        for k, (work, fmt, label) in enumerate(cases):
+            times, inside, cpu = [], [], []
             for i in range(steps):   # a new tip each step and each scale: nothing from the cache
                 a = math.pi * (0.1 + 0.8 * i / max(1, steps - 1) + 0.03 * k)
                 tip = [round(foot[0] + 0.3 * width * math.cos(a), 1), round(foot[1] + 0.04 * height * math.sin(a), 1)]
                 seq += 1
+                c0 = cpu_seconds(pid)
                 t0 = time.perf_counter()
-                # as the page asks: the whole graph at working resolution 1/s, the PNG not downscaled again
-                r = c.post("/api/render", json={"light_tip": tip, "mode": "preview", "scale": 1, "work": 1 / s,
-                                                "client": "bench-photo", "seq": seq})
+                # the whole graph at working resolution `work`, the image not downscaled again
+                r = c.post("/api/render", json={"light_tip": tip, "mode": "preview", "scale": 1, "work": work,
+                                                "format": fmt, "client": "bench-photo", "seq": seq})
                 r.raise_for_status()
                 times.append(time.perf_counter() - t0)
+                cpu.append(cpu_seconds(pid) - c0)
                 inside.append(float(r.headers["x-pixgraph-seconds"]))
-            rows.append((f"{width}x{height}: drag -> preview (work 1/{s})", times, f"{steps} steps"))
+            rows.append((f"{width}x{height}: drag -> preview ({label})", times, f"{steps} steps"))
             rows.append(("  of which inside the server's handler", inside, f"{steps} steps"))
+            rows.append(("  server CPU (user+sys) per step", cpu, f"{steps} steps"))
     return rows
 
 
@@ -267,9 +284,18 @@ def photo_browser(url: str, steps: int) -> list[float]:
             page.mouse.move(x - 15 * (i + 1), min(stage["y"] + stage["height"] - 20, y + 4 * (i + 1)))
             page.wait_for_function(f"window.pixgraphShown.length > {n0 + i}", timeout=900000)
         page.mouse.up()
+        # every image painted (a page from before painted_ms has no `kind`: it reports ms only)
+        page.wait_for_function(f"window.pixgraphShown.slice({n0}).every(s => s.painted_ms !== undefined"
+                               " || !('kind' in s))", timeout=60000)
         shown = page.evaluate(f"window.pixgraphShown.slice({n0})")
         b.close()
-        return [s["ms"] / 1000 for s in shown if s["mode"] == "preview"]
+        if os.environ.get("PIXGRAPH_BENCH_VERBOSE"):
+            for s in shown:
+                print(f"  {s['mode']} {s['width']}x{s['height']}: {s.get('painted_ms', s['ms'])} ms painted, "
+                      f"{s['server_ms']:.0f} ms in the server; ran {s.get('ran')}", flush=True)
+        # from the pointer event (the request is sent in its handler) to the frame painted with the image
+        return [s.get("painted_ms", s["ms"]) / 1000 for s in shown
+                if s["mode"] == "preview" and s.get("kind", "move") == "move"]
 
 
 def ms(xs) -> str:
@@ -298,10 +324,12 @@ def main() -> None:
             proc, url, files = start_photo(width, height, d)
             try:
                 rows = photo_drags(url, files, width, height, args.photo_steps,
-                                   [int(x) for x in args.scales.split(",")])
+                                   [int(x) for x in args.scales.split(",")], proc.pid)
                 if args.browser:
                     prev = photo_browser(url, args.photo_steps)
-                    rows.append((f"browser: drag -> preview drawn ({width}x{height})", prev, f"{len(prev)} images"))
+                    rows.append((f"browser: pointer -> preview painted ({width}x{height})", prev,
+                                 f"{len(prev)} images"))
+                print(f"load average after: {os.getloadavg()[0]:.2f}")
             finally:
                 stop(proc)
         for name, xs, n in rows:

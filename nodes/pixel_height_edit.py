@@ -7,6 +7,8 @@ from pixgraph_nodes import types as T
 from pixgraph.node import InputError, Node, node, param, port
 
 from ._checks import same_size
+from .ops import height_edit
+from .ops.lights import foot_of_mask
 from .ops.height_edit import edit_pixel_height
 
 
@@ -22,9 +24,14 @@ class PixelHeightEdit(Node):
     lowest pixel on it, nowhere higher than ``thickness`` px; 0 = half the silhouette's
     median column extent). ``tilt`` leans it away from (> 0) or toward (< 0) the camera
     about its contact, for a camera looking down by ``elevation``; a sideways lean needs
-    no edit. ``lift`` raises it off the ground. For the page: draw each contact point
-    as a draggable handle on the cutout (in its pixels), ``tilt`` as a rotation handle
-    at the contact, ``lying`` as a toggle.
+    no edit. ``lift`` raises it off the ground. At its defaults (no contact points, no
+    tilt, lift or lying) the height passes through unchanged.
+
+    The page (``pixgraph serve``) draws each contact point as a handle on the placed
+    cutout (an empty list: one hollow handle at the cutout's foot; "+ contact" adds
+    points, "- contact" removes the last), the top's ground point as the tilt handle
+    (drag it down: taller, up: shorter, by leaning the object), and "lying down" as a
+    toggle.
     """
 
     class Inputs:
@@ -51,7 +58,19 @@ class PixelHeightEdit(Node):
     class Outputs:
         height: T.PixelHeight = port(doc="edited pixel height [px], 0 outside the mask")
 
-    impl_version = "1"
+    impl_version = "2"   # 2: the defaults pass the input through unchanged
+
+    #: what a shell's page draws (read by pixgraph_serve): contact points, the tilt handle,
+    #: the lying toggle, by these params; ``mask`` names the input with the coverage in
+    #: the edit's pixels; ``placed_by`` the params of the downstream node of kind "place"
+    #: that puts those pixels on the canvas (``frame`` maps them)
+    handles = {"kind": "height_edit", "points": "contact_points", "mode": "contact_mode", "tilt": "tilt",
+               "elevation": "elevation", "lying": "lying", "lift": "lift", "mask": "mask", "output": "height",
+               "placed_by": ("foot", "scale", "flip")}
+    #: the geometry of those handles (ops/height_edit.py), for shells that do not import nodes
+    frame = staticmethod(height_edit.placed_frame)
+    top_point = staticmethod(height_edit.top_point)
+    foot_point = staticmethod(foot_of_mask)
 
     def compute(self, ctx, inputs, params):
         h = np.asarray(inputs.height, np.float32)

@@ -110,4 +110,4 @@ class Shadow(Node):
         lit = proxy_soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, samples,
                                 params.thickness, side, progress=ctx.progress, check_cancelled=ctx.check_cancelled)
         finite_outputs(lit=lit)
-        return {"lit": lit, "darkness": (1.0 - lit).astype(lit.dtype)}
+        return {"lit": lit, "darkness": np.subtract(np.float32(1.0), lit, dtype=np.float32)}

@@ -1,6 +1,8 @@
 """pixgraph.SoftShadow: classical soft shadow, the average of hard shadows over the area light."""
 from __future__ import annotations
 
+import numpy as np
+
 from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, param, port
 
@@ -54,4 +56,4 @@ class SoftShadow(Node):
         lit = proxy_soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, samples,
                                 params.thickness, side, progress=ctx.progress, check_cancelled=ctx.check_cancelled)
         finite_outputs(lit=lit)
-        return {"lit": lit, "darkness": (1.0 - lit).astype(lit.dtype)}
+        return {"lit": lit, "darkness": np.subtract(np.float32(1.0), lit, dtype=np.float32)}

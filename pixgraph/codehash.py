@@ -108,27 +108,46 @@ def code_files(module: str) -> dict[str, str]:
         if path is None:
             continue
         files[mod] = path
-        if not path.endswith(".py"):
-            continue
-        is_pkg = _is_package(mod, path)
-        imports, strings = _scan(path)
-        for level, name, aliases in imports:
-            base = _absolute(mod, is_pkg, level, name) if level else name
-            if base is None or base.split(".")[0] != top:
-                continue
-            if aliases is None:  # import a.b.c
-                queue.append(base)
-                continue
-            for alias in aliases:
-                sub = f"{base}.{alias}"
-                if alias != "*" and _origin(sub) is not None:
-                    queue.append(sub)  # a submodule: not the package it sits in
-                else:
-                    queue.append(base)  # a name defined in ``base``
-        for text in strings:
-            for data in _data_files(text, os.path.dirname(path), by_name):
-                _add_data(files, data, package_dir or os.path.dirname(origin))
+        if path.endswith(".py"):
+            imported, data = _direct(mod, path, top, package_dir, by_name)
+            queue.extend(imported)
+            for d in data:
+                _add_data(files, d, package_dir or os.path.dirname(origin))
     return files
+
+
+_directs: dict[tuple, tuple[list, list]] = {}
+
+
+def _direct(mod: str, path: str, top: str, package_dir, by_name) -> tuple[list, list]:
+    """The modules of package ``top`` that ``mod`` imports and the data files its
+    string literals name; worked out once per process per file version (every
+    node of a pack reaches the same shared modules)."""
+    st = os.stat(path)
+    sig = (mod, path, st.st_mtime_ns, st.st_size, package_dir)
+    hit = _directs.get(sig)
+    if hit is not None:
+        return hit
+    is_pkg = _is_package(mod, path)
+    imports, strings = _scan(path)
+    imported, data = [], []
+    for level, name, aliases in imports:
+        base = _absolute(mod, is_pkg, level, name) if level else name
+        if base is None or base.split(".")[0] != top:
+            continue
+        if aliases is None:  # import a.b.c
+            imported.append(base)
+            continue
+        for alias in aliases:
+            sub = f"{base}.{alias}"
+            if alias != "*" and _origin(sub) is not None:
+                imported.append(sub)  # a submodule: not the package it sits in
+            else:
+                imported.append(base)  # a name defined in ``base``
+    for text in dict.fromkeys(strings):
+        data += _data_files(text, os.path.dirname(path), by_name)
+    _directs[sig] = (imported, data)
+    return imported, data
 
 
 _scans: dict[tuple[str, int, int], tuple[list, list]] = {}

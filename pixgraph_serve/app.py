@@ -33,7 +33,7 @@ from starlette.routing import Route
 
 from pixgraph.events import Cancelled, CancelToken
 from . import files, scene
-from .encode import encode_exr, encode_png
+from .encode import encode_exr, encode_jpeg, encode_png
 from .errors import STATUS, ServeError, serve_error
 from .guard import COOKIE, Guard, media_type
 from .runs import Encoded, Renders, Runs
@@ -258,7 +258,8 @@ async def get_output(request: Request):
 
 
 async def render(request: Request):
-    """Edit and render one output as PNG in one request: what the page sends while dragging."""
+    """Edit and render one output as PNG (or ``format: "jpeg"``, the page's previews while
+    a handle moves) in one request: what the page sends while dragging."""
     t0 = time.perf_counter()
     data = await json_body(request)
     mode = data.get("mode", "final")
@@ -273,6 +274,10 @@ async def render(request: Request):
     working = data.get("work", 1.0) if mode == "preview" else 1.0
     if isinstance(working, bool) or not isinstance(working, (int, float)) or not 0.01 <= working <= 1:
         raise ServeError(400, f"work must be a working resolution in [0.01, 1], got {working!r}", field="work")
+    fmt = data.get("format", "png")
+    if fmt not in ("png", "jpeg"):
+        raise ServeError(400, f"format must be 'png' or 'jpeg', got {fmt!r}", field="format")
+    encode = encode_png if fmt == "png" else encode_jpeg
     client, seq = data.get("client"), data.get("seq")
     tracked = client is not None
     renders: Renders = request.app.state.renders
@@ -294,7 +299,7 @@ async def render(request: Request):
             extra = scene.piggyback(state, graph, [name]) if working == 1 else []   # anchors are full-size px
             res = state.run([name, *extra], mode, cancel=token, scale=float(working))
             scene.note(state, graph, extra, res)
-            return res, encode_png(res[name], name, scale)
+            return res, encode(res[name], name, scale)
 
         try:
             (res, png), runs = await anyio.to_thread.run_sync(run_counted, state, work)
@@ -305,7 +310,7 @@ async def render(request: Request):
         finally:
             if tracked and renders.tokens.get(client) is token:
                 del renders.tokens[client]
-    return streamed(png, "image/png", {
+    return streamed(png, f"image/{fmt}", {
         "X-Pixgraph-Seq": str(seq if tracked else ""), "X-Pixgraph-Mode": mode,
         "X-Pixgraph-Ran": ",".join(res.ran), "X-Pixgraph-Cached": ",".join(res.cached),
         "X-Pixgraph-Runs": str(runs), "X-Pixgraph-Seconds": f"{time.perf_counter() - t0:.4f}"})

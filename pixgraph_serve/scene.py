@@ -12,6 +12,14 @@ attribute, a dict with a ``kind``):
   camera input, ``object`` the inputs (mask, pixel height) of the node it feeds that
   hold the object; the type also carries the geometry (``object_top``,
   ``shadow_tip``, ``tip_at_elevation``, ops/light_screen.py in the node pack);
+- ``height_edit``: a hand edit of a cutout's pixel height (contact points, tilt,
+  lying down); ``points``, ``mode``, ``tilt``, ``elevation``, ``lying``, ``lift`` name its
+  params, ``mask`` the input with the coverage in its pixels, ``output`` its output;
+  ``placed_by`` the params of the downstream node of kind ``place`` reading that output,
+  which the type's ``frame(mask, *those)`` turns into the map from its pixels to the
+  canvas (``[sx, tx, sy, ty]``: ``X = sx x + tx``, ``Y = sy y + ty``); ``top_point(mask,
+  edited, tilt, elevation, lift)`` is the object's top ``(u, v, h, h0)`` for the tilt
+  handle, ``foot_point(mask)`` the cutout's foot (where new contact points start);
 - any other kind (``shadow``): a node the page may switch between the types of
   that kind (``ServeState.alternatives``).
 
@@ -59,6 +67,8 @@ def roles(state: ServeState) -> dict[str, str | None]:
            "shadow": shadow}
     if first.get("place") is not None:     # a cutout placed on the photo (own-photo graphs)
         out["place"] = first["place"]
+    if first.get("height_edit") is not None:
+        out["height_edit"] = first["height_edit"]
     return out
 
 
@@ -196,6 +206,8 @@ def describe(state: ServeState) -> dict:
         h, v = state.handles(g.nodes[r["background"]].type), _values(state, r["background"])
         names = h.get("params")
         out["background"] = {k: x for k, x in v.items() if names is None or k in names}
+    if r.get("height_edit"):
+        out["height_edit"] = _height_edit(state, r["height_edit"])
     if r["shadow"]:
         out["shadow"] = {"type": g.nodes[r["shadow"]].type,
                          "alternatives": state.alternatives(g.nodes[r["shadow"]].type)}
@@ -211,6 +223,37 @@ def describe(state: ServeState) -> dict:
         out["light"] = {**v, "azimuth_deg": controls.get("azimuth"), "elevation_deg": controls.get("elevation"),
                         "top_uvh": list(a.top) if a.top else None, "tip_uv": list(tip) if tip else None}
     return out
+
+
+def _height_edit(state: ServeState, nid: str) -> dict:
+    """The hand edit's params, its frame on the canvas, the cutout's size and foot and
+    the object's top, in the edit's pixels (see the module doc, ``height_edit``)."""
+    g = state.graph
+    inst = g.nodes[nid]
+    spec = state.registry.get(inst.type)
+    h, v = state.handles(inst.type), _values(state, nid)
+    mask_ref = str(inst.inputs[h.get("mask", "mask")])
+    out_ref = f"{nid}.{h.get('output', spec.outputs[0].name)}"
+    vals = state.run([mask_ref, out_ref])
+    mask, edited = vals[mask_ref], vals[out_ref]
+    rows, cols = mask.shape[:2]
+    place = next((pid for pid, p in g.nodes.items() if _kind(state, p.type) == "place"
+                  and any(ref.node == nid for ref in p.inputs.values())), None)
+    if place is not None:
+        pv = _values(state, place)
+        sx, tx, sy, ty = spec.cls.frame(mask, *(pv[k] for k in h.get("placed_by", ())))
+    else:
+        sx, tx, sy, ty = 1.0, 0.0, 1.0, 0.0
+    box = _bbox(mask)
+    if getattr(spec.cls, "foot_point", None) is not None and box is not None:
+        foot = list(spec.cls.foot_point(mask[..., 0] if mask.ndim == 3 else mask))
+    else:
+        foot = [(box[0] + box[2]) / 2, box[3]] if box else [cols / 2, rows]
+    names = {k: h.get(k, k) for k in ("points", "mode", "tilt", "elevation", "lying", "lift")}
+    top = spec.cls.top_point(mask, edited, v[names["tilt"]], v[names["elevation"]], v[names["lift"]])
+    return {"id": nid, "params": names, "values": {k: v[p] for k, p in names.items()},
+            "frame": [sx, tx, sy, ty], "size": [cols, rows], "foot": foot, "place": place,
+            "top": list(top) if top else None}
 
 
 # -- what a drag means -------------------------------------------------------------------

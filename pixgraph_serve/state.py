@@ -8,7 +8,9 @@ progress keeps the graph it started with, and an edit that fails anywhere leaves
 the graph as it was (``edit`` is all or nothing).
 
 The session keeps its memory cache across requests: a light drag changes one
-param of the light node, so only the nodes downstream of it run again.
+param of the light node, so only the nodes downstream of it run again. Runs at a
+working resolution below full size (the page's previews) have a session and cache
+of their own (``session_for``), so a full-size final does not push them out.
 
 Nothing here names a node type: a node declares its cheap preview stand-in
 (``preview = "type id"``) and what the page may draw and drag (``handles``, read
@@ -49,6 +51,9 @@ class Limits:
     preview_scale: int = 2
     #: wall-clock limit of one run; a run still going is cancelled (503) [s]
     run_timeout: float = 120.0
+    #: memory cache of the runs at a working resolution below 1 (the page's previews), kept
+    #: apart from the full-size runs' so a final of a large photo cannot evict them [bytes]
+    scaled_cache_bytes: int = 512 << 20
 
 
 class Deadlines:
@@ -112,7 +117,9 @@ class ServeState:
         self.limits = limits or Limits()
         self.upload_dir = upload_dir or tempfile.mkdtemp(prefix="pixgraph-uploads-")
         roots = [self.root, self.upload_dir, *(os.path.abspath(a) for a in allow)]
+        self._roots = roots
         self.session = Session(device=device, registry=registry, allow_paths=roots, strict_paths=True)
+        self._scaled: Session | None = None
         self.registry = self.session.registry
         self._stash: dict[tuple[str, str], dict] = {}   # (node, type) -> its params before a type swap
         self._preview: tuple[Graph, Graph] | None = None
@@ -384,7 +391,7 @@ class ServeState:
         timed_out = self._deadlines.add(token, self.limits.run_timeout)
         try:
             self.runs += 1
-            return self.session.run(graph, outputs=outputs, cancel=token, scale=scale)
+            return self.session_for(scale).run(graph, outputs=outputs, cancel=token, scale=scale)
         except Cancelled:
             if timed_out.is_set():
                 raise RunTimeout(f"the run was stopped after the server's limit of {self.limits.run_timeout:g} s "
@@ -401,6 +408,18 @@ class ServeState:
             self._deadlines.remove(token)
             with self._active_lock:
                 self._active.discard(token)
+
+    def session_for(self, scale: float = 1.0) -> Session:
+        """The session that runs at working resolution ``scale``: full size in ``session``;
+        below 1 (the page's previews) in a second one on the same device, registry and
+        path rules, whose memory cache (``Limits.scaled_cache_bytes``) the large values of a
+        full-size final never evict: a drag after a release finds its upstream cached."""
+        if scale >= 1.0:
+            return self.session
+        if self._scaled is None:
+            self._scaled = Session(device=self.session.device, registry=self.registry, allow_paths=self._roots,
+                                   strict_paths=True, cache_bytes=self.limits.scaled_cache_bytes)
+        return self._scaled
 
     def running(self) -> int:
         """How many runs are in progress."""

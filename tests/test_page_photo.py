@@ -242,6 +242,12 @@ def run_photo(browser, tmp_path, width, height, *server_args):
         tu, tv = int(tip[0] / scale), int(tip[1] / scale)
         assert after[tv - r:tv + r, tu - r:tu + r].mean() > 0.3 > before[tv - r:tv + r, tu - r:tu + r].mean()
         keep(page, f"light_dragged_{width}x{height}.png")
+        # while the pointer moved: previews of at most 0.5 MP of work; on release, a photo over
+        # 4 MP got one screen-sized preview before the final
+        shown_all = page.evaluate("window.pixgraphShown")
+        moving = [s for s in shown_all if s["kind"] == "move"]
+        assert moving and all(s["width"] * s["height"] <= 0.5e6 * 1.01 for s in moving), moving
+        assert any(s["kind"] == "release" for s in shown_all) == (width * height > 4e6)
         if os.environ.get("PIXGRAPH_UPDATE_DOCS") and width * height < 5e6:
             page.screenshot(path=os.path.join(REPO, "docs", "img", "serve_own_photo.jpg"), type="jpeg", quality=85)
         # the other handles with the hard shadow (the final of each drag is then quick)

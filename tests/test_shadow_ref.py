@@ -130,3 +130,43 @@ def test_random_scenes_kernel_equals_reference_and_clip_is_exact(device):
         assert (S.hard_shadow(dev, mask, fg, bg, light, th) != ref).mean() <= 0.01, it
         full = S.hard_shadow_ref(mask, fg, bg, light, th, clip_to_cutout=False)
         assert np.array_equal(ref, full), (it, light, th)
+
+
+def test_soft_shadow_rejection_of_lights_behind_the_camera_is_exact(device):
+    """Receivers whose rays to every sample miss the cutout's box are lit before any
+    march, now also for samples with s = -1 (lights behind the camera plane, which
+    march away from their image point) mixed with s = +1: random scenes, the soft
+    kernel equals the mean of the hard kernel's shadows (which rejects nothing per
+    pixel across samples; a wrong sign in the rejection fails this test)."""
+    rng = np.random.default_rng(7)
+    dev = built(device)
+    for it in range(40):
+        h, w = (int(x) for x in rng.integers(24, 80, 2))
+        mask, fg = sc.blobs(h, w, 1000 + it)
+        bg = sc.wall_bg(h, w, rng.uniform(-10, h)) if it % 2 else (rng.random((h, w)) * 3).astype(np.float32)
+        n = int(rng.integers(2, 12))
+        far = rng.uniform(1.0, 50.0)
+        pts = np.stack([rng.uniform(-far * w, far * w, n), rng.uniform(-far * h, far * h, n),
+                        rng.uniform(-far * h, far * h, n), rng.choice([1.0, -1.0], n)], axis=1)
+        if it % 3 == 0:
+            pts[:, 3] = -1.0                                  # only lights behind the camera
+        pts = pts.astype(np.float32)
+        th = float(rng.choice([0.0, 1.0, 3.0]))
+        soft = S.soft_shadow(dev, mask, fg, bg, pts, th)
+        hard = np.mean([S.hard_shadow(dev, mask, fg, bg, L, th) for L in pts], axis=0)
+        assert np.allclose(soft, hard, atol=1e-6), it
+
+
+def test_soft_inputs_kinds_of_samples(device):
+    """The kernel's sample kinds: bit 1 s = +1, bit 2 s = -1, bit 4 directions
+    (which turn the per-receiver rejection off); invalid samples need no bit."""
+    _, mask, fg, bg, _ = CASES[0]
+    scene = S.ShadowScene(built(device), mask, fg, bg)
+
+    def kinds(*pts):
+        return int(scene.soft_inputs(np.array(pts, np.float32))[3])
+    assert kinds((1, 2, 3, 1)) == 1
+    assert kinds((1, 2, 3, -1)) == 2
+    assert kinds((1, 2, 3, 1), (4, 5, 6, -1)) == 3
+    assert kinds((1, 2, 3, 1), (0.1, 0.2, 0.3, 0)) == 5
+    assert kinds((1, 2, 3, -1), (np.nan, 0, 0, 1)) == 2

@@ -43,7 +43,17 @@ image distance from an object point down to its foot on the ground).
 4. **Lift** ``lift`` [px]: added to every pixel (the object floats; its former
    contact is ``lift`` px above the ground).
 
-Finally heights are clipped to >= 0 and set to 0 outside ``mask``.
+Finally heights are clipped to >= 0 and set to 0 outside ``mask``. With nothing
+to edit (no contact points, not lying, no tilt, no lift) the input passes through
+unchanged (``is_identity``): a graph with the node at its defaults renders exactly
+as one without it.
+
+**For a page drawing the handles** (``PixelHeightEdit.handles``): ``placed_frame``
+maps the edit's pixels (the cutout's) to the canvas the cutout is placed on (the
+similarity of ``placement``: ``X = foot_u +- s (x - ax)``, ``Y = foot_v + s (y -
+ay)``, anchor ``(ax, ay)`` the mask's foot); ``top_point`` is the object's top and
+its height before the tilt, from which ``tilt_for_height`` gives the tilt that
+puts the top's ground point at a dragged height (the inverse of step 3).
 """
 from __future__ import annotations
 
@@ -130,10 +140,72 @@ def tilt_gain(tilt_deg: float, elevation_deg: float) -> float:
     return 1.0 / d
 
 
+def is_identity(points=(), tilt_deg: float = 0.0, lying: bool = False, lift: float = 0.0) -> bool:
+    """True when ``edit_pixel_height`` has nothing to do: the input passes through (module doc)."""
+    return len(points) == 0 and not lying and float(tilt_deg) == 0.0 and float(lift) == 0.0
+
+
+def placed_frame(mask: np.ndarray, foot, scale: float, flip: bool = False) -> tuple[float, float, float, float]:
+    """(sx, tx, sy, ty): the cutout pixel (x, y) lands on the canvas at ``(sx x + tx,
+    sy y + ty)`` when placed with its foot at ``foot`` [canvas px], scaled by ``scale``,
+    mirrored when ``flip`` (ops/placement.py's similarity, anchor = the mask's foot)."""
+    from .lights import foot_of_mask
+
+    m = np.asarray(mask)
+    ax, ay = foot_of_mask(m[..., 0] if m.ndim == 3 else m)
+    sx = -float(scale) if flip else float(scale)
+    return sx, float(foot[0]) - sx * ax, float(scale), float(foot[1]) - float(scale) * ay
+
+
+def top_point(mask: np.ndarray, edited: np.ndarray, tilt_deg: float = 0.0, elevation_deg: float = 20.0,
+              lift: float = 0.0) -> tuple[float, float, float, float] | None:
+    """(u, v, h, h0) [px] of the object's top: the middle pixel of the mask's highest
+    row, its edited height ``h``, and ``h0`` its height before tilt and lift
+    (``h = g h0 + lift``, step 3); None for an empty mask or a top at height 0."""
+    m = np.asarray(mask)
+    m = (m[..., 0] if m.ndim == 3 else m) > 0.5
+    rows = np.nonzero(m.any(axis=1))[0]
+    if rows.size == 0:
+        return None
+    r = int(rows[0])
+    cols = np.nonzero(m[r])[0]
+    c = int(cols[len(cols) // 2])
+    h = float(np.asarray(edited)[r, c])
+    h0 = (h - float(lift)) / tilt_gain(tilt_deg, elevation_deg)
+    if not h0 > 0:
+        return None
+    return c + 0.5, r + 0.5, h, h0
+
+
+#: the tallest ``tilt_for_height`` makes an object: this many times its height before the tilt
+MAX_GAIN = 10.0
+
+
+def tilt_for_height(h0: float, target: float, lift: float = 0.0, elevation_deg: float = 20.0,
+                    limit_deg: float = 80.0) -> float:
+    """The tilt [deg] that gives a point of height ``h0`` before tilt the height
+    ``target`` [px] (``target = g h0 + lift``, step 3 inverted:
+    ``tan(tilt) = (h0 / (target - lift) - 1) / tan(elevation)``), within +-``limit_deg``
+    and at most ``MAX_GAIN`` times taller (toward the camera the gain grows without
+    bound as the object nears the view ray)."""
+    ta = math.tan(math.radians(elevation_deg))
+    want = float(target) - float(lift)
+    if h0 <= 0 or ta < 1e-9:
+        return 0.0
+    if want <= 1e-6:
+        return limit_deg
+    lowest = max(-limit_deg, math.degrees(math.atan((1.0 / MAX_GAIN - 1.0) / ta)))
+    return float(np.clip(math.degrees(math.atan((h0 / want - 1.0) / ta)), lowest, limit_deg))
+
+
 def edit_pixel_height(height: np.ndarray, mask: np.ndarray, points=(), contact_mode: str = "shift",
                       tilt_deg: float = 0.0, elevation_deg: float = 20.0, lying: bool = False,
                       thickness: float = 0.0, lift: float = 0.0) -> np.ndarray:
     """The edited pixel height (H, W) float32 [px] (module doc)."""
+    if is_identity(points, tilt_deg, lying, lift):
+        if np.shape(height) != np.shape(mask):
+            raise ValueError(f"height {np.shape(height)} and mask {np.shape(mask)} differ in size")
+        return np.asarray(height, np.float32)
     h = np.asarray(height, np.float64)
     m = np.asarray(mask) > 0.5 if np.asarray(mask).dtype != bool else np.asarray(mask)
     if h.shape != m.shape:

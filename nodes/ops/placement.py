@@ -127,6 +127,28 @@ def is_hard_mask(alpha: np.ndarray) -> bool:
     return outline > 0 and soft < 0.1 * outline
 
 
+def _extend_nearest(values: np.ndarray, valid: np.ndarray, steps: int = 3) -> np.ndarray:
+    """Extend (h, w) ``values`` from the ``valid`` pixels outward by ``steps`` pixels,
+    each new pixel copying one valid neighbour (same row first, then column, then
+    diagonals: an upright surface's row neighbours have its height):
+    no blend of two surfaces, unlike :func:`_bleed`."""
+    out = np.where(valid, values, 0.0).astype(np.float32)
+    ok = np.asarray(valid, bool).copy()
+    offsets = ((0, -1), (0, 1), (-1, 0), (1, 0), (-1, -1), (-1, 1), (1, -1), (1, 1))
+    for _ in range(steps):
+        if ok.all():
+            break
+        po, pk = np.pad(out, 1), np.pad(ok, 1)
+        h, w = ok.shape
+        new_out, new_ok = out.copy(), ok.copy()
+        for dy, dx in offsets:
+            take = ~new_ok & pk[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+            new_out[take] = po[1 + dy:1 + dy + h, 1 + dx:1 + dx + w][take]
+            new_ok |= take
+        out, ok = new_out, new_ok
+    return out
+
+
 def _blur(a: np.ndarray, sigma: float) -> np.ndarray:
     """Separable Gaussian blur (radius 3 sigma, zero padding) of a float32 (h, w) map."""
     r = max(1, int(np.ceil(3.0 * sigma)))
@@ -244,7 +266,11 @@ def _place_box(image, alpha, height, wy, wx, scale, jump, refine):
     """``place_cutout`` on the canvas box whose resampling weights are ``wy``, ``wx``."""
     planes = [image, alpha[:, :, None]]
     if height is not None:
-        planes.append((np.asarray(height, dtype=np.float32) * alpha)[:, :, None])
+        # the heights belong to the occluder (alpha > 0.5, as CutoutHeight and the
+        # tracers read a mask): carried from it onto the partly covered pixels
+        # around it, which would otherwise pull the outline's heights toward 0
+        height = _extend_nearest(np.asarray(height, dtype=np.float32), alpha > 0.5)
+        planes.append((height * alpha)[:, :, None])
     C = image.shape[2]
     if refine:
         # straight colour (and height) extended past the outline, resampled, then

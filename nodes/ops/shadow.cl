@@ -11,8 +11,9 @@
  *         receivers are reported lit).
  *   rect  (u0, v0, u1, v1) pixel edges of the cutout's bounding box, and
  *   h_lo, h_hi: the ray heights that can hit the cutout (min height - thickness,
- *         max height), and f_lo, f_hi: the same for the ray's foot v + h. Every
- *         march is clipped to that box and foot band (march.h).
+ *         max height, each widened by shadow.py's EDGE_BAND for the run edges), and
+ *         f_lo, f_hi: the same for the ray's foot v + h. Every march is clipped to
+ *         that box and foot band (march.h), plus a second margin sample each side.
  *   tiles (TH, TW) float2 foot bounds for exact skipping (march.h, tile_bounds).
  *   light (u, v, h, s): s = +1 march from the receiver toward (u, v) and stop
  *         there; s = -1 the light is behind the camera plane: march away from
@@ -76,44 +77,144 @@ inline int shadow_trace(const occluder *o, ph_march *m, int *hit_k, float *hit_s
         }
     }
     /* the foot band first: one slab, and the most selective for upright cutouts */
+    int k_lo0 = m->k_lo, k_hi0 = m->k_hi;
     if (!ph_march_clip_foot(m, o->f_lo, o->f_hi)) return 0;
     if (!ph_march_clip_box(m, o->rect, o->h_lo, o->h_hi)) return 0;
+    /* a second margin sample each side: the edges of a run at the ends of the
+     * clipped range then cannot block (march_loop), so clipping changes nothing */
+    m->k_lo = max(m->k_lo - 1, k_lo0);
+    m->k_hi = min(m->k_hi + 1, k_hi0);
     return march_loop(o, m, hit_k, hit_s);
 }
 
-/* The sample loop of shadow_trace over m's (clipped) range k_lo .. k_hi. */
+/* Occlusion within the half step beyond a sample at a run's edge (numpy:
+ * shadow.py edge_hit). d: surface height - ray height at the sample (px); df: the
+ * ray's foot step per sample (sv + sh); sigma -1: the half step before the sample,
+ * +1 after. The surface is upright over the half step (its foot constant) and the
+ * ray's foot moves by sigma df / 2: blocked when the depth d - tau df, tau from 0
+ * to sigma / 2, passes in (PH_BEHIND_EPS, thickness]. */
+inline int edge_hit(float d, float df, float sigma, float thickness)
+{
+    float e = d - sigma * (0.5f * df);
+    return fmax(d, e) > PH_BEHIND_EPS && fmin(d, e) <= thickness;
+}
+
+/* A cutout pixel whose foot (row centre + height) differs from the next row's by at
+ * most this (px) stands upright (shadow.py: UPRIGHT_STEP). */
+#define PH_UPRIGHT_STEP 0.5f
+
+/* 1 when the cutout's surface at the pixel of image point (u, v) stands upright
+ * (numpy: shadow.py pixel_upright): its foot changes by at most PH_UPRIGHT_STEP to
+ * the pixel below (or, without one on the cutout, above); a pixel with neither
+ * counts as upright. A surface lying on the ground changes its foot by 1 per row. */
+inline int pixel_upright(const occluder *o, float u, float v)
+{
+    int i = (int)floor(v), j = (int)floor(u);
+    float s = o->surf[i * o->W + j];
+    float b = i + 1 < o->H ? o->surf[(i + 1) * o->W + j] : PH_NO_SURFACE;
+    if (b > PH_NO_SURFACE_TEST) return fabs(1.0f + b - s) <= PH_UPRIGHT_STEP;
+    float a = i >= 1 ? o->surf[(i - 1) * o->W + j] : PH_NO_SURFACE;
+    if (a > PH_NO_SURFACE_TEST) return fabs(1.0f + s - a) <= PH_UPRIGHT_STEP;
+    return 1;
+}
+
+/* 1 when sample k - 1 (at pu, pv) blocks within the half steps at the edges of its
+ * run, decided at sample k (numpy: shadow.py run_end_hits). test: k - 1 is a sample
+ * on the cutout; cont: k continues its surface; pcont: k - 1 continued the surface
+ * of k - 2. A run's first sample is tested before it, its last after it, where the
+ * surface stands upright. */
+inline int run_end_hit(const occluder *o, int test, int cont, int pcont, float pu, float pv, float pd,
+                       float df)
+{
+    if (!test || (pcont && cont)) return 0;
+    if (!pixel_upright(o, pu, pv)) return 0;
+    return (!pcont && edge_hit(pd, df, -1.0f, o->thickness)) || (!cont && edge_hit(pd, df, 1.0f, o->thickness));
+}
+
+/* ph_span_skippable with the ray's foot range widened by ext (px) each side: no
+ * sample of the span, nor the half steps at the edges of its runs (edge_hit), can
+ * occlude. */
+inline int span_skippable_edges(const occluder *o, const ph_march *m, int k, int e, float ext)
+{
+    int ti = ph_floordiv((int)floor(ph_sample_v(m, k)), o->tile);
+    int tj = ph_floordiv((int)floor(ph_sample_u(m, k)), o->tile);
+    ti = clamp(ti, 0, o->TH - 1);
+    tj = clamp(tj, 0, o->TW - 1);
+    float2 b = o->tiles[ti * o->TW + tj];
+    float fa = ph_ray_foot(m, k), fb = ph_ray_foot(m, e);
+    float lo = fmin(fa, fb) - ext, hi = fmax(fa, fb) + ext;
+    return lo >= b.y || hi < b.x - fmax(o->thickness, PH_BEHIND_EPS);
+}
+
+/* The sample loop of shadow_trace over m's (clipped) range k_lo .. k_hi: the
+ * occlusion test of ph_occludes at each sample (side flips only within one
+ * continuous surface), and the edges of each run of samples on the cutout
+ * (run_end_hit), so that a part one sample wide blocks at any resolution. */
 inline int march_loop(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
 {
-    int prev = 0;
-    float prev_foot = 0.0f;
+    /* the previous sample k - 1: side for flips, on the cutout, whether its edges may
+     * be tested, whether it continued k - 2, foot, depth, position, height. Before
+     * an unclipped march's first sample, k - 1 is the receiver's own pixel when it
+     * lies on the cutout: its surface's run does not start at k = 1, and the
+     * receiver itself is never tested. */
+    int prev = 0, pon = 0, ptest = 0, pcont = 0;
+    float pfoot = 0.0f, pd = 0.0f, pu = 0.0f, pv = 0.0f, ps = 0.0f;
+    if (m->k_lo == 1) {
+        float s0 = o->surf[(int)floor(m->v) * o->W + (int)floor(m->u)];
+        if (s0 > PH_NO_SURFACE_TEST) {
+            pon = 1;
+            pfoot = m->v + s0;
+        }
+    }
+    float df = m->sv + m->sh;
+    float ext = 0.5f * fabs(df);
     int k = m->k_lo;
     int next_test = k;
     while (k <= m->k_hi) {
-        float s = ph_surface_height(o->surf, o->W, o->H, ph_sample_u(m, k), ph_sample_v(m, k),
-                                    m->major_u);
+        float u = ph_sample_u(m, k), v = ph_sample_v(m, k);
+        float s = ph_surface_height(o->surf, o->W, o->H, u, v, m->major_u);
         float rh = ph_ray_height(m, k);
         int sd = ph_side(rh, s);
-        float foot = ph_sample_v(m, k) + s;
-        /* a side change across a depth discontinuity is no crossing */
-        if (prev != 0 && !ph_continuous(prev_foot, foot, o->jump)) prev = 0;
-        if (ph_occludes(rh, s, o->thickness, sd, prev)) {
+        float foot = v + s;
+        /* one surface with k - 1: a side change across a depth discontinuity is no crossing */
+        int cont = pon && sd != 0 && ph_continuous(pfoot, foot, o->jump);
+        if (run_end_hit(o, pon && ptest, cont, pcont, pu, pv, pd, df)) {
+            *hit_k = k - 1;
+            *hit_s = ps;
+            return 1;
+        }
+        if (ph_occludes(rh, s, o->thickness, sd, cont ? prev : 0)) {
             *hit_k = k;
             *hit_s = s;
             return 1;
         }
         prev = sd;
-        prev_foot = foot;
+        pon = sd != 0;
+        ptest = 1;
+        pcont = cont;
+        pfoot = foot;
+        pd = s - rh;
+        pu = u;
+        pv = v;
+        ps = s;
         if (k == next_test) {
             int e = min(m->k_hi, ph_span_end(m, k, o->tile));
-            if (e > k + 1 && ph_span_skippable(o->tiles, o->TW, o->TH, o->tile, m, k, e, o->thickness)) {
+            if (e > k + 1 && span_skippable_edges(o, m, k, e, ext)) {
                 k = e;        /* evaluate e next, as the first of a new run */
                 prev = 0;
+                pon = 0;
                 next_test = e + 1;
                 continue;
             }
             next_test = e + 1;
         }
         ++k;
+    }
+    /* the last sample ends its run */
+    if (run_end_hit(o, pon && ptest, 0, pcont, pu, pv, pd, df)) {
+        *hit_k = k - 1;
+        *hit_s = ps;
+        return 1;
     }
     return 0;
 }
@@ -123,6 +224,23 @@ inline int march_loop(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
 inline int may_hit(const occluder *o, float ru, float rv, float rh, float8 lb)
 {
     return ph_segments_may_hit(ru, rv, rh, lb, o->rect, o->h_lo, o->h_hi, o->f_lo, o->f_hi);
+}
+
+/* 1 unless the ray r + t (r - L), t > 0, of every light point L with s = -1 within
+ * bounds lb (as may_hit's) provably misses the cutout's box: conservative, one
+ * coordinate c (u, v, h and the foot v + h) at a time -- along such a ray c runs
+ * from r_c away from L_c, so it can reach [lo, hi] only upward (some L_c < r_c,
+ * r_c <= hi), downward (some L_c > r_c, r_c >= lo) or staying (r_c inside). */
+inline int may_hit_away(const occluder *o, float ru, float rv, float rh, float8 lb)
+{
+    float rf = rv + rh;
+#define PH_AWAY(r, lmin, lmax, lo, hi) \
+    (((lmin) < (r) && (r) <= (hi)) || ((lmax) > (r) && (r) >= (lo)) || ((r) >= (lo) && (r) <= (hi)))
+    return PH_AWAY(ru, lb.s0, lb.s1, o->rect.x, o->rect.z)
+        && PH_AWAY(rv, lb.s2, lb.s3, o->rect.y, o->rect.w)
+        && PH_AWAY(rh, lb.s4, lb.s5, o->h_lo, o->h_hi)
+        && PH_AWAY(rf, lb.s6, lb.s7, o->f_lo, o->f_hi);
+#undef PH_AWAY
 }
 
 /* Bounds (u, u, v, v, h, h, foot, foot) of one light point, for may_hit. */
@@ -236,6 +354,7 @@ inline int blocked_x8(const occluder *o, float ru, float rv, float rh,
     int8 big = kmax >= (float8)((float)PH_K_UNBOUNDED);
     int8 k_hi = select(convert_int8(floor(select(kmax, (float8)(0.0f), big))), (int8)(PH_K_UNBOUNDED), big);
     int8 k_lo = (int8)(1);
+    int8 k_hi0 = k_hi;
     ok &= k_hi >= k_lo;
     /* ph_march_clip_foot */
     float8 t0 = convert_float8(k_lo - 1), t1 = convert_float8(k_hi + 1);
@@ -250,6 +369,9 @@ inline int blocked_x8(const occluder *o, float ru, float rv, float rh,
     vclip_slab(Rh, sh, o->h_lo, o->h_hi, &t0, &t1, &ok);
     vrange(t0, t1, ok, &k_lo, &k_hi);
     ok &= k_lo <= k_hi;
+    /* the second margin sample each side (as shadow_trace) */
+    k_lo = max(k_lo - 1, (int8)(1));
+    k_hi = min(k_hi + 1, k_hi0);
     int8 major_u = adu >= adv;
     int nb = 0;
     for (int q = 0; q < 8; ++q) {
@@ -265,10 +387,15 @@ inline int blocked_x8(const occluder *o, float ru, float rv, float rh,
     return nb;
 }
 
-/* Soft shadow, samples 8 at a time (see above). NDRange (W, H). */
+/* Soft shadow, samples 8 at a time (see above). NDRange (W, H).
+ * kinds: bit 1 some samples have s = +1 (front_bounds: their bounds), bit 2 some
+ * have s = -1 (back_bounds), bit 4 some are directions (s = 0) or invalid: then no
+ * receiver is rejected before its marches. A receiver none of whose sample rays can
+ * reach the cutout's box (may_hit, may_hit_away) is lit at once. */
 __kernel void soft_shadow(OCCLUDER_ARGS, __global const float *recv,
                              __global const float *soa, const int n, const int n8,
-                             const int all_front, const float8 light_bounds, __global float *lit)
+                             const int kinds, const float8 front_bounds, const float8 back_bounds,
+                             __global float *lit)
 {
     int j = get_global_id(0), i = get_global_id(1);
     if (j >= W || i >= H) return;
@@ -276,7 +403,11 @@ __kernel void soft_shadow(OCCLUDER_ARGS, __global const float *recv,
     float rh = recv[i * W + j];
     if (!(rh > PH_NO_SURFACE_TEST) || n <= 0) { lit[i * W + j] = 1.0f; return; }
     float ru = (float)j + 0.5f, rv = (float)i + 0.5f;
-    if (all_front && !may_hit(&o, ru, rv, rh, light_bounds)) { lit[i * W + j] = 1.0f; return; }
+    if (!(kinds & 4) && !((kinds & 1) && may_hit(&o, ru, rv, rh, front_bounds))
+        && !((kinds & 2) && may_hit_away(&o, ru, rv, rh, back_bounds))) {
+        lit[i * W + j] = 1.0f;
+        return;
+    }
     int nb = 0;
     for (int g = 0; g < n8 / 8; ++g)
         nb += blocked_x8(&o, ru, rv, rh, vload8(g, soa), vload8(g, soa + n8), vload8(g, soa + 2 * n8),

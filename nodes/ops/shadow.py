@@ -11,10 +11,17 @@ consecutive cutout samples of one continuous surface. Where the surface's foot
 samples -- the outline of a cutout in front of another, or of a part in front
 of the rest -- a side change is the ray passing through the gap, not a
 crossing, and does not count (SSG's rule counts it and draws a phantom wedge
-joining the front cutout to its shadow on the one behind). Each walk is
-clipped to the cutout's bounding box and to the bands of heights and feet the
-cutout spans (march.h), so receivers whose ray never meets the cutout cost a
-few flops.
+joining the front cutout to its shadow on the one behind). A run of samples on
+the cutout is traced half a step beyond its first and last samples where the
+cutout's pixel stands upright (``run_end_hits``, ``pixel_upright``: the ray's
+depth behind the surface over that half step, the surface's foot taken
+constant), so a part one sample wide blocks the rays that pass through it
+between two samples: without it a thin part's shadow shrank with the resolution
+(a 1-px bar's shadow 189/234/256 px^2 at 128/256/512 px, now 279/278/278;
+tests/test_shadow_thin_parts.py), and a proxy lost thin parts a photo's full
+trace has. Each walk is clipped to the cutout's bounding box and to the bands of
+heights and feet the cutout spans (march.h), so receivers whose ray never meets
+the cutout cost a few flops.
 
 Units: all positions and heights in pixels. Arrays: float32 (H, W).
 
@@ -73,6 +80,16 @@ F32 = np.float32
 #: feet (v + h) differ by at most thickness + FLIP_JUMP pixels (march.h:
 #: ph_continuous); mirrors PH_FLIP_JUMP in shadow.cl.
 FLIP_JUMP = 1.0
+#: A cutout pixel whose foot (row centre + height) differs from the next row's by
+#: at most this (pixels) stands upright (``pixel_upright``): the runs of samples on
+#: it are traced half a step beyond their first and last samples
+#: (``run_end_hits``), so that a thin part blocks the rays that pass through it
+#: between two samples, at any resolution. Mirrors PH_UPRIGHT_STEP in shadow.cl.
+UPRIGHT_STEP = F32(0.5)
+#: The cutout's height band is widened by this (pixels) each side: a run's edge
+#: reaches half a step past its sample, where an upright surface's height differs
+#: by up to half a pixel (measured along v).
+EDGE_BAND = 1.0
 #: Stand-in for "no far end" of a march (s = -1 or 0), in units of t.
 _T_FAR = F32(1.0e30)
 #: Pixel-light-sample pairs per band of a banded launch (ShadowScene.bands):
@@ -169,8 +186,8 @@ class Prepared:
             # thickness; reach >= BEHIND_EPS because a sample up to BEHIND_EPS below
             # a surface still counts as in front (and can start a side flip)
             reach = max(self.thickness, float(M.BEHIND_EPS))
-            self.h_lo = F32(h_min - reach)
-            self.h_hi = F32(h_max)
+            self.h_lo = F32(h_min - reach - EDGE_BAND)
+            self.h_hi = F32(h_max + EDGE_BAND)
             self.f_lo = F32(f_min - reach)
             self.f_hi = F32(f_max)
 
@@ -219,19 +236,58 @@ def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
     rh = prep.recv[ii, jj]
     m, ok = light_march_ref(ru, rv, rh, light)
     if clip_to_cutout:
+        k_lo0, k_hi0 = m.k_lo.copy(), m.k_hi.copy()
         ok &= M.march_clip_box(m, prep.rect, prep.h_lo, prep.h_hi)
         ok &= M.march_clip_foot(m, prep.f_lo, prep.f_hi)
+        # a second margin sample each side: the edges of a run (run_end_hits) at the
+        # clipped range's ends then cannot block, so clipping changes nothing
+        m.k_lo, m.k_hi = np.maximum(m.k_lo - 1, k_lo0), np.minimum(m.k_hi + 1, k_hi0)
     else:
         ok &= M.march_clip_box(m, (0, 0, W, H), F32(-1e30), F32(1e30))
     sel = np.flatnonzero(ok)
-    prev = np.zeros(sel.size, np.int8)
-    prev_foot = np.zeros(sel.size, np.float32)
+    # state of the previous sample k - 1: side for the flip test (0: none), on the
+    # cutout, its surface foot, depth d = surface height - ray height, whether it
+    # continued the surface of k - 2, whether its run edges may be tested, and its
+    # position and surface height (for the hit). Before the first sample of an
+    # unclipped march, "k - 1" is the receiver's own pixel when it lies on the
+    # cutout: the run of its own surface does not start at k = 1 (no edge there),
+    # and the receiver itself is never tested.
+    own = prep.surf[ii[sel], jj[sel]]
+    start_here = (m.k_lo[sel] == 1) & (own > M.NO_SURFACE_TEST)
+    z = np.zeros(sel.size, np.float32)
+    st = {"prev": np.zeros(sel.size, np.int8), "pon": start_here,
+          "pfoot": np.where(start_here, (rv[sel] + own).astype(np.float32), F32(0)).astype(np.float32),
+          "pd": z, "pcont": np.zeros(sel.size, bool), "ptest": np.zeros(sel.size, bool),
+          "pu": z, "pv": z, "ps": z}
     jump = F32(prep.thickness + FLIP_JUMP)
+    T = prep.thickness
+
+    def record(where, u, v, s_):
+        b = sel[where]
+        blocked[ii[b], jj[b]] = True
+        hit[0, ii[b], jj[b]] = u[where]
+        hit[1, ii[b], jj[b]] = v[where]
+        hit[2, ii[b], jj[b]] = s_[where]
+
+    def edges(cont):
+        """run_end_hits of sample k - 1 (``cont``: k continues its surface)."""
+        df = (m.sv[sel] + m.sh[sel]).astype(np.float32)
+        test = st["pon"] & st["ptest"]
+        up = np.zeros(sel.size, bool)
+        if test.any():
+            up[test] = pixel_upright(prep.surf, st["pu"][test], st["pv"][test])
+        return run_end_hits(test, cont, st["pcont"], up, st["pd"], df, T)
+
     n = 0
     while sel.size:
         k = m.k_lo[sel] + n
         live = k <= m.k_hi[sel]
-        sel, prev, prev_foot, k = sel[live], prev[live], prev_foot[live], k[live]
+        if not live.all():
+            # the last sample of these marches ends its run
+            e_hit = ~live & edges(np.zeros(sel.size, bool))
+            record(e_hit, st["pu"], st["pv"], st["ps"])
+            sel, k = sel[live], k[live]
+            st = {key: a[live] for key, a in st.items()}
         if not sel.size:
             break
         kf = k.astype(np.float32)
@@ -241,18 +297,61 @@ def trace_ref(prep: Prepared, light, clip_to_cutout: bool = True):
         h = (m.h[sel] + kf * m.sh[sel]).astype(np.float32)
         sd = M.side(h, s)
         foot = (v + s).astype(np.float32)
-        # a side change across a depth discontinuity is no crossing
-        prev = np.where(M.continuous(prev_foot, foot, jump), prev, 0).astype(np.int8)
-        occ = M.occludes(h, s, prep.thickness, sd, prev)
-        if occ.any():
-            b = sel[occ]
-            blocked[ii[b], jj[b]] = True
-            hit[0, ii[b], jj[b]] = u[occ]
-            hit[1, ii[b], jj[b]] = v[occ]
-            hit[2, ii[b], jj[b]] = s[occ]
-        sel, prev, prev_foot = sel[~occ], sd[~occ], foot[~occ]
+        # one surface with k - 1: a side change across a depth discontinuity is no crossing
+        cont = st["pon"] & (sd != 0) & M.continuous(st["pfoot"], foot, jump)
+        prev_hit = edges(cont)
+        occ = M.occludes(h, s, T, sd, np.where(cont, st["prev"], 0).astype(np.int8)) & ~prev_hit
+        record(prev_hit, st["pu"], st["pv"], st["ps"])
+        record(occ, u, v, s)
+        keep = ~(occ | prev_hit)
+        sel = sel[keep]
+        st = {"prev": sd[keep], "pon": (sd != 0)[keep], "pfoot": foot[keep], "pd": (s - h).astype(np.float32)[keep],
+              "pcont": cont[keep], "ptest": np.ones(sel.size, bool), "pu": u[keep], "pv": v[keep], "ps": s[keep]}
         n += 1
     return blocked, hit[0], hit[1], hit[2]
+
+
+def pixel_upright(surf: np.ndarray, u, v) -> np.ndarray:
+    """Whether the cutout's surface at the pixels of image points (u, v) stands upright
+    (mirror of shadow.cl: pixel_upright): its foot (row centre + height) changes by at
+    most UPRIGHT_STEP px to the pixel below (or, without one on the cutout, above).
+    A pixel with neither (a part one pixel tall) counts as upright: a surface lying
+    on the ground changes its foot by 1 px per row."""
+    H, W = surf.shape
+    i = np.floor(np.asarray(v, np.float32)).astype(np.int64)
+    j = np.floor(np.asarray(u, np.float32)).astype(np.int64)
+    s = surf[i, j]
+    below = np.where(i + 1 < H, surf[np.minimum(i + 1, H - 1), j], M.NO_SURFACE)
+    above = np.where(i >= 1, surf[np.maximum(i - 1, 0), j], M.NO_SURFACE)
+    has_b, has_a = below > M.NO_SURFACE_TEST, above > M.NO_SURFACE_TEST
+    step_b = np.abs(F32(1.0) + below - s)
+    step_a = np.abs(F32(1.0) + s - above)
+    return np.where(has_b, step_b <= UPRIGHT_STEP, np.where(has_a, step_a <= UPRIGHT_STEP, True))
+
+
+def edge_hit(d, df, sigma, thickness) -> np.ndarray:
+    """Occlusion within the half step beyond a sample at a run's edge (mirror of
+    shadow.cl: edge_hit). d: surface height - ray height at the sample (px); df: the
+    ray's foot step per sample (sv + sh, px); sigma: -1 the half step before the
+    sample, +1 after. The surface is taken upright over the half step (its foot
+    constant), the ray's foot moves by sigma df / 2: blocked when the depth
+    d(tau) = d - tau df, tau from 0 to sigma / 2, passes in (BEHIND_EPS, thickness]."""
+    d = np.asarray(d, np.float32)
+    e = (d - F32(sigma) * (F32(0.5) * np.asarray(df, np.float32))).astype(np.float32)
+    return (np.maximum(d, e) > M.BEHIND_EPS) & (np.minimum(d, e) <= F32(thickness))
+
+
+def run_end_hits(test, cont, pcont, upright, pd, df, thickness) -> np.ndarray:
+    """Whether sample k - 1 blocks within its half steps at the edges of its run
+    (mirror of shadow.cl: run_end_hit), decided at sample k. test: k - 1 is on the
+    cutout (and is a sample, not the receiver); cont: k continues its surface;
+    pcont: k - 1 continued the surface of k - 2; upright: :func:`pixel_upright` of
+    k - 1. A run's first sample is tested before it, its last after it, with the
+    upright half step of :func:`edge_hit`, where the surface stands upright; a
+    surface lying on the ground is left as the samples show it (the upright half
+    step would shade rays grazing it)."""
+    t = test & upright
+    return (t & ~pcont & edge_hit(pd, df, -1, thickness)) | (t & ~cont & edge_hit(pd, df, 1, thickness))
 
 
 def hard_shadow_ref(mask, fg_height, bg_height, light, thickness=1.0, *,
@@ -429,23 +528,33 @@ class ShadowScene:
 
     def soft_inputs(self, light_samples):
         """Upload light samples (N, 4) for the soft-shadow kernel: structure of
-        arrays padded to a multiple of 8 with refused lights, plus the bounds
-        of all samples when they all have s = +1 (one test then rejects every
-        sample for receivers whose segments miss the cutout's box)."""
+        arrays padded to a multiple of 8 with refused lights, plus the bounds of
+        the samples with s = +1 and of those with s = -1 (one test per kind then
+        rejects every sample for receivers whose rays miss the cutout's box;
+        shadow.cl: soft_shadow's ``kinds``)."""
         import pyopencl.cltypes as cltypes
         samples = light_samples_array(light_samples)
         n = samples.shape[0]
         n8 = max(8, -(-n // 8) * 8)
         soa = np.zeros((4, n8), np.float32)
         soa[:, :n] = samples.T
-        all_front = n > 0 and bool(np.all(samples[:, 3] > 0.5))
-        if all_front:
-            u, v, h = samples[:, 0], samples[:, 1], samples[:, 2]
-            f = v + h
-            bounds = cltypes.make_float8(u.min(), u.max(), v.min(), v.max(), h.min(), h.max(), f.min(), f.max())
-        else:
-            bounds = cltypes.make_float8(0, 0, 0, 0, 0, 0, 0, 0)
-        return (self.samples_buffer(soa), np.int32(n), np.int32(n8), np.int32(all_front), bounds)
+        s = samples[:, 3]
+        # a zeroed (invalid) sample is lit by every march: it needs no bit
+        invalid = np.all(samples == 0.0, axis=1)
+        kinds = 0
+        bounds = []
+        for bit, sel in ((1, s > 0.5), (2, s < -0.5)):
+            if sel.any():
+                kinds |= bit
+                u, v, h = samples[sel, 0], samples[sel, 1], samples[sel, 2]
+                f = v + h
+                bounds.append(cltypes.make_float8(u.min(), u.max(), v.min(), v.max(), h.min(), h.max(),
+                                                  f.min(), f.max()))
+            else:
+                bounds.append(cltypes.make_float8(0, 0, 0, 0, 0, 0, 0, 0))
+        if np.any((np.abs(s) <= 0.5) & ~invalid):
+            kinds |= 4
+        return (self.samples_buffer(soa), np.int32(n), np.int32(n8), np.int32(kinds), *bounds)
 
     def launch_soft(self, inputs, progress=None, check_cancelled=None):
         """Enqueue the soft-shadow kernel on inputs from :meth:`soft_inputs`;

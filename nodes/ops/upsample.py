@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .resample import Window, _axis_weights, _resize_axis
+from .resample import Window, _axis_weights, resize
 from .shadow import soft_shadow
 
 #: ``proxy="auto"``: images whose longer side is at most this are traced at
@@ -55,7 +55,15 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
     H, W = (int(s) for s in shape)
     h, w = lo.shape
     r0b, r1b, c0b, c1b = (0, H, 0, W) if box is None else (int(b) for b in box)
-    inside_lo = np.asarray(mask_lo) > 0.5
+    if h == H:
+        idx, wts = np.arange(H)[:, None], np.ones((H, 1), np.float32)
+    else:
+        idx, wts = _axis_weights(h, H)
+    # only the rows of `lo` the box's output rows read
+    q0, q1 = int(idx[r0b:r1b].min()), int(idx[r0b:r1b].max()) + 1
+    idx = idx - q0
+    lo = lo[q0:q1]
+    inside_lo = np.asarray(mask_lo)[q0:q1] > 0.5
     sides = [s for s in (~inside_lo, inside_lo) if s.any()]
     planes = [lo]
     for side in sides:
@@ -66,11 +74,7 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
     else:
         cidx, cwt = _axis_weights(w, W)
         cidx, cwt = cidx[c0b:c1b], cwt[c0b:c1b]
-        cols = [np.einsum("rot,ot->ro", p_[:, cidx], cwt) for p_ in planes]      # (h, c1 - c0) each
-    if h == H:
-        idx, wts = np.arange(H)[:, None], np.ones((H, 1), np.float32)
-    else:
-        idx, wts = _axis_weights(h, H)
+        cols = [np.einsum("rot,ot->ro", p_[:, cidx], cwt) for p_ in planes]      # (q1 - q0, c1 - c0) each
     out = np.empty((r1b - r0b, c1b - c0b), np.float32)
     for r0 in range(r0b, r1b, band):
         r1 = min(r1b, r0 + band)
@@ -108,6 +112,77 @@ def support_box(active_lo: np.ndarray, shape, pad: int = 2):
             max(0, int(np.floor(c * W / w))), min(W, int(np.ceil(d * W / w))))
 
 
+def _taps_range(idx: np.ndarray, wts: np.ndarray, lo: int, hi: int):
+    """The outputs [o0, o1) of a 1-D resize (``_axis_weights``) with a nonzero tap on
+    inputs [lo, hi), or None."""
+    hit = ((idx >= lo) & (idx < hi) & (wts > 0)).any(axis=1)
+    o = np.flatnonzero(hit)
+    return (int(o[0]), int(o[-1]) + 1) if o.size else None
+
+
+def _shrink_rows_first(a: np.ndarray, shape) -> np.ndarray:
+    """``resize(a, shape)`` (the same antialiased bilinear weights) made rows first,
+    one tap at a time: a tap reads whole rows, which is ~1.6x faster than the
+    column-first gather when shrinking a 20 MP map; the sums differ only in float
+    rounding (their order)."""
+    a = np.asarray(a, np.float32)
+    h, w = (int(x) for x in shape)
+    ridx, rwt = _axis_weights(a.shape[0], h)
+    rows = np.zeros((h, a.shape[1]), np.float32)
+    for t in range(ridx.shape[1]):
+        rows += a[ridx[:, t]] * rwt[:, t, None]
+    if a.shape[1] == w:
+        return rows
+    cidx, cwt = _axis_weights(a.shape[1], w)
+    return np.einsum("rot,ot->ro", rows[:, cidx], cwt)
+
+
+def proxy_scene(win: Window, mask, fg_height, bg_height):
+    """``win.scene(mask, fg_height, bg_height)`` of a whole-image window (``Window.whole``):
+    the two maps that are zero off the cutout (its coverage and its height) resized
+    only over the cutout's box (a cutout covers a small part of a 20 MP photo), the
+    same numbers; the background's height rows first (``_shrink_rows_first``), the
+    same up to float rounding.
+
+    Returns (mask, fg_height, bg_height) at (out_h, out_w), heights in proxy pixels."""
+    mask = np.asarray(mask)
+    H, W = mask.shape
+    if (win.x0, win.y0, win.w, win.h) != (0, 0, W, H):
+        raise ValueError(f"proxy_scene takes a whole-image window, got {win} for {W}x{H}")
+    h, w = win.out_h, win.out_w
+    inside = mask > 0.5
+    rows, cols = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
+    bg = np.asarray(bg_height, np.float32)
+    if not np.isfinite(bg.min() + bg.max()):      # one pass each; nan_to_num only when needed
+        bg = np.nan_to_num(bg, nan=0.0, posinf=0.0, neginf=0.0)
+    bg_w = (_shrink_rows_first(bg, (h, w)) * win.ky).astype(np.float32)
+    m = np.zeros((h, w), np.float32)
+    fg_w = np.zeros((h, w), np.float32)
+    if rows.size == 0:
+        return m, fg_w, bg_w
+    r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+    ridx, rwt = _axis_weights(H, h)
+    cidx, cwt = _axis_weights(W, w)
+    o0, o1 = _taps_range(ridx, rwt, r0, r1)
+    p0, p1 = _taps_range(cidx, cwt, c0, c1)
+    ins = inside[r0:r1, c0:c1]
+    fg = np.where(ins, np.nan_to_num(np.asarray(fg_height[r0:r1, c0:c1], np.float32)), 0.0).astype(np.float32)
+    # column pass on the box's rows (output columns p0..p1), zero rows elsewhere
+    planes = np.zeros((2, H, p1 - p0), np.float32)
+    ci, cw = cidx[p0:p1] - c0, cwt[p0:p1].copy()
+    off = (ci < 0) | (ci >= c1 - c0)               # taps outside the box read zeros
+    cw[off] = 0.0
+    ci = np.clip(ci, 0, c1 - c0 - 1)
+    for k, a in enumerate((ins.astype(np.float32), fg)):
+        planes[k, r0:r1] = np.einsum("rot,ot->ro", a[:, ci], cw)
+    ri, rw = ridx[o0:o1], rwt[o0:o1]
+    cover, fg_sum = (np.einsum("otc,ot->oc", planes[k][ri], rw) for k in range(2))
+    mm = (cover > 0.5).astype(np.float32)
+    m[o0:o1, p0:p1] = mm
+    fg_w[o0:o1, p0:p1] = np.where(cover > 1e-6, fg_sum / np.maximum(cover, 1e-6), 0.0) * win.ky * mm
+    return m, fg_w, bg_w
+
+
 def proxy_soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness=1.0,
                       max_side: int = AUTO_MAX_SIDE, *, progress=None, check_cancelled=None) -> np.ndarray:
     """Lit fraction float32 (H, W) of :func:`shadow.soft_shadow`, traced on a copy of
@@ -124,7 +199,7 @@ def proxy_soft_shadow(device, mask, fg_height, bg_height, light_samples, thickne
     if (win.out_h, win.out_w) == (H, W):
         return soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness,
                            progress=progress, check_cancelled=check_cancelled)
-    m, fg, bg = win.scene(mask, fg_height, bg_height)
+    m, fg, bg = proxy_scene(win, mask, fg_height, bg_height)
     lit = soft_shadow(device, m, fg, bg, win.light_points(light_samples),
                       max(thickness * win.ky, MIN_PROXY_THICKNESS), progress=progress,
                       check_cancelled=check_cancelled)

@@ -5,7 +5,9 @@
 //   horizon (pink): the Camera's horizon row;
 //   wall (blue): the ends of the wall-floor line (BackgroundHeight's
 //     junction_points), or the corner and the two slopes of the corner templates;
-//   light (yellow): the shadow tip, where the shadow of the object's top falls.
+//   light (yellow): the shadow tip, where the shadow of the object's top falls;
+//   and whatever the modules in `extraHandles` draw (heightedit.js: the cutout's
+//   contact points and tilt).
 "use strict";
 
 import {$} from "./app.js";
@@ -16,7 +18,9 @@ import {eventToImage, toScreen, view} from "./view.js";
 const SVG = "http://www.w3.org/2000/svg";
 export const R = 7;           // handle radius [screen px]
 
-function svgEl(tag, attrs, parent) {
+export const extraHandles = [];   // (scene, roles) => draws more handles (added by other modules)
+
+export function svgEl(tag, attrs, parent) {
   const el = document.createElementNS(SVG, tag);
   for (const [k, v] of Object.entries(attrs)) el.setAttribute(k, v);
   (parent || $("handles")).appendChild(el);
@@ -30,7 +34,7 @@ export function round(x, digits = 1) {
 
 // A handle at image point `at`: `drag(p, start)` gets the pointer and the drag's
 // start in image pixels and returns {edits, at} (where to draw it) or null.
-function handle(cls, id, at, drag, shape = "circle") {
+export function handle(cls, id, at, drag, shape = "circle") {
   const attrs = {class: `handle ${cls}`, id};
   const el = shape === "circle" ? svgEl("circle", {...attrs, r: R})
     : svgEl("rect", {...attrs, width: 2 * R - 2, height: 2 * R - 2});
@@ -45,7 +49,7 @@ function handle(cls, id, at, drag, shape = "circle") {
 }
 
 // Pointer drags on `el`: previews while it moves, the final when it is let go.
-function grab(el, drag, draw) {
+export function grab(el, drag, draw) {
   el.addEventListener("pointerdown", (ev) => {
     ev.preventDefault();
     ev.stopPropagation();
@@ -105,6 +109,7 @@ export function drawHandles() {
     if (light.top_uvh) line("light", light.top_uvh.slice(0, 2), light.tip_uv);
     handle("light", "light-handle", light.tip_uv, (p) => ({edits: {light_tip: p.map((x) => round(x))}, at: p}));
   }
+  for (const f of extraHandles) f(s, roles);
   drawFinder();
 }
 

@@ -4,6 +4,7 @@
 import {$, showError} from "./app.js";
 import {wireFiles} from "./files.js";
 import {cutoutWheel, drawHandles} from "./handles.js";
+import {syncHeightTools, wireHeightTools} from "./heightedit.js";
 import {buildPanel, syncControls, wireToolbar} from "./panel.js";
 import {finalize, refresh, render, ui} from "./render.js";
 import {setImageSize, view, wireView} from "./view.js";
@@ -30,6 +31,7 @@ async function load() {
   if (!$("save-name").value) $("save-name").value = ui.info.file.split(/[\\/]/).pop();
   buildPanel();
   syncControls();
+  syncHeightTools();
   drawHandles();
   await render({}, "final");
   document.body.dataset.synced = ui.shownSeq;
@@ -43,9 +45,11 @@ function main() {
   ui.onScene.push(() => {
     if (ui.scene.camera) setImageSize(ui.scene.camera.width, ui.scene.camera.height);
     syncControls();
+    syncHeightTools();
     if (!ui.drag) drawHandles();   // never pull a handle from under the pointer
   });
   wireToolbar();
+  wireHeightTools();
   wireFiles(load);
   load();
 }

@@ -1,16 +1,23 @@
 // The render queue. Every edit is sent as one POST /api/render {edits, mode, scale,
 // client, seq}: while a handle or slider moves, "preview" renders (hard shadow)
 // go out one at a time, the newest edit waiting in `pending`; when the pointer
-// stops a "final" render follows at once. Both come back at about the screen's
-// size (`scale`: the server box-filters the image by that integer factor;
-// previews run at a working resolution of half or less: the engine scales the
-// photo and every param in pixels, so a drag on a 20 MP photo computes ~1 MP). The
-// server drops or cancels renders superseded by a newer seq (409), and the page
-// never shows an image older than the one shown.
+// stops a "final" render follows at once. Finals come back at about the screen's
+// size (`scale`: the server box-filters the image by that integer factor).
+// Previews run the whole graph at a working resolution (`work`: the engine scales
+// the photo and every param in pixels) of at most PREVIEW_PIXELS while the pointer
+// moves (a drag on a 20 MP photo computes ~0.5 MP) and come back as JPEG; on
+// release a photo over RELEASE_PIXELS first gets one screen-sized (~1 MP) preview,
+// then the final. The server drops or cancels renders superseded by a newer seq
+// (409), and the page never shows an image older than the one shown.
 "use strict";
 
 import {$, api, request, showError} from "./app.js";
 import {show, view} from "./view.js";
+
+//: pixels a preview computes while the pointer moves, at most
+const PREVIEW_PIXELS = 0.5e6;
+//: photos larger than this get a screen-sized preview on release before the final [pixels]
+const RELEASE_PIXELS = 4e6;
 
 export const ui = {
   client: Math.random().toString(36).slice(2), seq: 0, shownSeq: 0,
@@ -19,6 +26,7 @@ export const ui = {
 };
 
 window.pixgraphShown = [];   // what was displayed, for tests and timing
+window.pixgraphQueue = () => ({inflight: ui.inflight, pending: !!ui.pending, drag: !!ui.drag});
 
 // The integer downscale that still gives at least one image pixel per screen pixel.
 function screenScale() {
@@ -30,12 +38,15 @@ function merge(a, b) {
   return {...(a || {}), ...b, params: {...((a || {}).params || {}), ...(b.params || {})}};
 }
 
-export async function render(edits, mode) {
+// kind: "move" (while the pointer moves: <= PREVIEW_PIXELS), "release" (screen-sized)
+export async function render(edits, mode, kind = "move") {
   const seq = ++ui.seq;
-  // previews at least at half resolution: a quick look while the pointer moves
-  const scale = mode === "preview" ? Math.max(2, screenScale()) : screenScale();
-  // previews run the whole graph at that working resolution (1/scale), finals at full size
-  const size = mode === "preview" ? {scale: 1, work: 1 / scale} : {scale};
+  // previews at least at half resolution, and while moving at most PREVIEW_PIXELS
+  let scale = mode === "preview" ? Math.max(2, screenScale()) : screenScale();
+  if (mode === "preview" && kind === "move") scale = Math.max(scale, Math.sqrt(view.W * view.H / PREVIEW_PIXELS));
+  // previews run the whole graph at that working resolution (1/scale) and come as JPEG;
+  // finals at full size, downscaled by the integer `scale`, as PNG
+  const size = mode === "preview" ? {scale: 1, work: 1 / scale, format: "jpeg"} : {scale};
   const t0 = performance.now();
   let r;
   try {
@@ -59,10 +70,15 @@ export async function render(edits, mode) {
   show(bmp, scale);
   ui.renders++;
   const ms = Math.round(performance.now() - t0);
-  $("status").textContent = `${mode} ${bmp.width}x${bmp.height} (1/${scale}) in ${ms} ms; ` +
+  $("status").textContent = `${mode} ${bmp.width}x${bmp.height} (1/${round2(scale)}) in ${ms} ms; ` +
     `ran: ${r.headers.get("X-Pixgraph-Ran") || "nothing (cached)"}`;
-  window.pixgraphShown.push({seq, mode, ms, scale, width: bmp.width, height: bmp.height,
-                             server_ms: 1000 * Number(r.headers.get("X-Pixgraph-Seconds") || 0)});
+  const entry = {seq, mode, kind: mode === "preview" ? kind : "final", ms, scale, width: bmp.width,
+                 height: bmp.height, server_ms: 1000 * Number(r.headers.get("X-Pixgraph-Seconds") || 0),
+                 ran: r.headers.get("X-Pixgraph-Ran") || ""};
+  window.pixgraphShown.push(entry);
+  // painted: the next frame after the canvas was drawn (ms counts from the request, sent in
+  // the pointer event's handler when no preview is in flight)
+  requestAnimationFrame(() => { entry.painted_ms = Math.round(performance.now() - t0); });
   showError("");
   markBad(null);
   return true;
@@ -81,8 +97,12 @@ export function preview(edits) {
   });
 }
 
+const round2 = (x) => Math.round(x * 100) / 100;
+
 export async function finalize(edits) {
   ui.pending = null;
+  // a large photo's final takes seconds: first a sharper, screen-sized preview of the same edits
+  if (view.W * view.H > RELEASE_PIXELS && await render(edits, "preview", "release") === "stale") return false;
   const ok = await render(edits, "final");
   // refused edits too: the handles go back where the graph has them
   if (ok !== "stale") await refresh().catch((err) => showError(err.message));

@@ -1,0 +1,122 @@
+// The hand edit of the cutout's pixel height (a node declaring handles of kind
+// "height_edit", e.g. pixgraph.PixelHeightEdit), drawn over the placed cutout:
+//   contact points (orange): where the object touches the ground, in the cutout's
+//     pixels mapped to the image by the scene's `frame`; a drag from the hollow
+//     handle at the cutout's foot adds one (or "+ contact", then a press on the
+//     image), "- contact" removes the last; each point is dragged on its own;
+//   tilt (orange square): on the object's top, a guide down to the ground under it;
+//     pulled up the object stands taller, pushed down it leans back (tilt, about the
+//     contact);
+//   "lying down" and "upright" (contact_mode) toggles in the toolbar.
+// The shadow follows every drag through the page's preview renders.
+"use strict";
+
+import {$} from "./app.js";
+import {extraHandles, handle, round, svgEl} from "./handles.js";
+import {finalize, ui} from "./render.js";
+import {eventToImage, toScreen} from "./view.js";
+
+let adding = false;
+
+const edit = () => ui.scene && ui.scene.height_edit;
+const param = (e, name, value) => ({params: {[`${e.id}.${e.params[name]}`]: value}});
+
+// cutout pixels <-> image pixels through the placement's similarity [sx, tx, sy, ty]
+const toCanvas = (e, [x, y]) => [e.frame[0] * x + e.frame[1], e.frame[2] * y + e.frame[3]];
+function toCutout(e, [u, v]) {
+  const [w, h] = e.size;
+  const x = (u - e.frame[1]) / e.frame[0], y = (v - e.frame[3]) / e.frame[2];
+  return [round(Math.min(w, Math.max(0, x))), round(Math.min(h, Math.max(0, y)))];
+}
+
+function pairs(flat) {
+  const out = [];
+  for (let i = 0; i + 1 < flat.length; i += 2) out.push([flat[i], flat[i + 1]]);
+  return out;
+}
+
+// The tilt [deg] that gives the top (height h0 before tilt) the height `target` [cutout px]:
+// tan(tilt) = (h0 / (target - lift) - 1) / tan(elevation), within +-80 deg and at most
+// MAX_GAIN times taller (pixgraph_nodes.ops.height_edit.tilt_for_height).
+const MAX_GAIN = 10;
+function tiltFor(h0, target, lift, elevation) {
+  const deg = 180 / Math.PI, ta = Math.tan(elevation / deg), want = target - lift;
+  if (h0 <= 0 || ta < 1e-9) return 0;
+  if (want <= 1e-6) return 80;
+  const lowest = Math.max(-80, Math.atan((1 / MAX_GAIN - 1) / ta) * deg);
+  return round(Math.min(80, Math.max(lowest, Math.atan((h0 / want - 1) / ta) * deg)), 2);
+}
+
+function drawHeightEdit(s) {
+  const e = s.height_edit;
+  if (!e) return;
+  const vals = e.values;
+  const pts = pairs(vals.points || []);
+  const lying = !!vals.lying;
+  if (pts.length > 1) {
+    const line = [...pts].sort((a, b) => a[0] - b[0]).map((p) => toScreen(...toCanvas(e, p)).join(","));
+    svgEl("polyline", {class: `guide contact${lying ? " off" : ""}`, points: line.join(" ")});
+  }
+  if (!lying) {
+    // the cutout's foot: dragged from there, a new contact point (the first replaces the
+    // input's implicit contact, the lowest row; more: a line, several feet)
+    const el = handle("contact ghost", "contact-new", toCanvas(e, e.foot), (p) =>
+      ({edits: param(e, "points", [...(vals.points || []), ...toCutout(e, p)]), at: p}));
+    el.setAttribute("title", "drag from the cutout's foot to where it touches the ground: a contact point");
+  }
+  pts.forEach((pt, i) => {
+    const el = handle(`contact${lying ? " off" : ""}`, `contact-${i}`, toCanvas(e, pt), (p) => {
+      const next = (vals.points || []).slice();
+      [next[2 * i], next[2 * i + 1]] = toCutout(e, p);
+      return {edits: param(e, "points", next), at: p};
+    });
+    el.setAttribute("title", "a contact point: where the object touches the ground");
+  });
+  if (e.top && !lying) {
+    // the tilt handle on the object's top, a guide down to the ground under it: pulled up
+    // the object stands taller (leans toward the camera), pushed down shorter (leans back)
+    const [tu, tv, h, h0] = e.top;
+    const top = toCanvas(e, [tu, tv]);
+    const foot = (hh) => toScreen(...toCanvas(e, [tu, tv + hh]));
+    const [x1, y1] = toScreen(...top), [x2, y2] = foot(h);
+    const guide = svgEl("line", {class: "guide tilt", x1, y1, x2, y2});
+    const el = handle("tilt", "tilt-handle", top, ([, v], start) => {
+      const target = h + (start[1] - v) / e.frame[2];    // the top's new height [cutout px]
+      guide.setAttribute("y2", foot(target)[1]);
+      return {edits: param(e, "tilt", tiltFor(h0, target, vals.lift || 0, vals.elevation)), at: [top[0], v]};
+    }, "rect");
+    el.setAttribute("title", "the object's top: drag up = taller (leaning forward), down = shorter (leaning back)");
+  }
+}
+
+export function syncHeightTools() {
+  const e = edit();
+  $("height-tools").hidden = !e;
+  if (!e) return;
+  $("lying").checked = !!e.values.lying;
+  $("upright").checked = e.values.mode === "upright";
+  $("remove-contact").disabled = !(e.values.points || []).length;
+  $("add-contact").classList.toggle("on", adding);
+}
+
+export function wireHeightTools() {
+  extraHandles.push(drawHeightEdit);
+  $("lying").addEventListener("change", () => finalize(param(edit(), "lying", $("lying").checked)));
+  $("upright").addEventListener("change", () =>
+    finalize(param(edit(), "mode", $("upright").checked ? "upright" : "shift")));
+  $("remove-contact").addEventListener("click", () => {
+    const e = edit();
+    finalize(param(e, "points", (e.values.points || []).slice(0, -2)));
+  });
+  $("add-contact").addEventListener("click", () => { adding = !adding; syncHeightTools(); });
+  // armed by "+ contact": the next press on the image adds a contact point there
+  $("handles").addEventListener("pointerdown", (ev) => {
+    const e = edit();
+    if (!adding || !e) return;
+    ev.preventDefault();
+    ev.stopPropagation();
+    adding = false;
+    syncHeightTools();
+    finalize(param(e, "points", [...(e.values.points || []), ...toCutout(e, eventToImage(ev))]));
+  }, true);
+}

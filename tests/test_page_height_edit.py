@@ -1,0 +1,161 @@
+"""The hand edit of the cutout's pixel height in the page (pixgraph.PixelHeightEdit's
+handles), in headless Chromium: the own-photo template (which has the edit) on the
+repo's own photo and cutout; the handles are drawn where the scene maps them, a
+contact point dragged changes the param and the shadow's pixels while dragging
+(previews) and after, the tilt handle gives the tilt of ops.height_edit's inverse,
+points are added and removed, "lying down" toggles, and the page's save writes the
+params that load back."""
+import os
+
+import httpx
+import numpy as np
+import pytest
+
+from pixgraph_nodes.ops import height_edit as he
+from pixgraph_serve import files
+from serve_helpers import chromium_browser, running_server
+from test_page_photo import _png, centre, check_handles_visible, drag, graph_params, keep, last_seq, open_page, \
+    screen, shown, wait_final
+from test_serve_height_edit import _assets
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with chromium_browser() as b:
+        yield b
+
+
+def edit_graph(dest) -> str:
+    paths = _assets(os.path.join(dest, "assets"))
+    rel = {k: os.path.relpath(v, dest) for k, v in paths.items()}
+    text = files.fill(files.template_text("own_photo"), rel, {"W": 640, "H": 480, "w": 159, "h": 285})
+    # the hard shadow: quick finals; its outline shows every change of the height
+    import yaml
+    doc = yaml.safe_load(text)
+    doc["nodes"]["shadow"]["type"] = "pixgraph.HardShadow"
+    doc["nodes"]["shadow"]["params"].pop("samples")
+    text = yaml.safe_dump(doc, sort_keys=False)
+    path = os.path.join(dest, "edit.yaml")
+    with open(path, "w") as f:
+        f.write(text)
+    return path
+
+
+def to_canvas(e, x, y):
+    sx, tx, sy, ty = e["frame"]
+    return sx * x + tx, sy * y + ty
+
+
+def to_cutout(e, u, v):
+    sx, tx, sy, ty = e["frame"]
+    return (u - tx) / sx, (v - ty) / sy
+
+
+def test_drag_the_cutouts_contact_and_tilt_in_the_page(browser, tmp_path):
+    graph = edit_graph(str(tmp_path))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        k = page.evaluate("window.pixgraphView.state.k")
+        scene = httpx.get(url + "/api/scene", timeout=60).json()
+        e = scene["height_edit"]
+        assert page.locator("#height-tools").is_visible()
+        check_handles_visible(page)
+        # the hollow contact handle sits on the cutout's foot, the tilt handle on its top
+        for sel, (u, v) in {"#contact-new": scene["place"]["foot"],
+                            "#tilt-handle": to_canvas(e, e["top"][0], e["top"][1])}.items():
+            b = page.locator(sel).bounding_box()
+            assert 12 <= b["width"] <= 20, (sel, b)
+            x, y = centre(page, sel)
+            sx, sy = screen(page, u, v)
+            assert abs(x - sx) < 1.5 and abs(y - sy) < 1.5, sel
+        photo = _png(httpx.get(url + "/api/outputs/photo.image.png", timeout=60).content)
+        alpha = _png(httpx.get(url + "/api/outputs/place.alpha.png", timeout=60).content)[:, :, 0]
+
+        def shadow(img):
+            return ((photo - img).mean(axis=2) > 0.05) & (alpha < 0.02)
+
+        before = shadow(shown(page))
+        assert before.sum() > 300
+        keep(page, "height_edit_before.png")
+
+        # one contact point, dragged 70 image px up into the figure: the object sinks by its
+        # height there; the preview while dragging already shows a different shadow
+        fu, fv = scene["place"]["foot"]
+        row = alpha[int(fv - 70)]
+        cols = np.nonzero(row > 0.9)[0]
+        col = cols[np.argmin(np.abs(cols + 0.5 - fu))]      # on the figure (a leg), nearest the foot
+        target = (col + 0.5, fv - 70)
+        seq = last_seq(page)
+        page.mouse.move(*centre(page, "#contact-new"))
+        page.mouse.down()
+        page.mouse.move(*screen(page, *target), steps=6)
+        page.wait_for_function(f"window.pixgraphShown.some(s => s.mode === 'preview' && s.seq > {seq})",
+                               timeout=120000)
+        # the pointer still down: the queue done, the last preview is of the last position
+        page.wait_for_function("(q => !q.inflight && !q.pending)(window.pixgraphQueue())", timeout=120000)
+        preview_img = shown(page)
+        assert page.evaluate("window.pixgraphShown.at(-1).mode") == "preview"
+        page.mouse.up()
+        wait_final(page, seq)
+        pts = graph_params(url)["edit"]["contact_points"]
+        assert pts == pytest.approx(list(to_cutout(e, *target)), abs=1.0 / k + 0.2)
+        after = shadow(shown(page))
+        assert np.logical_xor(before, after).sum() > 100, "the shadow did not change"
+        assert after.sum() < before.sum()         # sunk by the height 70 px up: a shorter shadow
+        # the preview came at half size: compared with the plate and coverage at half size
+        photo2 = _png(httpx.get(url + "/api/outputs/photo.image.png?scale=2", timeout=60).content)
+        alpha2 = _png(httpx.get(url + "/api/outputs/place.alpha.png?scale=2", timeout=60).content)[:, :, 0]
+        assert preview_img.shape == photo2.shape
+        small = ((photo2 - preview_img).mean(axis=2) > 0.05) & (alpha2 < 0.02)
+        assert small.sum() > 50
+        assert abs(4 * int(small.sum()) - int(before.sum())) > 0.5 * abs(int(after.sum()) - int(before.sum()))
+        keep(page, "height_edit_contact.png")
+
+        # "+ contact" then a click: a second point; "- contact" removes it
+        seq = last_seq(page)
+        page.click("#add-contact")
+        page.mouse.click(*screen(page, fu + 20, fv - 5))
+        wait_final(page, seq)
+        pts2 = graph_params(url)["edit"]["contact_points"]
+        assert len(pts2) == 4 and pts2[:2] == pts
+        assert pts2[2:] == pytest.approx(list(to_cutout(e, fu + 20, fv - 5)), abs=1.0 / k + 0.2)
+        assert page.locator("#contact-1").is_visible()
+        # a drag from the foot's hollow handle adds a third; "- contact" takes it away again
+        drag(page, centre(page, "#contact-new"), screen(page, fu - 15, fv - 3))
+        pts3 = graph_params(url)["edit"]["contact_points"]
+        assert len(pts3) == 6 and pts3[:4] == pts2
+        assert pts3[4:] == pytest.approx(list(to_cutout(e, fu - 15, fv - 3)), abs=1.0 / k + 0.2)
+        seq = last_seq(page)
+        page.click("#remove-contact")
+        wait_final(page, seq)
+        seq = last_seq(page)
+        page.click("#remove-contact")
+        wait_final(page, seq)
+        assert graph_params(url)["edit"]["contact_points"] == pts
+
+        # the tilt handle: pushed 40 px down, the top's height is 40 / k image px smaller
+        e2 = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        tu, tv, h, h0 = e2["top"]
+        x, y = centre(page, "#tilt-handle")
+        drag(page, (x, y), (x, y + 40))
+        want_h = h - 40 / k / e2["frame"][2]
+        tilt = graph_params(url)["edit"]["tilt"]
+        assert tilt == pytest.approx(he.tilt_for_height(h0, want_h, 0.0, 20.0), abs=0.6)
+        assert tilt > 5
+        e3 = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        assert e3["top"][2] == pytest.approx(want_h, rel=0.02)
+
+        # lying down: a toggle; the saved graph keeps every edit
+        seq = last_seq(page)
+        page.check("#lying")
+        wait_final(page, seq)
+        assert graph_params(url)["edit"]["lying"] is True
+        page.fill("#save-name", "edited.yaml")
+        page.click("#save")
+        page.wait_for_function("document.getElementById('status').textContent.startsWith('saved')", timeout=60000)
+        from pixgraph_serve.state import ServeState
+        saved = ServeState(str(tmp_path / "edited.yaml"))
+        vals = {n["id"]: n["values"] for n in saved.info()["nodes"]}["edit"]
+        assert vals["contact_points"] == pts and vals["tilt"] == tilt and vals["lying"] is True
+        assert not errors, errors
+        page.close()
