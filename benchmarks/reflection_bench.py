@@ -3,6 +3,19 @@ noise-free 512x512 glossy reflection at 200 spp on a CUDA GPU).
 
     python benchmarks/reflection_bench.py            # full run, a few minutes
     python benchmarks/reflection_bench.py --quick    # fewer points, one repeat
+    python benchmarks/reflection_bench.py --proxy-errors --size 1280 --size 20mp   # the proxies' error
+    python benchmarks/reflection_bench.py --proxy-errors --size 1280 --seed-floor  # + the sampling noise
+
+``--proxy-errors``: the error of Reflection's and Refraction's ``proxy`` against the
+full computation (``proxy: 0``) on the photo of benchmarks/photo_bench.py at each
+``--size`` (``20mp`` = 5120x3840, ``1280`` = 1280x960, ``512`` = 512x384): the glossy
+floor of its ``glossy`` case (roughness 0.2, receivers ground) and a glass ball
+(pixgraph.Sphere, eta 1.5, local-sphere back surface) on the same photo. RMSE and
+max |error| of the premultiplied linear RGBA layer over the affected pixels: for
+the reflection those where either layer is not 0, outside the cutout (what is
+seen); for the refraction the glass's pixels (alpha > 0), and its interior (6 px
+and more inside the outline). Node times are medians of ``--repeat`` runs (the
+full computation: one run); the full layers are kept under out/bench/photo/.
 
 Scene: the example figure (graphs/assets/figure.png) moved up 150 rows so its
 whole reflection lies in the image, contact-line pixel height, flat ground,
@@ -88,11 +101,143 @@ def reference(dev, sc, name, mat):
     return r["layer"], dt
 
 
+REFRACTION = """pixgraph: 1
+nodes:
+  photo: {{type: pixgraph.LoadImage, params: {{path: {photo}}}}}
+  cam:   {{type: pixgraph.Camera, inputs: {{image: photo.image}}, params: {{horizon: {horizon}}}}}
+  bg_h:
+    type: pixgraph.BackgroundHeight
+    inputs: {{camera: cam.camera}}
+    params: {{kind: back_wall, junction_points: [0, {j0}, {width}, {j1}]}}
+  ball:
+    type: pixgraph.Sphere
+    inputs: {{camera: cam.camera}}
+    params: {{center_u: {cu}, contact_v: {cv}, radius: 0.12}}
+  refr:
+    type: pixgraph.Refraction
+    inputs: {{camera: cam.camera, glass: ball.image, glass_height: ball.height,
+             background: photo.image, bg_height: bg_h.height}}
+    params: {{eta: 1.5, fresnel: true, back_surface: local_sphere}}
+outputs: {{refraction: refr.layer}}
+"""
+
+
+def proxy_errors(args) -> int:
+    """``--proxy-errors``: each proxy against the full computation (module docstring)."""
+    sys.path.insert(0, str(pathlib.Path(__file__).parent))
+    import photo_bench as PB
+    from _machine import cpu_model
+    from pixgraph.session import Session
+    PB.SIZES.setdefault("1280", (1280, 960))
+    repeat = args.repeat or 3
+    print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f}; python {sys.version.split()[0]}")
+    rows = []
+    for size in args.size or ["1280", "20mp"]:
+        W, H = PB.SIZES[size]
+        k = W / 640.0
+        refr = PB.OUT / f"refraction_{size}.yaml"
+        refr.write_text(REFRACTION.format(photo=PB.make_photo(size), horizon=120 * k, j0=262 * k, j1=292 * k,
+                                          width=W, cu=450 * k, cv=400 * k))
+        cases = [("reflection", PB.make_graph("glossy", size), "refl", "refl.layer"),
+                 ("refraction", refr, "refr", "refr.layer")]
+        for name, path, node, port in cases:
+            if args.case and name not in args.case:
+                continue
+            s = Session(disk_cache=None, allow_paths=[str(ROOT)], cache_bytes=3 << 30)
+            g = s.graph(path)
+            cover = (s.run(g, outputs=["place.alpha"])["place.alpha"] if name == "reflection"
+                     else s.run(g, outputs=["ball.alpha"])["ball.alpha"])
+            saved = PB.OUT / f"full_{name}_{size}.npy"
+            t0 = time.perf_counter()
+            if saved.exists() and not args.recompute:
+                full, t_full = np.load(saved), None
+            else:
+                full = np.asarray(s.run(g, outputs=[port], params={f"{node}.proxy": 0})[port], np.float32)
+                t_full = time.perf_counter() - t0
+                np.save(saved, full)
+            if name == "refraction":
+                # the method's floor: the hits traced at full size, looked up as the proxy does
+                from pixgraph_nodes.ops import refraction as RF
+                o = s.run(g, outputs=["cam.camera", "ball.image", "ball.height", "photo.image", "bg_h.height"])
+                hh = RF.refraction_hits_cl(s.device, o["cam.camera"], o["ball.image"], o["ball.height"],
+                                           o["bg_h.height"], eta=1.5, back_surface="local_sphere")
+                yy, xx = np.nonzero(cover > 0)
+                col = (hh["wts"][yy, xx, :1] * RF._bilinear(o["photo.image"], hh["pos"][yy, xx, 0], hh["pos"][yy, xx, 1])
+                       + hh["wts"][yy, xx, 1:] * RF._bilinear(o["photo.image"], hh["pos"][yy, xx, 2],
+                                                             hh["pos"][yy, xx, 3]))
+                e = cover[yy, xx, None] * col - full[yy, xx, :3]
+                row = {"case": name, "size": f"{W}x{H}", "proxy": "hits at full size", "pixels": "glass",
+                       "n": int(yy.size), "rmse": float(np.sqrt(np.mean(e.astype(np.float64) ** 2))),
+                       "max": float(np.abs(e).max())}
+                rows.append(row)
+                print(f"{name:10s} {W}x{H} hits traced at full size, looked up as the proxy does: RMSE "
+                      f"{row['rmse']:.4f}  max {row['max']:.3f}  (the lookup's own difference)", flush=True)
+                del hh, o
+            if name == "reflection" and args.seed_floor:
+                # the sampling noise: the full computation with another seed
+                other = np.asarray(s.run(g, outputs=[port], params={f"{node}.proxy": 0, f"{node}.seed": 1})[port])
+                d = other.astype(np.float64) - full
+                where = ((other != 0).any(-1) | (full != 0).any(-1)) & (cover < 0.5)
+                row = {"case": name, "size": f"{W}x{H}", "proxy": "full size, seed 1", "pixels": "affected",
+                       "n": int(where.sum()), "rmse": float(np.sqrt(np.mean(d[where] ** 2))),
+                       "max": float(np.abs(d[where]).max())}
+                rows.append(row)
+                print(f"{name:10s} {W}x{H} full computation with another seed: RMSE {row['rmse']:.4f}  "
+                      f"max {row['max']:.3f}  (the sampling noise)", flush=True)
+            for side in args.proxies:
+                ts = []
+                for _ in range(repeat):
+                    s.memory.clear() if hasattr(s.memory, "clear") else None
+                    t0 = time.perf_counter()
+                    out = np.asarray(s.run(g, outputs=[port], params={f"{node}.proxy": side})[port], np.float32)
+                    ts.append(s.last_run.timings.get(node, time.perf_counter() - t0))
+                d = out.astype(np.float64) - full
+                if name == "reflection":
+                    where = ((out != 0).any(-1) | (full != 0).any(-1)) & (cover < 0.5)
+                    parts = [("affected", where)]
+                    # where the layer's energy is: its alpha summed over bands of rows below the horizon
+                    top = int(PB.SIZES[size][1] * 0.5)
+                    edges = np.linspace(top, H, 7).astype(int)
+                    print(f"  alpha sum per band of rows {', '.join(f'{a}-{b}' for a, b in zip(edges, edges[1:]))}: "
+                          f"full {[round(float(full[a:b, :, 3].sum()), 1) for a, b in zip(edges, edges[1:])]}, "
+                          f"proxy {side} {[round(float(out[a:b, :, 3].sum()), 1) for a, b in zip(edges, edges[1:])]}")
+                else:
+                    on = cover > 0
+                    inner = on.copy()
+                    for _ in range(6):
+                        inner[1:-1, 1:-1] &= inner[:-2, 1:-1] & inner[2:, 1:-1] & inner[1:-1, :-2] & inner[1:-1, 2:]
+                    parts = [("glass", on), ("interior", inner)]
+                for label, where in parts:
+                    e = d[where]
+                    row = {"case": name, "size": f"{W}x{H}", "proxy": side, "pixels": label,
+                           "n": int(where.sum()), "rmse": float(np.sqrt(np.mean(e ** 2))) if e.size else 0.0,
+                           "max": float(np.abs(e).max()) if e.size else 0.0,
+                           "node_s_median": statistics.median(ts), "full_s": t_full}
+                    rows.append(row)
+                    print(f"{name:10s} {W}x{H} proxy {side:5d} {label:9s} ({row['n']:9d} px): RMSE {row['rmse']:.4f}"
+                          f"  max {row['max']:.3f}   node {row['node_s_median']:.2f} s (median of {repeat})"
+                          + (f"; full computation {t_full:.1f} s" if t_full else ""), flush=True)
+    print(f"load average at the end: {os.getloadavg()[0]:.2f}")
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "proxy_errors.json").write_text(json.dumps(rows, indent=1))
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--repeat", type=int, default=None)
+    ap.add_argument("--proxy-errors", action="store_true", help="the proxies' error against the full computation")
+    ap.add_argument("--size", action="append", choices=("512", "1280", "20mp"), help="--proxy-errors: photo size")
+    ap.add_argument("--proxies", type=int, nargs="+", default=[1024, 512], help="--proxy-errors: proxy sides")
+    ap.add_argument("--recompute", action="store_true", help="--proxy-errors: recompute the kept full layers")
+    ap.add_argument("--case", action="append", choices=("reflection", "refraction"),
+                    help="--proxy-errors: only these (default both)")
+    ap.add_argument("--seed-floor", action="store_true",
+                    help="--proxy-errors: also the full reflection with another seed (its sampling noise)")
     args = ap.parse_args(argv)
+    if args.proxy_errors:
+        return proxy_errors(args)
     repeat = args.repeat or (1 if args.quick else 3)
     dev = Device.open()
     print(f"machine: {platform.node()} {platform.machine()} {platform.processor() or ''} "

@@ -72,14 +72,16 @@ class CutoutHeight(Node):
     trained on rendered cutouts (people, animals, figurines, furniture, products,
     vehicles, random shapes) reads the colour (``image``) and alpha, any size
     (pixgraph_nodes.ops.learned_height; needs torch, else falls back to contact_line with
-    a log message); ``auto``: the learned height where the network's own confidence
-    says it beats the contact line (confidence >= 0.5), else the contact line
-    (docs/height.md, "The contact, confidence and auto"). The contact is a constraint: for
+    a log message); ``auto``: the learned height unless the checkpoint's confidence
+    rule (a per-cutout signal and threshold chosen on validation) says the contact
+    line is likely better, then the contact line (docs/height.md, "The contact,
+    confidence and auto"). The contact is a constraint: for
     ``learned`` and ``auto`` the cutout's lowest pixels are pinned to height 0
     (``contact: ground``) or to ``lift`` px (``contact: lifted``, an object that does not
     touch the ground: a held object, a hanging lamp); the heuristics are 0 there by
-    construction and get ``lift`` added. Output ``confidence``: the network's estimate
-    (0-1) that its map is better than the contact line, NaN when it was not run. A
+    construction and get ``lift`` added. Output ``confidence``: the estimated chance
+    (0-1) that the learned map is better than the contact line (the validation win rate
+    at this cutout's signal), NaN when the network was not run. A
     file-based height map comes from pixgraph.LoadPixelHeight instead.
     """
 
@@ -91,8 +93,8 @@ class CutoutHeight(Node):
     class Params:
         method: str = param("contact_line", choices=("contact_line", "column_bottom", "learned", "auto"),
                             doc="contact_line / column_bottom: where each column's foot is; "
-                                "learned: the trained predictor; auto: learned where its confidence "
-                                "is >= 0.5, else contact_line")
+                                "learned: the trained predictor; auto: learned unless its confidence "
+                                "rule says contact_line is likely better")
         contact: str = param("ground", choices=("ground", "lifted"),
                              doc="ground: the cutout's lowest pixels touch the ground (height 0); "
                                  "lifted: they are lift px above it (the object does not touch the ground)")
@@ -104,10 +106,10 @@ class CutoutHeight(Node):
 
     class Outputs:
         height: T.PixelHeight = port(doc="cutout pixel height [px], 0 outside the mask")
-        confidence: T.Scalar = port(doc="learned / auto: the network's estimate (0-1) that its height "
+        confidence: T.Scalar = port(doc="learned / auto: the estimated chance (0-1) that the learned height "
                                         "beats the contact line; NaN when the network did not run")
 
-    impl_version = "3+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence
+    impl_version = "4+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence; 4: foot snap, confidence rule
 
     def compute(self, ctx, inputs, params):
         mask = np.asarray(inputs.mask, dtype=np.float32)
@@ -125,11 +127,15 @@ class CutoutHeight(Node):
                     conf = float("nan")
                     if params.method == "auto":
                         ctx.log("auto: the shipped weights have no confidence heads; using the learned height")
-                if params.method == "learned" or not conf < 0.5:
+                # auto's choice: the checkpoint's confidence rule (predict_full), else confidence >= 0.5
+                use = r.get("use_learned", not conf < 0.5)
+                if params.method == "learned" or use:
                     ctx.log(f"{params.method}: learned height (confidence {conf:.2f})")
                     return {"height": r["height"], "confidence": float(conf)}
-                ctx.log(f"auto: contact line (the network's confidence {conf:.2f} < 0.5; estimated MAE "
-                        f"learned {r['est_mae_learned']:.1f} px, contact line {r['est_mae_heuristic']:.1f} px)")
+                why = (f"signal {r['signal']:.3g} above the threshold chosen on validation" if "signal" in r
+                       else f"confidence {conf:.2f} < 0.5")
+                ctx.log(f"auto: contact line ({why}; the learned map beat it on {conf:.0%} of similar "
+                        "validation cutouts)" if "signal" in r else f"auto: contact line ({why})")
                 h = self._heuristic(mask, "contact_line", params.tolerance)
                 return {"height": self._lift(h, mask, lift), "confidence": float(conf)}
             ctx.log(NO_TORCH)

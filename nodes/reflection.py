@@ -74,7 +74,11 @@ class Reflection(Node):
         layer: T.Image = port(doc="reflection, premultiplied linear RGBA")
         stats: T.Buffers = port(doc="per pixel: spp (samples used), steps (march iterations)")
 
-    impl_version = "3"   # 2: low-discrepancy (R2) samples; 3: proxy resolution above `proxy` px
+    impl_version = "4"   # 2: low-discrepancy (R2) samples; 3: proxy resolution above `proxy` px;
+                         # 4: receivers masked off are not traced
+    #: a 20 MP layer and its stats are 475 MiB, remade from the proxy in a few
+    #: seconds (docs/reflection.md): memory cache only
+    disk_cache = False
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, cutout=inputs.cutout, fg_height=inputs.fg_height, bg_height=inputs.bg_height,
@@ -86,19 +90,16 @@ class Reflection(Node):
         pixel_heights(bg_height=inputs.bg_height)
         finite(receiver=inputs.receiver)
         side = max(inputs.bg_height.shape) if params.proxy == 0 else max(16, params.proxy)
+        receiver = _receiver_mask(inputs.receiver, inputs.bg_height, params.receivers)
         r = proxy_reflection(ctx.device, inputs.camera, inputs.cutout, inputs.fg_height, inputs.bg_height,
                              max_side=side, roughness=params.roughness, eta=params.eta,
                              conductor=params.material == "conductor", f0=params.f0,
                              strength=params.strength, thickness=params.thickness,
                              min_spp=params.min_spp, max_spp=params.max_spp, target_se=params.noise,
-                             seed=params.seed, mask=inputs.mask, hiz=params.accelerate,
+                             seed=params.seed, mask=inputs.mask, hiz=params.accelerate, receive=receiver,
                              progress=ctx.progress, check_cancelled=ctx.check_cancelled)
         finite_outputs(layer=r["layer"])
-        layer = r["layer"]
-        receiver = _receiver_mask(inputs.receiver, inputs.bg_height, params.receivers)
-        if receiver is not None:
-            layer *= receiver[:, :, None]      # in place: the layer is this run's own array
-        return {"layer": layer,
+        return {"layer": r["layer"],
                 "stats": {"spp": r["spp"].astype(np.float32), "steps": r["steps"].astype(np.float32)}}
 
 

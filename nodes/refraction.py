@@ -5,7 +5,8 @@ from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, finite_outputs, pixel_heights, rgba, same_size
-from .ops.refraction import refraction_cl
+from .ops.refraction import refraction_proxy
+from .ops.upsample import AUTO_MAX_SIDE
 
 
 @node("pixgraph.Refraction", version=1)
@@ -26,7 +27,9 @@ class Refraction(Node):
     be finite and >= 0 (the glass's where its alpha > 0), else the node stops
     with an input error. Glass with no coverage gives a transparent layer. Large
     images work in bands of rows: they report progress and stop at the next band
-    when the run is cancelled.
+    when the run is cancelled. Images longer than ``proxy`` trace the rays on a
+    smaller copy and look the colours up at full resolution (docs/reflection.md
+    has the error: small inside the glass, larger on its rim).
     """
 
     class Inputs:
@@ -46,12 +49,16 @@ class Refraction(Node):
                                       "of the sphere of the surface's local curvature (exact for a ball); "
                                       "none: front interface only")
         accelerate: bool = param(True, cache=False, doc="max-height pyramid skipping (same result)")
+        proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px, longer side",
+                           doc="images whose longer side exceeds this trace the rays on a copy of this longer "
+                               "side; where they land is enlarged edge-aware and the colours are looked up in "
+                               "the full-resolution background (0: never; docs/reflection.md has the error)")
 
     class Outputs:
         layer: T.Image = port(doc="refraction, premultiplied linear RGBA")
         tir: T.Mask = port(doc="1 where total internal reflection happened")
 
-    impl_version = "1"
+    impl_version = "2"   # 2: proxy resolution above `proxy` px
 
     def compute(self, ctx, inputs, params):
         same_size(inputs.camera, glass=inputs.glass, glass_height=inputs.glass_height,
@@ -60,9 +67,10 @@ class Refraction(Node):
         finite(glass=inputs.glass, background=inputs.background)
         pixel_heights(inputs.glass[..., 3] > 0, glass_height=inputs.glass_height)
         pixel_heights(bg_height=inputs.bg_height)
-        r = refraction_cl(ctx.device, inputs.camera, inputs.glass, inputs.glass_height, inputs.background,
-                          inputs.bg_height, eta=params.eta, tint=params.tint, fresnel=params.fresnel,
-                          hiz=params.accelerate, back_surface=params.back_surface,
-                          progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        side = max(inputs.bg_height.shape) if params.proxy == 0 else max(16, params.proxy)
+        r = refraction_proxy(ctx.device, inputs.camera, inputs.glass, inputs.glass_height, inputs.background,
+                             inputs.bg_height, max_side=side, eta=params.eta, tint=params.tint,
+                             fresnel=params.fresnel, hiz=params.accelerate, back_surface=params.back_surface,
+                             progress=ctx.progress, check_cancelled=ctx.check_cancelled)
         finite_outputs(layer=r["layer"])
         return {"layer": r["layer"], "tir": r["tir"].astype("float32")}

@@ -100,3 +100,81 @@ def test_shipped_learned_height_stands_on_the_ground_or_is_lifted():
     assert 0.0 <= out["confidence"] <= 1.0 or math.isnan(out["confidence"])
     lifted, _ = run(m, img.astype(np.float32), method="learned", contact="lifted", lift=6.0)
     assert lifted["height"][b].mean() == pytest.approx(6.0, abs=1e-4)
+
+
+def table():
+    """A table seen from above: a top (rows 5..14) and four legs; the back legs end
+    higher in the image (row 24) than the front ones (row 34)."""
+    m = np.zeros((40, 40), bool)
+    m[5:15, 4:36] = True
+    for c0, r1 in ((5, 35), (31, 35), (10, 25), (26, 25)):
+        m[10:r1, c0:c0 + 3] = True
+    return m
+
+
+def test_lower_hull_of_the_column_bottoms():
+    from pixgraph_nodes.ops.learned_height import lower_hull_rows
+    u = np.arange(11.0)
+    tent = 20.0 - np.abs(u - 5.0)               # a turned brick's two bottom edges: all on the hull
+    np.testing.assert_allclose(lower_hull_rows(tent), tent)
+    gap = np.full(11, 12.0)
+    gap[[0, 10]] = 20.0                         # two feet and the underside between them
+    gap[3] = np.nan                             # an empty column
+    hr = lower_hull_rows(gap)
+    assert np.isnan(hr[3]) and np.allclose(hr[np.isfinite(gap)], 20.0)
+    bowl = 10.0 + 0.2 * (u - 5.0) ** 2          # the ends are the lowest: the hull is their chord
+    np.testing.assert_allclose(lower_hull_rows(bowl), 15.0)
+
+
+def test_snap_feet_puts_every_foot_on_the_ground():
+    from pixgraph_nodes.ops.learned_height import snap_feet
+    m = table()
+    v = np.arange(40)[:, None] + 0.5
+    rows = np.nonzero(m.any(1))[0]
+    bh = rows.max() - rows.min() + 1
+    # the pinned map: front feet right (0.5 px at the lowest row), back feet 2.5 px too high,
+    # the top's underside (columns between the legs) 9.5 px up and right
+    h = np.zeros(m.shape)
+    for c in range(40):
+        if not m[:, c].any():
+            continue
+        low = np.nonzero(m[:, c])[0].max()
+        err = 2.0 if c in (10, 11, 12, 26, 27, 28) else 0.0
+        if low == 14:                            # the top alone: its underside 9.5 px above the ground
+            err = 9.0
+        h[:, c] = low + 1 - v[:, 0] + err
+    h = np.where(m, h, 0.0)
+    out = snap_feet(h, m, tol=3.0, hull=False, fade=0.25)
+    for c in (10, 11, 12, 26, 27, 28):           # back feet: 2.5 -> 0 at the lowest pixel
+        assert out[24, c] == pytest.approx(0.0, abs=1e-6)
+        r = 20                                   # 4 rows up: the shift has faded by 4 / (0.25 bh)
+        assert out[r, c] == pytest.approx(h[r, c] - 2.5 * (1 - 4 / (0.25 * bh)), abs=1e-5)
+        assert out[5, c] == pytest.approx(h[5, c])   # above the fade: unchanged
+    # front feet (0.5 < tol): snapped to exactly 0; the underside (9.5 px) is kept
+    assert out[34, 5] == 0.0 and out[34, 32] == 0.0
+    np.testing.assert_allclose(out[:, 18:24], h[:, 18:24])
+    assert np.all(out[~m] == 0) and np.all(out >= 0)
+    # tol below the back feet's height: they stay; tol 0: nothing changes
+    np.testing.assert_allclose(snap_feet(h, m, tol=2.0)[24, 10:13], 2.5)
+    np.testing.assert_allclose(snap_feet(h, m, tol=0.0), h)
+    # hull on: the back legs' bottoms (row 25) are 10 rows above the front feet's chord: not snapped
+    np.testing.assert_allclose(snap_feet(h, m, tol=3.0, hull=True)[24, 10:13], 2.5)
+
+
+def test_the_shipped_predictor_snaps_its_feet_when_the_checkpoint_says_so():
+    pytest.importorskip("torch")
+    from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, snap_feet
+    m = table()
+    v, u = np.mgrid[0:40, 0:40] + 0.5
+    a = m.astype(np.float32)
+    rgba = np.stack([0.3 * a, (0.2 + 0.004 * v) * a, 0.25 * a, a], -1).astype(np.float32)
+    off = LearnedHeightPredictor(foot_snap=None).predict(rgba)
+    on = LearnedHeightPredictor(foot_snap={"tol": 4.0, "hull": False}).predict(rgba)
+    np.testing.assert_allclose(on, snap_feet(off, m, 4.0, False), atol=1e-5)
+    low = 39 - np.argmax(m[::-1], axis=0)
+    cols = np.nonzero(m.any(0))[0]
+    hb = off[low[cols], cols]
+    assert np.all(on[low[cols], cols][hb < 4.0] == 0.0)
+    # lifted objects are not snapped to the ground
+    lifted = LearnedHeightPredictor(foot_snap={"tol": 4.0, "hull": False}).predict(rgba, contact="lifted", lift=5.0)
+    np.testing.assert_allclose(lifted, LearnedHeightPredictor(foot_snap=None).predict(rgba, contact="lifted", lift=5.0))

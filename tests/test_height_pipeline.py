@@ -146,7 +146,7 @@ def test_category_meshes_rest_on_the_ground_with_a_slot_per_face():
 
 def test_confidence_heads_pin_and_real_evaluation(tmp_path):
     d = tmp_path / "data"
-    for split, n in (("train", 3), ("val", 2), ("test", 2)):
+    for split, n in (("train", 3), ("val", 3), ("test", 2)):
         assert generate.main(["--split", split, "--n", str(n), "--res", "64", "--mix", "real",
                               "--out", str(d / split)]) == 0
     run = tmp_path / "run"
@@ -165,6 +165,32 @@ def test_confidence_heads_pin_and_real_evaluation(tmp_path):
                                "--out", str(tmp_path / "ev")]) == 0
     rep = (tmp_path / "ev" / "report.md").read_text()
     assert "learned < heuristic" in rep and "named:" in rep
+    # two shards merged: the same rows and table as one run
+    for i in (0, 1):
+        assert evaluate_real.main(["--heights", str(d / "test"), "--weights", str(run / "best.pt"),
+                                   "--shard", f"{i}/2", "--out", str(tmp_path / f"ev{i}")]) == 0
+    assert evaluate_real.main(["--merge", str(tmp_path / "ev0"), str(tmp_path / "ev1"),
+                               "--out", str(tmp_path / "evm")]) == 0
+    one = (tmp_path / "ev" / "heights.csv").read_text().splitlines()
+    merged = (tmp_path / "evm" / "heights.csv").read_text().splitlines()
+    assert len(merged) == len(one) == 3
+    col = one[0].split(",").index("mae_learned")
+    assert [float(r.split(",")[col]) for r in merged[1:]] == pytest.approx([float(r.split(",")[col]) for r in one[1:]])
+    table = lambda t: [ln for ln in t.splitlines() if ln.startswith("| all")]  # noqa: E731
+    assert table((tmp_path / "evm" / "report.md").read_text()) == table(rep)
     assert pin_study.main(["--weights", str(run / "best.pt"), "--heights", str(d / "val"),
                            "--out", str(tmp_path / "pin"), "--write"]) == 0
     assert "pin_fade" in LearnedHeightPredictor(run / "best.pt").config["inference"]
+    # the foot and confidence rules are chosen on validation and written into the checkpoint
+    from pixgraph_lab.height import confidence_study, foot_study
+    assert foot_study.main(["--weights", str(run / "best.pt"), "--heights", str(d / "val"),
+                            "--out", str(tmp_path / "foot"), "--write"]) == 0
+    assert "chosen:" in (tmp_path / "foot" / "foot_study.md").read_text()
+    assert "foot_snap" in LearnedHeightPredictor(run / "best.pt").config["inference"]
+    assert confidence_study.main(["--weights", str(run / "best.pt"), "--heights", str(d / "val"),
+                                  "--out", str(tmp_path / "conf"), "--write"]) == 0
+    p2 = LearnedHeightPredictor(run / "best.pt")
+    assert p2.confidence_rule["signal"] in ("combined", "disagreement_px", "disagreement_rel", "flip_px",
+                                            "head_gain_px", "overhang_share", "solidity")
+    r2 = p2.predict_full(rgba)
+    assert isinstance(r2["use_learned"], bool) and 0.0 <= r2["confidence"] <= 1.0

@@ -81,14 +81,14 @@ def _maes(samples):
 
 def test_shipped_weights_on_the_second_models_random_shapes():
     # the second model's held-out random shapes (rotated random_urdfs meshes, the figure):
-    # the third model, trained mostly on things people cut out, is only about as good as
-    # the contact line here on average (measured 2.98 vs 2.81 px; the second model had
-    # 1.83) and better on 4 of the 8 -- a regression on this distribution, kept visible
+    # the models trained mostly on things people cut out are worse here than the second
+    # model (1.83 px): the third 2.98 vs the contact line's 2.81 px (better on 4 of 8),
+    # the shipped fourth 2.29 px (better on 6 of 8) -- a regression kept visible
     samples = heldout()
     assert len(samples) == 8
     learned, heur = _maes(samples)
-    assert learned.mean() < 1.1 * heur.mean(), (learned, heur)
-    assert (learned < heur).sum() >= 4, (learned, heur)
+    assert learned.mean() < heur.mean(), (learned, heur)
+    assert (learned < heur).sum() >= 5, (learned, heur)
 
 
 def test_shipped_weights_beat_the_contact_line_on_heldout_cutouts():

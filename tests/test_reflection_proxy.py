@@ -44,3 +44,68 @@ def test_no_proxy_at_or_below_its_size_nor_for_a_mirror(device, full):
     assert np.array_equal(proxy_reflection(device, cam, cut, fg, bg, max_side=128, **mirror)["layer"], want)
     with pytest.raises(ValueError, match="at least 16"):
         proxy_reflection(device, cam, cut, fg, bg, max_side=8, **KW)
+
+
+def test_the_proxy_pieces_give_the_numbers_of_the_whole_image_versions():
+    """The box-limited shrink, scene and the tiled enlargement are exactly resize,
+    Window.scene and masked_resize (per channel) of the whole image."""
+    from pixgraph_nodes.ops.reflection_proxy import enlarge_sparse, proxy_scene, shrink_in_box
+    from pixgraph_nodes.ops.resample import Window, resize
+    from pixgraph_nodes.ops.upsample import masked_resize
+    rng = np.random.default_rng(3)
+    h, w, H, W = 37, 53, 190, 251
+    lo = rng.random((h, w, 4)).astype(np.float32) * (rng.random((h, w, 1)) < 0.3)
+    lo[:10] = 0.0
+    m_lo = (rng.random((h, w)) < 0.4).astype(np.float32)
+    m_hi = rng.random((H, W)) < 0.4
+    wt = rng.random((H, W)).astype(np.float32)
+    got = enlarge_sparse(lo, m_lo, m_hi, (H, W), weight=wt, tile=32)
+    want = np.stack([np.maximum(masked_resize(lo[..., c], m_lo, m_hi.astype(np.float32), (H, W)), 0)
+                     for c in range(4)], -1) * wt[..., None]
+    np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-7)
+    assert (got[:40] == 0).all()                       # tiles over an empty proxy stay 0
+    # an outline in one place: the tiles away from it take the one-sided (plain) path
+    m_lo = np.zeros((h, w), np.float32)
+    m_lo[20:30, 30:40] = 1.0
+    m_hi = np.zeros((H, W), bool)
+    m_hi[100:150, 150:200] = True
+    got = enlarge_sparse(lo, m_lo, m_hi, (H, W), tile=32)
+    want = np.stack([np.maximum(masked_resize(lo[..., c], m_lo, m_hi.astype(np.float32), (H, W)), 0)
+                     for c in range(4)], -1)
+    np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-7)
+    img = np.zeros((413, 297, 4), np.float32)
+    img[100:180, 50:90] = rng.random((80, 40, 4))
+    for shape in [(80, 60), (77, 59)]:
+        want = np.stack([resize(np.ascontiguousarray(img[..., c]), shape) for c in range(4)], -1)
+        np.testing.assert_allclose(shrink_in_box(img, shape), want, rtol=1e-6, atol=1e-7)
+        win = Window.whole(413, 297, max(shape))
+        mask = img[..., 3]
+        fg = rng.random((413, 297)).astype(np.float32) * 50
+        bg = rng.random((413, 297)).astype(np.float32) * 10
+        for a, b in zip(proxy_scene(win, mask, fg, bg), win.scene(mask, fg, bg)):
+            np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-6)
+
+
+def test_receivers_masked_off_are_not_traced(device, full):
+    """receive=: the pixels masked off cost nothing and stay 0; the others get the
+    numbers of the full trace (their samples are the same), except within the
+    adaptive probe's reach of the mask's edge."""
+    (cam, cut, fg, bg), ref = full
+    receive = np.zeros((512, 512), bool)
+    receive[:, :300] = True
+    r = reflection_cl(device, cam, cut, fg, bg, receive=receive, **KW)
+    assert (r["layer"][~receive] == 0).all() and (r["spp"][~receive] == 0).all()
+    assert (r["steps"][~receive] == 0).all()
+    inner = np.zeros_like(receive)
+    inner[:, :290] = True
+    assert ref[inner].sum() > 100
+    np.testing.assert_array_equal(r["layer"][inner], ref[inner])
+    # through the proxy: the weight is applied at full resolution
+    wgt = receive.astype(np.float32)
+    p = proxy_reflection(device, cam, cut, fg, bg, max_side=256, receive=wgt, **KW)
+    assert (p["layer"][~receive] == 0).all()
+    q = proxy_reflection(device, cam, cut, fg, bg, max_side=256, **KW)
+    deep = np.zeros_like(receive)
+    deep[:, :270] = True
+    d = np.abs(p["layer"][deep] - q["layer"][deep]).max()
+    assert d < 1e-6

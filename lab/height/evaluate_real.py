@@ -8,8 +8,8 @@
    per map (``learned``: ``--weights`` through ``LearnedHeightPredictor.predict``
    with ``contact="ground"``; ``learned_free``: the same network without the
    contact pin; ``baseline``: ``--baseline`` pinned the same way; ``heuristic``:
-   the contact line; ``auto``: the ``CutoutHeight`` auto rule, learned when the
-   confidence is >= 0.5) the mean |predicted - true| over the object's pixels
+   the contact line; ``auto``: the ``CutoutHeight`` auto rule, ``use_learned`` of
+   ``predict_full``) the mean |predicted - true| over the object's pixels
    (the centre-ray mask); the share of samples where ``learned`` beats the
    heuristic; the foot error: how high above the ground the map puts the
    object's visible foot, the mean predicted height over the pixels whose true
@@ -45,9 +45,9 @@ def _errs(pred, true, mask, foot_px):
     return mae, foot
 
 
-def eval_heights(data_dir, predictor, baseline=None, limit=0):
+def eval_heights(data_dir, predictor, baseline=None, limit=0, shard=(0, 1)):
     rows = []
-    files = sorted(glob.glob(os.path.join(data_dir, "[0-9]" * 5 + ".npz")))[: limit or None]
+    files = sorted(glob.glob(os.path.join(data_dir, "[0-9]" * 5 + ".npz")))[: limit or None][shard[0]::shard[1]]
     for f in files:
         with np.load(f, allow_pickle=False) as z:
             meta = json.loads(str(z["meta"]))
@@ -61,12 +61,13 @@ def eval_heights(data_dir, predictor, baseline=None, limit=0):
         free = predictor.predict(rgba, contact="free")
         conf = r["confidence"]
         maps = {"learned": r["height"], "learned_free": free, "heuristic": r["heuristic"]}
-        maps["auto"] = r["height"] if conf is None or conf >= 0.5 else r["heuristic"]
+        maps["auto"] = r["height"] if r.get("use_learned", True) else r["heuristic"]
         if baseline is not None:
             maps["baseline"] = baseline.predict(rgba)
         row = {"index": meta["index"], "category": meta.get("category", "?"), "object": meta["object"],
                "pose": meta["pose"], "overhang": int(meta["overhang"]), "object_px": float(true[mask].max()),
-               "confidence": float("nan") if conf is None else conf, "ms": ms, "foot_px": int(band.sum())}
+               "confidence": float("nan") if conf is None else conf, "ms": ms, "foot_px": int(band.sum()),
+               "fallback": int(not r.get("use_learned", True))}
         for k, h in maps.items():
             row[f"mae_{k}"], row[f"foot_{k}"] = _errs(h, true, mask, band)
         rows.append(row)
@@ -76,9 +77,9 @@ def eval_heights(data_dir, predictor, baseline=None, limit=0):
 def height_table(rows, keys) -> str:
     cats = ["all"] + sorted({r["category"] for r in rows})
     head = " | ".join(f"MAE {k}" for k in keys)
-    lines = [f"| category | n (with a visible foot) | {head} | learned < heuristic | foot learned (median) | foot free (median) "
-             f"| foot heuristic (median) |",
-             "|---|---|" + "---|" * (len(keys) + 4)]
+    lines = [f"| category | n (with a visible foot) | {head} | learned < heuristic | auto falls back "
+             f"| foot learned (median) | foot free (median) | foot heuristic (median) |",
+             "|---|---|" + "---|" * (len(keys) + 5)]
     for c in cats:
         rs = [r for r in rows if c == "all" or r["category"] == c]
         m = lambda k: float(np.mean([r[k] for r in rs]))  # noqa: E731
@@ -86,12 +87,13 @@ def height_table(rows, keys) -> str:
         win = float(np.mean([r["mae_learned"] < r["mae_heuristic"] for r in rs]))
         nf = sum(r["foot_px"] > 0 for r in rs)
         cells = " | ".join(f"{m('mae_' + k):.2f}" for k in keys)
-        lines.append(f"| {c} | {len(rs)} ({nf}) | {cells} | {win:.0%} | {med('foot_learned'):.2f} | "
+        fb = float(np.mean([r.get("fallback", 0) for r in rs]))
+        lines.append(f"| {c} | {len(rs)} ({nf}) | {cells} | {win:.0%} | {fb:.0%} | {med('foot_learned'):.2f} | "
                      f"{med('foot_learned_free'):.2f} | {med('foot_heuristic'):.2f} |")
     return "\n".join(lines) + "\n"
 
 
-def eval_shadows(data_dir, predictor, n_samples=64, limit=0, thickness=1.0, ssn=True):
+def eval_shadows(data_dir, predictor, n_samples=64, limit=0, thickness=1.0, ssn=True, shard=(0, 1)):
     from pixgraph.device import Device
 
     from pixgraph_lab.datagen.dataset import sample_files
@@ -104,12 +106,12 @@ def eval_shadows(data_dir, predictor, n_samples=64, limit=0, thickness=1.0, ssn=
     rows = []
     from .evaluate import shadow_sample
 
-    for f in sample_files(data_dir)[: limit or None]:
+    for f in sample_files(data_dir)[: limit or None][shard[0]::shard[1]]:
         s, valid, g, rgba, mask = shadow_sample(f, device)
         r = predictor.predict_full(rgba)
         conf = r["confidence"]
         heights = {"true": s["fg_height"].astype(np.float32), "learned": r["height"], "heuristic": r["heuristic"]}
-        heights["auto"] = r["height"] if conf is None or conf >= 0.5 else r["heuristic"]
+        heights["auto"] = r["height"] if r.get("use_learned", True) else r["heuristic"]
         row = {"index": s["meta"]["index"], "object": s["meta"]["scene"]["object"],
                "confidence": float("nan") if conf is None else conf}
         for k, h in heights.items():
@@ -150,8 +152,15 @@ def main(argv=None) -> int:
     ap.add_argument("--no-ssn", action="store_true")
     ap.add_argument("--limit", type=int, default=0)
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--shard", default="0/1",
+                    help="i/n: evaluate every n-th sample from the i-th (run n shards in parallel, then --merge)")
+    ap.add_argument("--merge", nargs="+", default=None,
+                    help="output folders of shards: combine their heights.csv / shadows.csv into --out's report")
     ap.add_argument("--out", required=True)
     a = ap.parse_args(argv)
+    if a.merge:
+        return merge(a.merge, a.out)
+    shard = tuple(int(v) for v in a.shard.split("/"))
     import torch
     torch.set_num_threads(a.threads)
     from pixgraph_nodes.ops.learned_height import WEIGHTS, LearnedHeightPredictor
@@ -160,7 +169,7 @@ def main(argv=None) -> int:
     os.makedirs(a.out, exist_ok=True)
     report = [f"weights: {a.weights or WEIGHTS}" + (f"; baseline: {a.baseline}" if a.baseline else "") + "\n"]
     if a.heights:
-        rows = eval_heights(a.heights, predictor, baseline, a.limit)
+        rows = eval_heights(a.heights, predictor, baseline, a.limit, shard)
         _write(os.path.join(a.out, "heights.csv"), rows)
         keys = ["learned", "learned_free", "auto", "heuristic"] + (["baseline"] if baseline else [])
         ms = [r["ms"] for r in rows]
@@ -168,11 +177,51 @@ def main(argv=None) -> int:
                    f"\npredict_full time: median {np.median(ms):.1f} ms over {len(ms)} samples "
                    f"(256^2, one torch thread, shared machine)\n"]
     if a.shadows:
-        rows = eval_shadows(a.shadows, predictor, a.samples, a.limit, ssn=not a.no_ssn)
+        rows = eval_shadows(a.shadows, predictor, a.samples, a.limit, ssn=not a.no_ssn, shard=shard)
         _write(os.path.join(a.out, "shadows.csv"), rows)
         report += [f"\n## Shadows on {a.shadows} ({len(rows)} samples)\n", shadow_table(rows)]
     text = "\n".join(report)
     with open(os.path.join(a.out, "report.md"), "w") as fh:
+        fh.write(text)
+    print(text)
+    return 0
+
+
+def _read(path):
+    import csv
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    for r in rows:
+        for k, v in r.items():
+            if k not in ("category", "object", "pose"):
+                try:
+                    r[k] = float(v)
+                except ValueError:
+                    pass
+    return rows
+
+
+def merge(dirs, out) -> int:
+    """The report of several ``--shard`` runs (their CSVs concatenated, sorted by index)."""
+    os.makedirs(out, exist_ok=True)
+    report = [f"merged from {', '.join(dirs)}\n"]
+    hs = [r for d in dirs if os.path.exists(os.path.join(d, "heights.csv")) for r in _read(os.path.join(d, "heights.csv"))]
+    if hs:
+        hs.sort(key=lambda r: r["index"])
+        _write(os.path.join(out, "heights.csv"), hs)
+        keys = [k[4:] for k in hs[0] if k.startswith("mae_")]
+        keys = [k for k in ("learned", "learned_free", "auto", "heuristic", "baseline") if k in keys]
+        ms = [r["ms"] for r in hs]
+        report += [f"## Pixel height ({len(hs)} samples)\n", height_table(hs, keys),
+                   f"\npredict_full time: median {np.median(ms):.1f} ms over {len(ms)} samples "
+                   f"(256^2, one torch thread, shared machine)\n"]
+    ss = [r for d in dirs if os.path.exists(os.path.join(d, "shadows.csv")) for r in _read(os.path.join(d, "shadows.csv"))]
+    if ss:
+        ss.sort(key=lambda r: r["index"])
+        _write(os.path.join(out, "shadows.csv"), ss)
+        report += [f"\n## Shadows ({len(ss)} samples)\n", shadow_table(ss)]
+    text = "\n".join(report)
+    with open(os.path.join(out, "report.md"), "w") as fh:
         fh.write(text)
     print(text)
     return 0

@@ -43,12 +43,22 @@ def load_split(data: str, split: str, size: int, limit: int | None = None):
     if limit:
         files = files[:limit]
     cache = os.path.join(data, f"cache_{split}_{size}.npz")
+    names = [os.path.basename(f) for f in files]
+    have = {}
     if os.path.exists(cache):
         with np.load(cache, allow_pickle=False) as z:
-            if int(z["n"]) == len(files):
+            if int(z["n"]) == len(files) and ("names" not in z or list(z["names"]) == names):
                 return {k: z[k] for k in ("x", "t", "w", "bh")} | {"meta": json.loads(str(z["meta"]))}
+            if "names" in z:    # a grown snapshot: keep the crops already made, prepare the new files
+                old_meta = json.loads(str(z["meta"]))
+                zx, zt, zw, zb = z["x"], z["t"], z["w"], z["bh"]
+                have = {str(nm): (zx[i], zt[i], zw[i], zb[i], old_meta[i]) for i, nm in enumerate(z["names"])}
     X, T, Wt, BH, M = [], [], [], [], []
-    for f in files:
+    for f, nm in zip(files, names):
+        if nm in have:
+            x, t, w, bh, meta = have[nm]
+            X.append(x); T.append(t); Wt.append(w); BH.append(bh); M.append(meta)
+            continue
         with np.load(f, allow_pickle=False) as z:
             rgb = z["rgb"].astype(np.float32) / 255
             a = z["alpha"].astype(np.float32) / 255
@@ -61,7 +71,8 @@ def load_split(data: str, split: str, size: int, limit: int | None = None):
         BH.append(bh); M.append(meta)
     out = {"x": np.stack(X), "t": np.stack(T), "w": np.stack(Wt), "bh": np.array(BH, np.float32), "meta": M}
     tmp = cache + ".tmp.npz"
-    np.savez(tmp, x=out["x"], t=out["t"], w=out["w"], bh=out["bh"], n=len(files), meta=json.dumps(M))
+    np.savez(tmp, x=out["x"], t=out["t"], w=out["w"], bh=out["bh"], n=len(files), meta=json.dumps(M),
+             names=np.array(names))
     os.replace(tmp, cache)
     return out
 

@@ -44,11 +44,15 @@ def srgb_encode(x: np.ndarray) -> np.ndarray:
 
 
 def straight_srgb(rgba: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(straight sRGB colour in [0, 1], alpha) of a linear premultiplied RGBA (H, W, 4)."""
+    """(straight sRGB colour in [0, 1], alpha) of a linear premultiplied RGBA (H, W, 4);
+    the colour is 0 where alpha is 0 (only the covered pixels are encoded)."""
     rgba = np.asarray(rgba, np.float32)
     a = np.clip(rgba[..., 3], 0.0, 1.0)
-    rgb = rgba[..., :3] / np.maximum(a, 1e-6)[..., None]
-    return srgb_encode(np.where(a[..., None] > 0, rgb, 0.0)).astype(np.float32), a
+    out = np.zeros(rgba.shape[:2] + (3,), np.float32)
+    cov = a > 0
+    ac = a[cov]
+    out[cov] = srgb_encode(rgba[..., :3][cov] / np.maximum(ac, 1e-6)[:, None]).astype(np.float32)
+    return out, a
 
 
 def crop_box(mask: np.ndarray):
@@ -194,6 +198,169 @@ def pin_contact(height: np.ndarray, mask: np.ndarray, lift: float = 0.0, band: f
     return np.where(m, np.maximum(h - off, 0.0), 0.0).astype(np.float32)
 
 
+def lower_hull_rows(bottom_edge: np.ndarray) -> np.ndarray:
+    """The lower convex hull (in the image: the envelope from below, largest v)
+    of a silhouette's column bottoms. ``bottom_edge``: (W,) the bottom edge of
+    each column's lowest mask pixel [rows, the row below it], NaN for empty
+    columns. Returns (W,) the hull's row at each column centre (NaN where
+    empty). A straight or convex-from-below bottom (a base's near rim, a
+    brick's two bottom edges) lies on its hull; the underside of a table top
+    between its legs or the gap between two feet lies above it."""
+    b = np.asarray(bottom_edge, np.float64)
+    cols = np.nonzero(np.isfinite(b))[0]
+    out = np.full(b.shape, np.nan)
+    if len(cols) == 0:
+        return out
+    pts = [(float(c) + 0.5, float(b[c])) for c in cols]
+    hull: list[tuple[float, float]] = []
+    for u, v in pts:                  # monotone chain, keeping the upper envelope of v(u)
+        while len(hull) >= 2:
+            (u1, v1), (u2, v2) = hull[-2], hull[-1]
+            if (u2 - u1) * (v - v1) - (v2 - v1) * (u - u1) >= 0:   # hull[-1] is not above the chord
+                hull.pop()
+            else:
+                break
+        hull.append((u, v))
+    hu = np.array([q[0] for q in hull]); hv = np.array([q[1] for q in hull])
+    out[cols] = np.interp(cols + 0.5, hu, hv)
+    return out
+
+
+def snap_feet(height: np.ndarray, mask: np.ndarray, tol: float, hull: bool = False,
+              fade: float = 0.25) -> np.ndarray:
+    """The rest of a grounded object's contact, after ``pin_contact``.
+
+    The contact band is only the silhouette's two lowest rows; a standing
+    object also touches the ground higher in the image (the far side of a round
+    base, a turned brick's two bottom edges, the back legs of a table). Every
+    column whose lowest mask pixel the map already puts below ``tol`` px is
+    taken to stand on the ground there (with ``hull``: only if that pixel is
+    also within 1 px of the silhouette's lower convex hull, ``lower_hull_rows``):
+    the column is shifted down by that pixel's height, the shift fading
+    linearly to 0 at ``fade`` box heights above it, so the pixel is exactly 0 and
+    the shape above it is kept. Heights stay >= 0 and 0 outside ``mask``.
+    ``tol <= 0`` returns the map unchanged (masked). [px in, px out]"""
+    m = np.asarray(mask, bool)
+    h = np.where(m, np.asarray(height, np.float32), 0.0).astype(np.float32)
+    if tol <= 0 or not m.any():
+        return h
+    H, W = m.shape
+    has = m.any(0)
+    low = (H - 1 - np.argmax(m[::-1], axis=0)).astype(np.int64)        # lowest mask row per column
+    cols = np.nonzero(has)[0]
+    hb = h[low[cols], cols]
+    take = hb < tol
+    if hull:
+        edge = np.where(has, low + 1.0, np.nan)
+        hr = lower_hull_rows(edge)
+        take &= (hr[cols] - edge[cols]) <= 1.0
+    take &= hb > 0
+    if not take.any():
+        return h
+    rows = np.nonzero(m.any(1))[0]
+    bh = float(rows.max() - rows.min() + 1)
+    sel, off = cols[take], hb[take]
+    v = np.arange(H, dtype=np.float64)[:, None]
+    d = low[sel][None, :] - v                        # rows above each column's lowest pixel
+    w = np.where(d >= 0, np.clip(1.0 - d / (fade * bh), 0.0, 1.0), 0.0)
+    h[:, sel] = np.maximum(h[:, sel] - off[None, :] * w, 0.0)
+    return np.where(m, h, 0.0).astype(np.float32)
+
+
+def convex_hull_area(mask: np.ndarray) -> float:
+    """Area [px^2] of the convex hull of a mask's pixel squares (0 for an empty mask)."""
+    m = np.asarray(mask, bool)
+    rows = np.nonzero(m.any(1))[0]
+    if len(rows) == 0:
+        return 0.0
+    first = np.argmax(m[rows], axis=1)
+    last = m.shape[1] - np.argmax(m[rows][:, ::-1], axis=1)
+    # only a row whose left (right) edge is a running minimum (maximum) from the top or
+    # from the bottom can be on the hull: any other edge point lies between a point
+    # further out above it, one further out below it and its row's other edge
+    keep_l = (first <= np.minimum.accumulate(first)) | (first <= np.minimum.accumulate(first[::-1])[::-1])
+    keep_r = (last >= np.maximum.accumulate(last)) | (last >= np.maximum.accumulate(last[::-1])[::-1])
+    pts = sorted({(float(c), float(r + d)) for r, c in zip(rows[keep_l], first[keep_l]) for d in (0, 1)}
+                 | {(float(c), float(r + d)) for r, c in zip(rows[keep_r], last[keep_r]) for d in (0, 1)})
+
+    def half(points):
+        h: list[tuple[float, float]] = []
+        for p in points:
+            while len(h) >= 2 and ((h[-1][0] - h[-2][0]) * (p[1] - h[-2][1])
+                                   - (h[-1][1] - h[-2][1]) * (p[0] - h[-2][0])) <= 0:
+                h.pop()
+            h.append(p)
+        return h
+    hull = half(pts)[:-1] + half(pts[::-1])[:-1]
+    x = np.array([q[0] for q in hull]); y = np.array([q[1] for q in hull])
+    return float(0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+SIGNALS = ("disagreement_px", "disagreement_rel", "flip_px", "head_gain_px", "overhang_share", "solidity")
+
+
+def confidence_signals(height: np.ndarray, heuristic: np.ndarray, mask: np.ndarray,
+                       flip_height: np.ndarray | None = None, est_mae_learned: float | None = None,
+                       est_mae_heuristic: float | None = None, which=SIGNALS) -> dict:
+    """Per-cutout signals of how far to trust the learned map (docs/height.md,
+    "Confidence rule"), each a float (NaN when its inputs are missing):
+
+    * ``disagreement_px``: mean |height - heuristic| over the mask [px];
+    * ``disagreement_rel``: the same divided by the mask's box height;
+    * ``flip_px``: mean |height - flip_height| [px] (``flip_height``: the map
+      predicted for the mirrored cutout, mirrored back);
+    * ``head_gain_px``: ``est_mae_learned - est_mae_heuristic`` (the error heads) [px];
+    * ``overhang_share``: the share of the mask's columns whose lowest pixel lies
+      more than 2 px above the contact line (where the heuristic is wrong by design);
+    * ``solidity``: mask area / its convex hull's area.
+
+    ``which``: compute only these (the others are left out of the dict).
+    """
+    m = np.asarray(mask, bool)
+    nan = float("nan")
+    if not m.any():
+        return {k: nan for k in which}
+    out = {}
+    if "disagreement_px" in which or "disagreement_rel" in which:
+        rows = np.nonzero(m.any(1))[0]
+        bh = float(rows.max() - rows.min() + 1)
+        dis = float(np.abs(height[m] - heuristic[m]).mean())
+        out.update(disagreement_px=dis, disagreement_rel=dis / bh)
+    if "flip_px" in which:
+        out["flip_px"] = nan if flip_height is None else float(np.abs(height[m] - flip_height[m]).mean())
+    if "head_gain_px" in which:
+        out["head_gain_px"] = nan if est_mae_learned is None else float(est_mae_learned - est_mae_heuristic)
+    if "overhang_share" in which:
+        cols = np.nonzero(m.any(0))[0]
+        low = m.shape[0] - 1 - np.argmax(m[::-1], axis=0)
+        # the contact line's height at a column's lowest pixel centre = v_contact - (low + 0.5)
+        hc = contact_line_height(m)[low[cols], cols]
+        out["overhang_share"] = float(np.mean(hc - 0.5 > 2.0))
+    if "solidity" in which:
+        out["solidity"] = float(m.sum()) / max(convex_hull_area(m), 1e-9)
+    return {k: out[k] for k in which}
+
+
+def confidence_value(signals: dict, rule: dict) -> float:
+    """The chosen signal of a confidence rule (``config["inference"]["confidence"]``),
+    oriented so that larger means "the learned map is more likely worse than the
+    contact line": ``sign * signals[name]``, or for ``name == "combined"`` the
+    linear combination ``b + sum w_k (signals[k] - mean_k) / std_k``."""
+    if rule["signal"] == "combined":
+        z = [(signals[k] - mu) / sd for k, mu, sd in zip(rule["features"], rule["mean"], rule["std"])]
+        return float(rule["bias"] + np.dot(rule["weights"], z))
+    return float(rule["sign"]) * float(signals[rule["signal"]])
+
+
+def calibrated_confidence(value: float, rule: dict) -> float:
+    """The validation win rate of the learned map among cutouts with a similar
+    signal: ``rule["bins"]`` are signal quantile edges, ``rule["win_rate"]`` the
+    share of validation cutouts in each bin where the learned map's MAE was below
+    the contact line's."""
+    k = int(np.searchsorted(rule["bins"], value, side="right"))
+    return float(rule["win_rate"][min(max(k, 0), len(rule["win_rate"]) - 1)])
+
+
 def split_output(y):
     """(height / bh (N, S, S), error heads (N, 2, S, S) or None) of a model output:
     a 1-output model returns the height alone; a 3-output one also returns the
@@ -249,6 +416,42 @@ def build_model(base: int = 8, levels: int = 4, outputs: int = 1):
     return UNet()
 
 
+def fold_batchnorm(model):
+    """The same network for inference with every BatchNorm folded into the
+    convolution before it (eval mode: ``y = gamma (W x - mean) / sqrt(var + eps) + beta``
+    is a convolution with weights ``W gamma / s`` and bias ``beta - gamma mean / s``,
+    ``s = sqrt(var + eps)``): fewer passes over the activations, same output up to
+    float rounding. Modifies and returns ``model`` (call after loading the weights)."""
+    import torch
+    from torch import nn
+
+    def fold(seq):
+        mods, out, i = list(seq), [], 0
+        while i < len(mods):
+            conv = mods[i]
+            if isinstance(conv, nn.Conv2d) and i + 1 < len(mods) and isinstance(mods[i + 1], nn.BatchNorm2d):
+                bn = mods[i + 1]
+                scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
+                new = nn.Conv2d(conv.in_channels, conv.out_channels, conv.kernel_size, conv.stride,
+                                conv.padding, bias=True)
+                with torch.no_grad():
+                    new.weight.copy_(conv.weight * scale[:, None, None, None])
+                    b0 = conv.bias if conv.bias is not None else torch.zeros_like(bn.running_mean)
+                    new.bias.copy_(bn.bias + (b0 - bn.running_mean) * scale)
+                out.append(new)
+                i += 2
+            else:
+                out.append(conv)
+                i += 1
+        return nn.Sequential(*out)
+
+    model.eval()
+    for lst in (model.down, model.up):
+        for k in range(len(lst)):
+            lst[k] = fold(lst[k])
+    return model
+
+
 class LearnedHeightPredictor:
     """``HeightPredictor`` from a trained checkpoint (``predict(rgba)`` -> (H, W) px).
 
@@ -257,7 +460,7 @@ class LearnedHeightPredictor:
 
     def __init__(self, path: str | pathlib.Path = WEIGHTS, threads: int | None = 1,
                  flip_average: bool | None = None, heuristic_detail: bool | None = None,
-                 pin_fade: float | None | str = "checkpoint"):
+                 pin_fade: float | None | str = "checkpoint", foot_snap: dict | None | str = "checkpoint"):
         import torch
         ck = torch.load(path, map_location="cpu", weights_only=True)
         cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else ck["config"]
@@ -265,7 +468,7 @@ class LearnedHeightPredictor:
         self.outputs = int(cfg.get("outputs", 1))
         self.model = build_model(int(cfg["base"]), int(cfg["levels"]), self.outputs)
         self.model.load_state_dict({k: v.float() for k, v in ck["model"].items()})
-        self.model.eval()
+        self.model = fold_batchnorm(self.model)       # inference only: BatchNorm folded into the convs
         self.device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
         self.model.to(self.device)
         self.config = cfg
@@ -281,6 +484,11 @@ class LearnedHeightPredictor:
         # how the contact pin shifts the map (pin_contact's fade): the checkpoint's choice
         # (lab/height/inference_study.py --pin), else a constant shift
         self.pin_fade = inf.get("pin_fade", None) if pin_fade == "checkpoint" else pin_fade
+        # the rest of the contact (snap_feet): the checkpoint's choice (lab/height/foot_study.py), else off
+        fs = inf.get("foot_snap") if foot_snap == "checkpoint" else foot_snap
+        self.foot_snap = dict(fs) if fs else None
+        # auto's rule (lab/height/confidence_study.py): which signal, its threshold and calibration
+        self.confidence_rule = inf.get("confidence")
 
     def predict_normalised(self, x: np.ndarray, aux: bool = False):
         """(N, 6, S, S) inputs -> (N, S, S) height / bh; with ``aux`` also the
@@ -315,7 +523,7 @@ class LearnedHeightPredictor:
         return self.predict_full(rgba, threshold, contact, lift)["height"]
 
     def predict_full(self, rgba: np.ndarray, threshold: float = 0.5, contact: str = "ground",
-                     lift: float = 0.0) -> dict:
+                     lift: float = 0.0, signals: bool = False) -> dict:
         """``predict`` plus the confidence: a dict with ``height`` (H, W) [px],
         ``heuristic`` (the contact-line height under the same contact
         constraint), and, for a checkpoint with confidence heads (``outputs``
@@ -323,7 +531,16 @@ class LearnedHeightPredictor:
         estimate of each map's mean absolute error over the cutout) and
         ``confidence`` = est_mae_heuristic / (est_mae_learned + est_mae_heuristic)
         in (0, 1): above 0.5 the learned map is expected to be the better one
-        (None without heads).
+        (None without heads), and ``use_learned`` (auto's choice: confidence >= 0.5).
+
+        A checkpoint with a confidence rule (``config["inference"]["confidence"]``,
+        chosen on validation by ``lab/height/confidence_study.py``) replaces that:
+        ``signal`` is the rule's signal (``confidence_value`` of
+        ``confidence_signals``; larger = the learned map more likely worse),
+        ``use_learned`` is ``signal <= rule["threshold"]`` and ``confidence`` the
+        validation win rate of the learned map at that signal
+        (``calibrated_confidence``). ``signals=True`` also returns every candidate
+        signal (``signals``; runs the mirrored crop for ``flip_px``).
 
         ``flip_average``: the network also reads the mirrored crop and the two
         outputs (the second mirrored back) are averaged; training saw mirrored
@@ -342,22 +559,22 @@ class LearnedHeightPredictor:
         heur = contact_line_height(mask)
         out = {"height": np.zeros(alpha.shape, np.float32), "heuristic": heur.astype(np.float32),
                "confidence": None, "est_mae_learned": None, "est_mae_heuristic": None}
+        rule = self.confidence_rule
+        need_flip = signals or bool(rule and (rule["signal"] == "flip_px" or "flip_px" in rule.get("features", ())))
+        lv = float(lift) if contact == "lifted" else 0.0
         with self._threads():
             x, box, bh = prepare(colour, alpha, self.size, threshold)
             if box is None:
                 return out
+            xs = [x, x[:, :, ::-1]] if (self.flip_average or need_flip) else [x]
+            ys, e = self.predict_normalised(np.stack(xs).copy(), aux=True)
             if self.flip_average:
-                both, e = self.predict_normalised(np.stack([x, x[:, :, ::-1]]).copy(), aux=True)
-                pred = 0.5 * (both[0] + both[1][:, ::-1])
+                pred = 0.5 * (ys[0] + ys[1][:, ::-1])
             else:
-                p1, e = self.predict_normalised(x[None], aux=True)
-                pred = p1[0]
-            if not self.heuristic_detail:
-                h = paste(pred, box, bh, mask)
-            else:
-                # paste is linear in its input for one mask: paste(pred) - paste(x[4]) in one call
-                h = paste(pred - x[4], box, bh, mask, clip=False) + heur
-                h = np.where(mask, np.maximum(h, 0.0), 0.0).astype(np.float32)
+                pred = ys[0]
+            h = self._finish(pred, x, box, bh, mask, heur, contact, lv)
+            # the mirrored crop's own map, mirrored back (a second guess; flip_px)
+            h_flip = self._finish(ys[1][:, ::-1], x, box, bh, mask, heur, contact, lv) if need_flip else None
         if e is not None:
             w = np.clip(x[3], 0, 1)
             ws = max(float(w.sum()), 1e-6)
@@ -365,8 +582,32 @@ class LearnedHeightPredictor:
             eh = float((np.exp(e[0, 1]) * w).sum() / ws * bh)
             out.update(est_mae_learned=el, est_mae_heuristic=eh, confidence=eh / max(el + eh, 1e-9))
         if contact != "free":
-            lv = float(lift) if contact == "lifted" else 0.0
-            h = pin_contact(h, mask, lv, fade=self.pin_fade)
             out["heuristic"] = pin_contact(heur, mask, lv)
         out["height"] = h
+        if out["confidence"] is not None:
+            out["use_learned"] = out["confidence"] >= 0.5
+        if rule or signals:
+            which = SIGNALS if signals else tuple(rule.get("features", [rule["signal"]]))
+            sig = confidence_signals(h, out["heuristic"], mask, h_flip, out["est_mae_learned"],
+                                     out["est_mae_heuristic"], which)
+            if signals:
+                out["signals"] = sig
+            if rule:
+                val = confidence_value(sig, rule)
+                out.update(signal=val, use_learned=bool(val <= rule["threshold"]),
+                           confidence=calibrated_confidence(val, rule))
         return out
+
+    def _finish(self, pred, x, box, bh, mask, heur, contact, lv):
+        """A network output (S, S) -> the full-size map [px] under the contact constraint."""
+        if not self.heuristic_detail:
+            h = paste(pred, box, bh, mask)
+        else:
+            # paste is linear in its input for one mask: paste(pred) - paste(x[4]) in one call
+            h = paste(pred - x[4], box, bh, mask, clip=False) + heur
+            h = np.where(mask, np.maximum(h, 0.0), 0.0).astype(np.float32)
+        if contact != "free":
+            h = pin_contact(h, mask, lv, fade=self.pin_fade)
+            if contact == "ground" and self.foot_snap:
+                h = snap_feet(h, mask, float(self.foot_snap["tol"]), bool(self.foot_snap.get("hull", False)))
+        return h

@@ -148,9 +148,9 @@ inline void rt_basis(float3 n, float3 *b1, float3 *b2)
  * The side after a skip is exact, so the result is the same as plain marching
  * (a front skip is never tried while the previous side is "behind", nor a
  * behind skip while it is "in front": the next sample could be a crossing). */
-inline int rt_trace(const ph_march *m, __global const float *surf,
-                    __global const float *pyr, __global const int *lvl, int nlev,
-                    int W, int H, float thickness, int *last, int *steps)
+inline int rt_trace_k(const ph_march *m, __global const float *surf,
+                      __global const float *pyr, __global const int *lvl, int nlev,
+                      int W, int H, float thickness, int *last, int *steps, int *kout)
 {
     int prev = 0;
     int k = m->k_lo;
@@ -191,6 +191,7 @@ inline int rt_trace(const ph_march *m, __global const float *surf,
             if (kend > k && (front || behind)) {
                 int jj = (int)floor(ph_sample_u(m, kend)), ii = (int)floor(ph_sample_v(m, kend));
                 *last = ii * W + jj;
+                *kout = kend;
                 prev = surf[ii * W + jj] > PH_NO_SURFACE_TEST ? (front ? -1 : 1) : 0;
                 k = kend + 1;
                 if (level + 1 < nlev) level += 1;
@@ -202,13 +203,22 @@ inline int rt_trace(const ph_march *m, __global const float *surf,
         float sh = ph_surface_height(surf, W, H, u, v, m->major_u);
         float rh = ph_ray_height(m, k);
         int side = ph_side(rh, sh);
-        if (inside) *last = i * W + j;
-        if (ph_occludes(rh, sh, thickness, side, prev)) return i * W + j;
+        if (inside) { *last = i * W + j; *kout = k; }
+        if (ph_occludes(rh, sh, thickness, side, prev)) { *kout = k; return i * W + j; }
         prev = side;
         k += 1;
         level = nlev > 1 ? 1 : 0;
     }
     return -1;
+}
+
+/* rt_trace_k without the sample index */
+inline int rt_trace(const ph_march *m, __global const float *surf,
+                    __global const float *pyr, __global const int *lvl, int nlev,
+                    int W, int H, float thickness, int *last, int *steps)
+{
+    int k;
+    return rt_trace_k(m, surf, pyr, lvl, nlev, W, H, thickness, last, steps, &k);
 }
 
 /* March set-up of the ray p0 + s e, clipped to the image and to the surface's
@@ -410,6 +420,112 @@ inline float4 rt_background_along(float3 p0, float3 e, float s_max, int W, int H
     return bg_rgb[lst];
 }
 
+/* Where the ray p0 + s e meets the background, as a continuous image position
+ * (u, v) [px] (the work of rt_background_along, which returns the hit pixel's
+ * colour): at a hit, the crossing interpolated between the last sample in front
+ * of the surface and the first behind it (linear in the height difference); a
+ * ray already behind at its origin's pixel edge: p0 itself; a ray that leaves
+ * the image: its last in-image sample. *pix: the pixel rt_background_along
+ * takes the colour of. A smooth function of the ray, so it can be traced at a
+ * proxy resolution and enlarged. */
+inline float2 rt_background_pos(float3 p0, float3 e, float s_max, int W, int H,
+                                __global const float *bgs, __global const float *pyr,
+                                __global const int *lvl, int nlev, int *steps, int *hitflag, int *pix)
+{
+    int j0 = (int)floor(p0.x), i0 = (int)floor(p0.y);
+    int origin = i0 * W + j0;
+    float adu = fabs(e.x), adv = fabs(e.y);
+    float major = fmax(adu, adv);
+    float h_edge;
+    if (major >= PH_MIN_IMAGE_LENGTH) h_edge = p0.z + 0.5f * e.z / major;
+    else h_edge = e.z < 0.0f ? -RT_SOLID : p0.z;
+    *hitflag = 1;
+    *pix = origin;
+    if (ph_side(h_edge, bgs[origin]) == 1) return p0.xy;
+    ph_march m;
+    int lst = origin, k = -1;
+    if (ph_march_setup(p0.x, p0.y, p0.z, e.x, e.y, e.z, s_max, &m)
+        && ph_march_clip_box(&m, (float4)(0.0f, 0.0f, (float)W, (float)H), -RT_SOLID, RT_SOLID)) {
+        int hit = rt_trace_k(&m, bgs, pyr, lvl, nlev, W, H, RT_SOLID, &lst, steps, &k);
+        if (hit >= 0) {
+            *pix = hit;
+            float2 q = (float2)(ph_sample_u(&m, k), ph_sample_v(&m, k));
+            if (k > m.k_lo) {
+                float2 qp = (float2)(ph_sample_u(&m, k - 1), ph_sample_v(&m, k - 1));
+                float d1 = ph_ray_height(&m, k) - ph_surface_height(bgs, W, H, q.x, q.y, m.major_u);
+                float d0 = ph_ray_height(&m, k - 1) - ph_surface_height(bgs, W, H, qp.x, qp.y, m.major_u);
+                if (d0 > 0.0f && d1 < d0) q = qp + (d0 / (d0 - d1)) * (q - qp);
+            }
+            return q;
+        }
+    }
+    *hitflag = 0;
+    *pix = lst;
+    if (k < 0) return p0.xy;
+    return (float2)(clamp(ph_sample_u(&m, k), 0.0f, (float)W - 1e-3f),
+                    clamp(ph_sample_v(&m, k), 0.0f, (float)H - 1e-3f));
+}
+
+/* The rays of one glass pixel (shared by rt_refract and rt_refract_hits): the
+ * transmitted ray from *q0 along *wt with weight *T (0: none), the front-surface
+ * reflection from *p0 along *wr with weight *F (0: none). Returns 0 when the
+ * pixel is not glass; sets *tir under total internal reflection at the front. */
+inline int rt_refract_rays(int x, int y, int W, int H, float f, float horizon, float cam_height,
+                           __global const float *coverage, __global const float *gh,
+                           __global const float *gn, __global const float *gvalid,
+                           __global const float *gpos, __global const float *gradius,
+                           float eta, int fresnel, float3 *q0, float3 *wt, float *T,
+                           float3 *p0, float3 *wr, float *F, int *tir)
+{
+    int idx = y * W + x;
+    *T = 0.0f;
+    *F = 0.0f;
+    *tir = 0;
+    if (!(coverage[idx] > 0.0f && gvalid[idx] > 0.5f)) return 0;
+    float3 nn = (float3)(gn[3 * idx], gn[3 * idx + 1], gn[3 * idx + 2]);
+    float3 view = normalize((float3)((float)x + 0.5f - 0.5f * (float)W, horizon - ((float)y + 0.5f), -f));
+    float3 wo = -view;
+    float cos_i = dot(nn, wo);
+    if (cos_i < 0.0f) { nn = -nn; cos_i = -cos_i; }   /* silhouette: face the viewer */
+    *p0 = (float3)((float)x + 0.5f, (float)y + 0.5f, gh[idx]);
+    float r = 1.0f / eta;                               /* n_outside / n_inside */
+    float k = 1.0f - r * r * (1.0f - cos_i * cos_i);
+    *F = k < 0.0f ? 1.0f : (fresnel ? rt_fresnel_dielectric(cos_i, eta) : 0.0f);
+    *wr = 2.0f * cos_i * nn - wo;
+    if (k >= 0.0f && *F < 1.0f) {
+        float3 w = normalize(r * view + (r * cos_i - sqrt(k)) * nn);
+        float3 q = *p0;
+        float t = 1.0f - *F;
+        float R = gradius[idx];
+        if (R > 0.0f) {
+            /* back surface of the local sphere (radius R, centre P - R n): the
+             * ray leaves it after the chord 2 R cos_t and refracts out again */
+            float3 P = (float3)(gpos[3 * idx], gpos[3 * idx + 1], gpos[3 * idx + 2]);
+            float3 C = P - R * nn;
+            float cos_t = -dot(w, nn);
+            float3 Q = P + (2.0f * R * cos_t) * w;
+            float3 n2 = (Q - C) / R;                        /* outward */
+            float c2 = clamp(dot(w, n2), 0.0f, 1.0f);
+            float k2 = 1.0f - eta * eta * (1.0f - c2 * c2);
+            if (k2 >= 0.0f) {
+                w = normalize(eta * w + (eta * c2 - sqrt(k2)) * (-n2));
+                if (fresnel) t *= 1.0f - rt_fresnel_dielectric(c2, 1.0f / eta);
+            }
+            float D = -Q.z;
+            if (D > 1e-6f)
+                q = (float3)(0.5f * (float)W + f * Q.x / D, horizon + f * (cam_height - Q.y) / D, f * Q.y / D);
+            q.x = clamp(q.x, 0.0f, (float)W - 1e-3f);
+            q.y = clamp(q.y, 0.0f, (float)H - 1e-3f);
+        }
+        *q0 = q;
+        *wt = w;
+        *T = t;
+    } else {
+        *tir = 1;                                       /* total internal reflection */
+    }
+    return 1;
+}
+
 /* One work item per pixel. glass: coverage (cutout alpha) > 0 marks the
  * transparent object; gn its front-surface normal (world), gh its pixel height,
  * gpos its 3D position (world units). gradius > 0: the object is solid and its
@@ -432,62 +548,72 @@ __kernel void rt_refract(int W, int H, float f, float horizon, float cam_height,
     int x = get_global_id(0), y = get_global_id(1);
     if (x >= W || y >= H) return;
     int idx = y * W + x;
-    float a = coverage[idx];
-    int steps = 0, flag = 0;
+    int steps = 0, flag = 0, tir, hf;
     float4 res = (float4)(0.0f);
-    if (a > 0.0f && gvalid[idx] > 0.5f) {
-        float3 nn = (float3)(gn[3 * idx], gn[3 * idx + 1], gn[3 * idx + 2]);
-        float3 view = normalize((float3)((float)x + 0.5f - 0.5f * (float)W, horizon - ((float)y + 0.5f), -f));
-        float3 wo = -view;
-        float cos_i = dot(nn, wo);
-        if (cos_i < 0.0f) { nn = -nn; cos_i = -cos_i; }   /* silhouette: face the viewer */
-        float3 p0 = (float3)((float)x + 0.5f, (float)y + 0.5f, gh[idx]);
-        float r = 1.0f / eta;                               /* n_outside / n_inside */
-        float k = 1.0f - r * r * (1.0f - cos_i * cos_i);
-        float F = k < 0.0f ? 1.0f : (fresnel ? rt_fresnel_dielectric(cos_i, eta) : 0.0f);
+    float3 q0, wt, p0, wr;
+    float T, F, s_max;
+    if (rt_refract_rays(x, y, W, H, f, horizon, cam_height, coverage, gh, gn, gvalid, gpos, gradius,
+                        eta, fresnel, &q0, &wt, &T, &p0, &wr, &F, &tir)) {
         float3 col = (float3)(0.0f);
-        int hf;
-        float s_max;
-        if (k >= 0.0f && F < 1.0f) {
-            float3 wt = normalize(r * view + (r * cos_i - sqrt(k)) * nn);
-            float3 q0 = p0;
-            float T = 1.0f - F;
-            float R = gradius[idx];
-            if (R > 0.0f) {
-                /* back surface of the local sphere (radius R, centre P - R n): the
-                 * ray leaves it after the chord 2 R cos_t and refracts out again */
-                float3 P = (float3)(gpos[3 * idx], gpos[3 * idx + 1], gpos[3 * idx + 2]);
-                float3 C = P - R * nn;
-                float cos_t = -dot(wt, nn);
-                float3 Q = P + (2.0f * R * cos_t) * wt;
-                float3 n2 = (Q - C) / R;                        /* outward */
-                float c2 = clamp(dot(wt, n2), 0.0f, 1.0f);
-                float k2 = 1.0f - eta * eta * (1.0f - c2 * c2);
-                if (k2 >= 0.0f) {
-                    wt = normalize(eta * wt + (eta * c2 - sqrt(k2)) * (-n2));
-                    if (fresnel) T *= 1.0f - rt_fresnel_dielectric(c2, 1.0f / eta);
-                }
-                float D = -Q.z;
-                if (D > 1e-6f)
-                    q0 = (float3)(0.5f * (float)W + f * Q.x / D, horizon + f * (cam_height - Q.y) / D, f * Q.y / D);
-                q0.x = clamp(q0.x, 0.0f, (float)W - 1e-3f);
-                q0.y = clamp(q0.y, 0.0f, (float)H - 1e-3f);
-            }
+        if (T > 0.0f) {
             float3 e = rt_uvh_direction(q0, wt, (float)W, horizon, f, &s_max);
             col += T * tint * rt_background_along(q0, e, s_max, W, H, bgs, pyr, lvl, nlev, bg_rgb, &steps, &hf).xyz;
             flag |= hf;
-        } else {
-            flag |= 4;                                      /* total internal reflection */
         }
+        if (tir) flag |= 4;
         if (F > 0.0f) {
-            float3 wr = 2.0f * cos_i * nn - wo;
             float3 e = rt_uvh_direction(p0, wr, (float)W, horizon, f, &s_max);
             col += F * rt_background_along(p0, e, s_max, W, H, bgs, pyr, lvl, nlev, bg_rgb, &steps, &hf).xyz;
             flag |= hf << 1;
         }
-        res = a * (float4)(col, 1.0f);
+        res = coverage[idx] * (float4)(col, 1.0f);
     }
     out[idx] = res;
+    flags[idx] = flag;
+    steps_out[idx] = steps;
+}
+
+/* rt_refract's rays, returning where they meet the background instead of its
+ * colour (the proxy resolution of large images: refraction_proxy in
+ * refraction.py enlarges these positions and looks the colours up at full
+ * size). pos = (u, v) of the transmitted ray's hit, (u, v) of the reflected
+ * ray's (rt_background_pos; the pixel's own centre where there is no such ray);
+ * wts = (T, F, 0, 0) their weights; flags as rt_refract's. */
+__kernel void rt_refract_hits(int W, int H, float f, float horizon, float cam_height,
+                              __global const float *coverage, __global const float *gh,
+                              __global const float *gn, __global const float *gvalid,
+                              __global const float *gpos, __global const float *gradius,
+                              __global const float *bgs, __global const float *pyr,
+                              __global const int *lvl, int nlev, float eta, int fresnel,
+                              __global float4 *pos, __global float4 *wts,
+                              __global int *flags, __global int *steps_out)
+{
+    int x = get_global_id(0), y = get_global_id(1);
+    if (x >= W || y >= H) return;
+    int idx = y * W + x;
+    int steps = 0, flag = 0, tir, hf, pix;
+    float3 q0, wt, p0, wr;
+    float T, F, s_max;
+    float2 c = (float2)((float)x + 0.5f, (float)y + 0.5f);
+    float4 ps = (float4)(c, c);
+    float4 ws = (float4)(0.0f);
+    if (rt_refract_rays(x, y, W, H, f, horizon, cam_height, coverage, gh, gn, gvalid, gpos, gradius,
+                        eta, fresnel, &q0, &wt, &T, &p0, &wr, &F, &tir)) {
+        if (T > 0.0f) {
+            float3 e = rt_uvh_direction(q0, wt, (float)W, horizon, f, &s_max);
+            ps.xy = rt_background_pos(q0, e, s_max, W, H, bgs, pyr, lvl, nlev, &steps, &hf, &pix);
+            flag |= hf;
+        }
+        if (tir) flag |= 4;
+        if (F > 0.0f) {
+            float3 e = rt_uvh_direction(p0, wr, (float)W, horizon, f, &s_max);
+            ps.zw = rt_background_pos(p0, e, s_max, W, H, bgs, pyr, lvl, nlev, &steps, &hf, &pix);
+            flag |= hf << 1;
+        }
+        ws = (float4)(T, F, 0.0f, 0.0f);
+    }
+    pos[idx] = ps;
+    wts[idx] = ws;
     flags[idx] = flag;
     steps_out[idx] = steps;
 }

@@ -123,21 +123,24 @@ def setup_rays(p0, e, s_max, W, H, box=None, h_lo=-SOLID, h_hi=SOLID):
     return m, ok
 
 
-def trace_closest(surf: np.ndarray, m: march.March, ok: np.ndarray, thickness: float):
+def trace_closest(surf: np.ndarray, m: march.March, ok: np.ndarray, thickness: float, with_k: bool = False):
     """Closest hit of every march against a pixel-height surface (plain marching).
 
     Returns ``(hit, last)``: flat pixel index of the first sample where the ray
     passes behind the surface by at most ``thickness`` pixels or crosses it between
     two consecutive surface samples (``march.occludes``), -1 for none; and the last
-    in-image sample pixel visited (-1 for none)."""
+    in-image sample pixel visited (-1 for none). ``with_k``: also the sample index
+    of the hit, or with none of the last in-image sample (-1 for none), as
+    ``rt_trace_k``'s ``kout``: ``(hit, last, k)``."""
     H, W = surf.shape
     n = m.u.shape[0]
     hit = np.full(n, -1, np.int64)
     last = np.full(n, -1, np.int64)
     prev = np.zeros(n, np.int8)
+    kout = np.full(n, -1, np.int64)
     active = ok & (m.k_lo <= m.k_hi)
     if not active.any():
-        return hit, last
+        return (hit, last, kout) if with_k else (hit, last)
     k = m.k_lo.astype(np.int64).copy()
     while active.any():
         idx = np.flatnonzero(active)
@@ -151,6 +154,7 @@ def trace_closest(surf: np.ndarray, m: march.March, ok: np.ndarray, thickness: f
         inside = (j >= 0) & (j < W) & (i >= 0) & (i < H)
         pix = np.where(inside, i * W + j, -1)
         last[idx] = np.where(inside, pix, last[idx])
+        kout[idx] = np.where(inside, kk, kout[idx])
         sh = march.surface_height(surf, u, v, sub.major_u)
         rh = sub.ray_height(kk)
         side = march.side(rh, sh)
@@ -160,7 +164,7 @@ def trace_closest(surf: np.ndarray, m: march.March, ok: np.ndarray, thickness: f
         k[idx] += 1
         active[idx[occ]] = False
         active &= k <= m.k_hi
-    return hit, last
+    return (hit, last, kout) if with_k else (hit, last)
 
 
 # ---------------------------------------------------------------------------
@@ -385,7 +389,8 @@ def trace_rays_cl(device, surf, p0, e, s_max, thickness, *, hiz=True, clip_box=T
 def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, roughness=0.0, eta=1.5,
                   conductor=False, f0=(1.0, 1.0, 1.0), strength=1.0, thickness=4.0, min_spp=16,
                   max_spp=256, target_se=0.002, seed=0, mask=None, hiz=True, planar=True,
-                  probe_spp=4, probe_radius=4, band_rows=64, progress=None, check_cancelled=None):
+                  probe_spp=4, probe_radius=4, band_rows=64, receive=None, progress=None,
+                  check_cancelled=None):
     """Glossy reflection layer of the cutout on the background, on the device.
 
     Sampling: ``min_spp == max_spp`` takes that many samples everywhere. Otherwise
@@ -399,7 +404,9 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
     adaptive pixel also spent its probe's samples), ``steps`` int32 (H, W) march
     iterations of all passes, ``planar`` bool (H, W) pixels done by the
     closed form. ``planar`` (roughness 0 only) uses :func:`planar_mirror` on flat
-    ground, where it is exact. Work is enqueued in bands of ``band_rows`` rows so
+    ground, where it is exact. ``receive``: bool (H, W) of the receivers to trace
+    (None: all); the others stay 0 and cost nothing (a wall that is masked off
+    afterwards). Work is enqueued in bands of ``band_rows`` rows so
     that progress and cancellation are checked between bands."""
     import pyopencl as cl
     ctx, queue = device.context, device.queue
@@ -420,6 +427,8 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
     v_centre = np.arange(H, dtype=np.float64)[:, None] + 0.5
     bgh = np.asarray(bg_height, np.float64)
     valid = np.isfinite(bgh) & (v_centre + bgh - camera.horizon > 1e-9)
+    # pixels not to trace; `valid` itself stays whole (rt_normal differences read it)
+    off = ~valid if receive is None else ~(valid & np.asarray(receive, bool))
     alpha = float(roughness) ** 2
     if alpha == 0.0 and planar:
         done = flat_ground(bg_height, valid)
@@ -435,8 +444,9 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
         col = cutout.reshape(-1, 4)[hit.ravel()[got]]
         c = np.concatenate([w * col[:, :3], w.mean(-1, keepdims=True) * col[:, 3:]], -1)
         layer.reshape(-1, 4)[got] = np.where((cos_o > 1e-4)[:, None], strength * c, 0.0)
-        spp = (done & valid).astype(np.int32)
-        if (done | ~valid).all():
+        layer[off] = 0.0
+        spp = (done & ~off).astype(np.int32)
+        if (done | off).all():
             return {"layer": layer, "spp": spp, "steps": steps, "planar": done}
     S = _Surface(cl, ctx, surf, thickness, hiz)
     prg = _program(device)
@@ -471,7 +481,7 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
         return _read(cl, queue, (d_out, (H, W, 4), np.float32), (d_spp, (H, W), np.int32),
                      (d_steps, (H, W), np.int32))
 
-    skip = done | ~valid
+    skip = done | off
     if alpha == 0.0:
         band_rows = H
     if alpha > 0.0 and max_spp > min_spp and probe_spp < min_spp:
@@ -493,9 +503,9 @@ def reflection_cl(device, camera: Camera, cutout, fg_height, bg_height, *, rough
         st_out = st1 + np.where(hot, st2, 0)
     else:
         out, s_out, st_out = run(skip, min_spp, max_spp, 0.0, 1.0)
-    layer = np.where(done[..., None], layer, np.where(valid[..., None], out, 0.0)).astype(np.float32)
-    spp = np.where(done, spp, np.where(valid, s_out, 0)).astype(np.int32)
-    steps = np.where(valid, st_out, 0).astype(np.int32)
+    layer = np.where(done[..., None], layer, np.where(off[..., None], 0.0, out)).astype(np.float32)
+    spp = np.where(done, spp, np.where(off, 0, s_out)).astype(np.int32)
+    steps = np.where(off, 0, st_out).astype(np.int32)
     return {"layer": layer, "spp": spp, "steps": steps, "planar": done}
 
 

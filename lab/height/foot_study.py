@@ -1,0 +1,102 @@
+"""Choose the foot snap on the validation split (docs/height.md, "Foot rule").
+
+    python -m pixgraph_lab.height.foot_study --weights runs/height5/best.pt --heights data/hreal/val \\
+        --out runs/foot_study [--write]
+
+The checkpoint's pinned map (``LearnedHeightPredictor.predict``, ``contact="ground"``,
+its own pin fade, no snap) is computed once per sample; then for every candidate
+``(tol, hull)`` of ``learned_height.snap_feet`` (tol in {off, 1, 2, 3, 4} px, hull
+on / off) the mean full-size pixel-height MAE over the samples, and the median
+over the samples that show a foot of the foot error (the mean predicted height
+over the pixels whose true height is < 1 px, as in ``evaluate_real``). The rule:
+the lowest median foot error among the candidates whose MAE is at most 1 %
+above the unsnapped one (ties: the smaller tol, then hull on). ``--write`` stores
+it in the checkpoint's ``config["inference"]["foot_snap"]`` (None = off) in place.
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import os
+
+import numpy as np
+
+TOLS = (1.0, 2.0, 3.0, 4.0)
+
+
+def candidates():
+    """[(name, None | {"tol", "hull"})], "off" first."""
+    out = [("off", None)]
+    for t in TOLS:
+        for hull in (True, False):
+            out.append((f"tol {t:g}{' hull' if hull else ''}", {"tol": t, "hull": hull}))
+    return out
+
+
+def choose(mae: dict, foot: dict) -> str:
+    """The rule (module doc) on {name: mean MAE} and {name: median foot error}."""
+    ok = [k for k in mae if mae[k] <= 1.01 * mae["off"]]
+    order = {k: i for i, (k, _) in enumerate(candidates())}
+    return min(ok, key=lambda k: (round(foot[k], 6), order[k]))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m pixgraph_lab.height.foot_study", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--weights", required=True)
+    ap.add_argument("--heights", required=True)
+    ap.add_argument("--limit", type=int, default=0)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--write", action="store_true")
+    a = ap.parse_args(argv)
+    import torch
+    torch.set_num_threads(1)
+    from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, snap_feet
+
+    from .evaluate import _rgba_from_height_sample
+    pred = LearnedHeightPredictor(a.weights, foot_snap=None)
+    cands = candidates()
+    mae = {k: [] for k, _ in cands}
+    foot = {k: [] for k, _ in cands}
+    files = sorted(glob.glob(os.path.join(a.heights, "[0-9]" * 5 + ".npz")))[: a.limit or None]
+    for f in files:
+        with np.load(f, allow_pickle=False) as z:
+            rgba = _rgba_from_height_sample(z)
+            true = z["height"].astype(np.float32)
+            mask = z["mask"]
+        m = rgba[..., 3] > 0.5
+        feet = mask & m & (true < 1.0)
+        h0 = pred.predict(rgba)
+        for k, c in cands:
+            h = h0 if c is None else snap_feet(h0, m, c["tol"], c["hull"])
+            mae[k].append(float(np.abs(h[mask] - true[mask]).mean()))
+            if feet.any():
+                foot[k].append(float(np.abs(h[feet]).mean()))
+    mmae = {k: float(np.mean(v)) for k, v in mae.items()}
+    mfoot = {k: float(np.median(v)) for k, v in foot.items()}
+    best = choose(mmae, mfoot)
+    lines = [f"weights {a.weights}, {len(files)} samples of {a.heights} ({len(foot['off'])} show a foot)", "",
+             "| foot snap | MAE px | median foot error px | mean foot error px |", "|---|---|---|---|"]
+    for k, _ in cands:
+        lines.append(f"| {k} | {mmae[k]:.3f} | {mfoot[k]:.3f} | {np.mean(foot[k]):.3f} |")
+    lines += ["", f"chosen: {best}"]
+    text = "\n".join(lines) + "\n"
+    os.makedirs(a.out, exist_ok=True)
+    with open(os.path.join(a.out, "foot_study.md"), "w") as fh:
+        fh.write(text)
+    print(text)
+    if a.write:
+        ck = torch.load(a.weights, map_location="cpu", weights_only=True)
+        cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else dict(ck["config"])
+        cfg.setdefault("inference", {})["foot_snap"] = dict(cands)[best]
+        cfg["inference"]["foot_study"] = {k: [mmae[k], mfoot[k]] for k in mmae}
+        ck["config"] = json.dumps(cfg)
+        torch.save(ck, a.weights + ".tmp")
+        os.replace(a.weights + ".tmp", a.weights)
+        print(f"wrote foot_snap={dict(cands)[best]} into {a.weights}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
