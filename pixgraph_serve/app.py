@@ -65,12 +65,14 @@ async def read_body(request: Request) -> bytes:
     limit = _serve(request).limits.max_body_bytes
     declared = request.headers.get("content-length")
     if declared is not None and declared.isdigit() and int(declared) > limit:
-        raise ServeError(413, f"request body of {declared} bytes is over the limit of {limit}")
+        raise ServeError(413, f"request body of {declared} bytes is over the limit of {limit} "
+                              "(pixgraph serve --max-body BYTES raises it)")
     chunks, size = [], 0
     async for chunk in request.stream():
         size += len(chunk)
         if size > limit:
-            raise ServeError(413, f"request body is over the limit of {limit} bytes")
+            raise ServeError(413, f"request body is over the limit of {limit} bytes "
+                                  "(pixgraph serve --max-body BYTES raises it)")
         chunks.append(chunk)
     return b"".join(chunks)
 

@@ -14,9 +14,9 @@ def add_arguments(sv) -> None:
     sv.add_argument("--allow-path", action="append", default=[], metavar="DIR",
                     help="another folder the graph may read and write (repeatable)")
     sv.add_argument("--device", default=None, help="OpenCL device spec (see 'pixgraph devices')")
-    sv.add_argument("--max-pixels", type=int, default=None, help="largest image, width x height (default 4096^2)")
+    sv.add_argument("--max-pixels", type=int, default=None, help="largest image, width x height (default 8192^2)")
     sv.add_argument("--max-body", type=int, default=None, metavar="BYTES",
-                    help="largest request body (default 32 MiB)")
+                    help="largest request body (default 256 MiB)")
     sv.add_argument("--run-timeout", type=float, default=None, metavar="SECONDS",
                     help="wall-clock limit of one run; a run still going is cancelled (default 120)")
     sv.add_argument("--no-token", action="store_true",

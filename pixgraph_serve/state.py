@@ -43,10 +43,12 @@ MAX_DEPTH = 32
 class Limits:
     """Request, image and time limits of the server."""
 
-    #: largest request body (a posted graph, params, an uploaded image) [bytes]
-    max_body_bytes: int = 32 << 20
-    #: largest image a graph may load or make, width x height [pixels]
-    max_pixels: int = 4096 * 4096
+    #: largest request body (a posted graph, params, an uploaded image: a 50 MP photo's
+    #: JPEG is 10-40 MB, its 8-bit PNG 60-150 MB) [bytes]
+    max_body_bytes: int = 256 << 20
+    #: largest image a graph may load or make, width x height [pixels]: 8192^2 (67 MP)
+    #: takes the 12-50 MP photos people bring
+    max_pixels: int = 8192 * 8192
     #: previews are sent downscaled by this integer factor
     preview_scale: int = 2
     #: wall-clock limit of one run; a run still going is cancelled (503) [s]
@@ -173,7 +175,7 @@ class ServeState:
     def _check_pixels(self, n: int, nid: str, pname: str) -> None:
         if n > self.limits.max_pixels:
             raise ServeError(413, f"node {nid!r}: param {pname!r}: image of {n} pixels is over the "
-                                  f"server's limit of {self.limits.max_pixels}", node=nid, field=f"params.{pname}")
+                                  f"server's limit of {self.limits.max_pixels} (pixgraph serve --max-pixels N raises it)", node=nid, field=f"params.{pname}")
 
     def image_pixels(self, path: str) -> int:
         """Pixel count from the file's header (not decoded), cached by path and mtime;
@@ -204,7 +206,7 @@ class ServeState:
             n = self.image_pixels(tmp)
             if n > self.limits.max_pixels:
                 raise ServeError(413, f"uploaded image of {n} pixels is over the server's limit of "
-                                      f"{self.limits.max_pixels}")
+                                      f"{self.limits.max_pixels} (pixgraph serve --max-pixels N raises it)")
         except BaseException:
             os.unlink(tmp)
             raise

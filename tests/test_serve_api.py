@@ -218,13 +218,37 @@ def test_image_and_request_size_limits(api):
     # a file the browser knows no type for (an .exr) comes without one: fine for a PUT
     assert api.put("/api/uploads/untyped.png", content=_png(8, 8)).status_code == 200
     e = _error(api.put("/api/uploads/big.png", content=_png(600, 600), headers=png), 413)
-    assert "360000 pixels" in e["error"]
+    assert "360000 pixels" in e["error"] and "--max-pixels" in e["error"]   # names the option
     _error(api.put("/api/uploads/../x.png", content=_png(8, 8), headers=png), 404)
     _error(api.put("/api/uploads/evil.sh", content=b"echo", headers=png), 400)
     _error(api.put("/api/uploads/junk.png", content=b"not a png", headers=png), 400)
-    _error(api.put("/api/uploads/huge.png", content=b"\0" * (MAX_BODY + 1), headers=png), 413)
+    e = _error(api.put("/api/uploads/huge.png", content=b"\0" * (MAX_BODY + 1), headers=png), 413)
+    assert "--max-body" in e["error"]
     e = _error(api.post("/api/params", json={"params": {"cam.width": 2048}}), 413)
-    assert e["node"] == "cam"
+    assert e["node"] == "cam" and "--max-pixels" in e["error"]
+
+
+def test_default_limits_take_a_50_megapixel_photo(tmp_path):
+    """Issue 22: the server's defaults accept the photos people bring (a real 50 MP
+    JPEG, 8660 x 5774, uploaded through the upload check), and refuse one over them
+    with a message naming the option that raises the limit."""
+    from pixgraph_serve.errors import ServeError
+    from pixgraph_serve.state import Limits, ServeState
+
+    graph = copy_scene(str(tmp_path / "scene"))
+    os.makedirs(tmp_path / "up")
+    state = ServeState(graph, upload_dir=str(tmp_path / "up"))
+    buf = io.BytesIO()
+    Image.new("RGB", (8660, 5774), (120, 100, 90)).save(buf, "JPEG", quality=90)
+    raw = buf.getvalue()
+    assert len(raw) <= Limits().max_body_bytes
+    path, n = state.store_upload("photo50.jpg", raw)
+    assert n == 8660 * 5774 and os.path.isfile(path)
+    buf = io.BytesIO()
+    Image.new("L", (9000, 8000)).save(buf, "PNG")     # 72 MP: over 8192^2
+    with pytest.raises(ServeError) as e:
+        state.store_upload("photo72.png", buf.getvalue())
+    assert e.value.status == 413 and "--max-pixels" in str(e.value)
 
 
 def test_stale_renders_are_dropped(api):
