@@ -109,25 +109,14 @@ def test_auto_follows_the_rule_in_the_checkpoint(tmp_path):
 
 
 def test_convex_hull_area_matches_the_hull_of_every_pixel_corner():
-    """The running-extreme filter drops only points inside the hull: the same area as a
-    monotone chain over all four corners of every row's end pixels."""
-    def reference(m):
-        rows = np.nonzero(m.any(1))[0]
-        f = np.argmax(m[rows], 1)
-        last = m.shape[1] - np.argmax(m[rows][:, ::-1], 1)
-        pts = sorted({(float(c), float(r + d)) for r, a, b in zip(rows, f, last) for c in (a, b) for d in (0, 1)})
+    """The running-extreme filter drops only points inside the hull: the same area as
+    qhull's hull over all four corners of every mask pixel (an independent reference)."""
+    spatial = pytest.importorskip("scipy.spatial")
 
-        def half(P):
-            h = []
-            for p in P:
-                while len(h) >= 2 and ((h[-1][0] - h[-2][0]) * (p[1] - h[-2][1])
-                                       - (h[-1][1] - h[-2][1]) * (p[0] - h[-2][0])) <= 0:
-                    h.pop()
-                h.append(p)
-            return h
-        hull = half(pts)[:-1] + half(pts[::-1])[:-1]
-        x = np.array([q[0] for q in hull]); y = np.array([q[1] for q in hull])
-        return 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+    def reference(m):
+        r, c = np.nonzero(m)
+        pts = np.concatenate([np.stack([c + dx, r + dy], 1) for dx in (0, 1) for dy in (0, 1)]).astype(float)
+        return spatial.ConvexHull(pts).volume
     rng = np.random.default_rng(0)
     for _ in range(30):
         m = np.zeros((60, 60), bool)
