@@ -20,8 +20,6 @@ map's win rate in each. ``--write`` stores ``config["inference"]["confidence"]``
 from __future__ import annotations
 
 import argparse
-import glob
-import json
 import os
 
 import numpy as np
@@ -87,18 +85,14 @@ def main(argv=None) -> int:
     torch.set_num_threads(1)
     from pixgraph_nodes.ops.learned_height import SIGNALS, LearnedHeightPredictor
 
-    from .evaluate import _rgba_from_height_sample
+    from .evaluate import height_files, read_height_sample, write_inference
     from .evaluate_real import _write
     pred = LearnedHeightPredictor(a.weights)
     pred.confidence_rule = None
     rows = []
-    files = sorted(glob.glob(os.path.join(a.heights, "[0-9]" * 5 + ".npz")))[: a.limit or None]
+    files = height_files(a.heights, a.limit)
     for f in files:
-        with np.load(f, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            rgba = _rgba_from_height_sample(z)
-            true = z["height"].astype(np.float32)
-            mask = z["mask"]
+        meta, rgba, true, mask = read_height_sample(f)
         r = pred.predict_full(rgba, signals=True)
         ml = float(np.abs(r["height"][mask] - true[mask]).mean())
         mh = float(np.abs(r["heuristic"][mask] - true[mask]).mean())
@@ -156,12 +150,7 @@ def main(argv=None) -> int:
         fh.write(text)
     print(text)
     if a.write:
-        ck = torch.load(a.weights, map_location="cpu", weights_only=True)
-        cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else dict(ck["config"])
-        cfg.setdefault("inference", {})["confidence"] = rule
-        ck["config"] = json.dumps(cfg)
-        torch.save(ck, a.weights + ".tmp")
-        os.replace(a.weights + ".tmp", a.weights)
+        write_inference(a.weights, confidence=rule)
         print(f"wrote the confidence rule ({best}) into {a.weights}")
     return 0
 

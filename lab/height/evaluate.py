@@ -40,6 +40,29 @@ def _rgba_from_height_sample(z):
     return np.concatenate([rgb * a[..., None], a[..., None]], 2).astype(np.float32)
 
 
+def height_files(data_dir, limit=0):
+    """The split's sample files in order, the first ``limit`` (0: all)."""
+    return sorted(glob.glob(os.path.join(data_dir, "[0-9]" * 5 + ".npz")))[: limit or None]
+
+
+def read_height_sample(f):
+    """(meta, premultiplied linear RGBA, true height float32, mask) of one sample file."""
+    with np.load(f, allow_pickle=False) as z:
+        return (json.loads(str(z["meta"])), _rgba_from_height_sample(z), z["height"].astype(np.float32),
+                z["mask"])
+
+
+def write_inference(weights, **entries):
+    """Set ``entries`` in the checkpoint's ``config["inference"]`` in place (written atomically)."""
+    import torch
+    ck = torch.load(weights, map_location="cpu", weights_only=True)
+    cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else dict(ck["config"])
+    cfg.setdefault("inference", {}).update(entries)
+    ck["config"] = json.dumps(cfg)
+    torch.save(ck, weights + ".tmp")
+    os.replace(weights + ".tmp", weights)
+
+
 def height_errors(pred, true, mask):
     m = mask.astype(bool)
     if not m.any():
@@ -51,13 +74,8 @@ def height_errors(pred, true, mask):
 def eval_heights(data_dir, predictor, limit=0):
     from pixgraph_nodes.ops.heightmaps import contact_line_height
     rows = []
-    files = sorted(glob.glob(os.path.join(data_dir, "[0-9]" * 5 + ".npz")))[: limit or None]
-    for f in files:
-        with np.load(f, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            rgba = _rgba_from_height_sample(z)
-            true = z["height"].astype(np.float32)
-            mask = z["mask"]
+    for f in height_files(data_dir, limit):
+        meta, rgba, true, mask = read_height_sample(f)
         t0 = time.perf_counter()
         pl = predictor.predict(rgba)
         ms = 1e3 * (time.perf_counter() - t0)

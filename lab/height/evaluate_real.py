@@ -28,14 +28,12 @@ Writes ``OUT/heights.csv``, ``OUT/shadows.csv``, ``OUT/report.md`` (and prints i
 from __future__ import annotations
 
 import argparse
-import glob
-import json
 import os
 import time
 
 import numpy as np
 
-from .evaluate import _rgba_from_height_sample, _write
+from .evaluate import _write, height_files, read_height_sample
 
 
 def _errs(pred, true, mask, foot_px):
@@ -47,13 +45,8 @@ def _errs(pred, true, mask, foot_px):
 
 def eval_heights(data_dir, predictor, baseline=None, limit=0, shard=(0, 1)):
     rows = []
-    files = sorted(glob.glob(os.path.join(data_dir, "[0-9]" * 5 + ".npz")))[: limit or None][shard[0]::shard[1]]
-    for f in files:
-        with np.load(f, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            rgba = _rgba_from_height_sample(z)
-            true = z["height"].astype(np.float32)
-            mask = z["mask"]
+    for f in height_files(data_dir, limit)[shard[0]::shard[1]]:
+        meta, rgba, true, mask = read_height_sample(f)
         band = mask & (rgba[..., 3] > 0.5) & (true < 1.0)
         t0 = time.perf_counter()
         r = predictor.predict_full(rgba)

@@ -16,8 +16,6 @@ it in the checkpoint's ``config["inference"]["foot_snap"]`` (None = off) in plac
 from __future__ import annotations
 
 import argparse
-import glob
-import json
 import os
 
 import numpy as np
@@ -54,17 +52,14 @@ def main(argv=None) -> int:
     torch.set_num_threads(1)
     from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, snap_feet
 
-    from .evaluate import _rgba_from_height_sample
+    from .evaluate import height_files, read_height_sample, write_inference
     pred = LearnedHeightPredictor(a.weights, foot_snap=None)
     cands = candidates()
     mae = {k: [] for k, _ in cands}
     foot = {k: [] for k, _ in cands}
-    files = sorted(glob.glob(os.path.join(a.heights, "[0-9]" * 5 + ".npz")))[: a.limit or None]
+    files = height_files(a.heights, a.limit)
     for f in files:
-        with np.load(f, allow_pickle=False) as z:
-            rgba = _rgba_from_height_sample(z)
-            true = z["height"].astype(np.float32)
-            mask = z["mask"]
+        _, rgba, true, mask = read_height_sample(f)
         m = rgba[..., 3] > 0.5
         feet = mask & m & (true < 1.0)
         h0 = pred.predict(rgba)
@@ -87,13 +82,8 @@ def main(argv=None) -> int:
         fh.write(text)
     print(text)
     if a.write:
-        ck = torch.load(a.weights, map_location="cpu", weights_only=True)
-        cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else dict(ck["config"])
-        cfg.setdefault("inference", {})["foot_snap"] = dict(cands)[best]
-        cfg["inference"]["foot_study"] = {k: [mmae[k], mfoot[k]] for k in mmae}
-        ck["config"] = json.dumps(cfg)
-        torch.save(ck, a.weights + ".tmp")
-        os.replace(a.weights + ".tmp", a.weights)
+        write_inference(a.weights, foot_snap=dict(cands)[best],
+                        foot_study={k: [mmae[k], mfoot[k]] for k in mmae})
         print(f"wrote foot_snap={dict(cands)[best]} into {a.weights}")
     return 0
 

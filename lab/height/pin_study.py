@@ -13,8 +13,6 @@ the lowest MAE wins; ``--write`` stores it in the checkpoint's
 from __future__ import annotations
 
 import argparse
-import glob
-import json
 import os
 
 import numpy as np
@@ -35,16 +33,13 @@ def main(argv=None) -> int:
     torch.set_num_threads(1)
     from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, contact_band, pin_contact
 
-    from .evaluate import _rgba_from_height_sample
+    from .evaluate import height_files, read_height_sample, write_inference
     pred = LearnedHeightPredictor(a.weights, pin_fade=None)
     res = {k: [] for k in ["free", *CANDIDATES]}
     foot = {k: [] for k in res}
-    files = sorted(glob.glob(os.path.join(a.heights, "[0-9]" * 5 + ".npz")))[: a.limit or None]
+    files = height_files(a.heights, a.limit)
     for f in files:
-        with np.load(f, allow_pickle=False) as z:
-            rgba = _rgba_from_height_sample(z)
-            true = z["height"].astype(np.float32)
-            mask = z["mask"]
+        _, rgba, true, mask = read_height_sample(f)
         m = rgba[..., 3] > 0.5
         free = pred.predict(rgba, contact="free")
         band = contact_band(m) & mask
@@ -65,13 +60,8 @@ def main(argv=None) -> int:
         fh.write(text)
     print(text)
     if a.write:
-        ck = torch.load(a.weights, map_location="cpu", weights_only=True)
-        cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else dict(ck["config"])
-        cfg.setdefault("inference", {})["pin_fade"] = CANDIDATES[best]
-        cfg["inference"]["pin_study"] = {k: float(np.mean(v)) for k, v in res.items()}
-        ck["config"] = json.dumps(cfg)
-        torch.save(ck, a.weights + ".tmp")
-        os.replace(a.weights + ".tmp", a.weights)
+        write_inference(a.weights, pin_fade=CANDIDATES[best],
+                        pin_study={k: float(np.mean(v)) for k, v in res.items()})
         print(f"wrote pin_fade={CANDIDATES[best]} into {a.weights}")
     return 0
 
