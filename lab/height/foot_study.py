@@ -53,6 +53,7 @@ def main(argv=None) -> int:
     from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, snap_feet
 
     from .evaluate import height_files, read_height_sample, write_inference
+    from .evaluate_real import _errs
     pred = LearnedHeightPredictor(a.weights, foot_snap=None)
     cands = candidates()
     mae = {k: [] for k, _ in cands}
@@ -65,9 +66,10 @@ def main(argv=None) -> int:
         h0 = pred.predict(rgba)
         for k, c in cands:
             h = h0 if c is None else snap_feet(h0, m, c["tol"], c["hull"])
-            mae[k].append(float(np.abs(h[mask] - true[mask]).mean()))
+            e_mae, e_foot = _errs(h, true, mask, feet)
+            mae[k].append(e_mae)
             if feet.any():
-                foot[k].append(float(np.abs(h[feet]).mean()))
+                foot[k].append(e_foot)
     mmae = {k: float(np.mean(v)) for k, v in mae.items()}
     mfoot = {k: float(np.median(v)) for k, v in foot.items()}
     best = choose(mmae, mfoot)
