@@ -212,7 +212,7 @@ def main(argv=None) -> int:
     torch.set_num_threads(a.threads)
     torch.manual_seed(a.seed)
     device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    from pixgraph_nodes.ops.learned_height import build_model
+    from pixgraph_nodes.ops.learned_height import build_model, split_output
     os.makedirs(a.out, exist_ok=True)
     t_load = time.perf_counter()
     train = load_splits(a.data, a.train_splits.split(","), a.size, a.limit)
@@ -291,7 +291,6 @@ def main(argv=None) -> int:
         t = torch.from_numpy(train["t"][idx].astype(np.float32)).to(device)
         w = torch.from_numpy(train["w"][idx].astype(np.float32)).to(device)
         x, t, w = augment(x, t, w, gen)
-        from pixgraph_nodes.ops.learned_height import split_output
         p, e = split_output(model(x))
         if a.pin:
             p = contact_pin(p, x)
