@@ -198,6 +198,18 @@ def pin_contact(height: np.ndarray, mask: np.ndarray, lift: float = 0.0, band: f
     return np.where(m, np.maximum(h - off, 0.0), 0.0).astype(np.float32)
 
 
+def _half_hull(points) -> list[tuple[float, float]]:
+    """One half of Andrew's monotone chain over ``points`` (sorted along x): the
+    vertices that turn left (counter-clockwise), collinear points dropped."""
+    h: list[tuple[float, float]] = []
+    for p in points:
+        while len(h) >= 2 and ((h[-1][0] - h[-2][0]) * (p[1] - h[-2][1])
+                               - (h[-1][1] - h[-2][1]) * (p[0] - h[-2][0])) <= 0:
+            h.pop()
+        h.append(p)
+    return h
+
+
 def lower_hull_rows(bottom_edge: np.ndarray) -> np.ndarray:
     """The lower convex hull (in the image: the envelope from below, largest v)
     of a silhouette's column bottoms. ``bottom_edge``: (W,) the bottom edge of
@@ -212,15 +224,8 @@ def lower_hull_rows(bottom_edge: np.ndarray) -> np.ndarray:
     if len(cols) == 0:
         return out
     pts = [(float(c) + 0.5, float(b[c])) for c in cols]
-    hull: list[tuple[float, float]] = []
-    for u, v in pts:                  # monotone chain, keeping the upper envelope of v(u)
-        while len(hull) >= 2:
-            (u1, v1), (u2, v2) = hull[-2], hull[-1]
-            if (u2 - u1) * (v - v1) - (v2 - v1) * (u - u1) >= 0:   # hull[-1] is not above the chord
-                hull.pop()
-            else:
-                break
-        hull.append((u, v))
+    # the upper envelope of v(u): the monotone chain's half taken right to left, put back in order
+    hull = _half_hull(pts[::-1])[::-1]
     hu = np.array([q[0] for q in hull]); hv = np.array([q[1] for q in hull])
     out[cols] = np.interp(cols + 0.5, hu, hv)
     return out
@@ -282,16 +287,7 @@ def convex_hull_area(mask: np.ndarray) -> float:
     keep_r = (last >= np.maximum.accumulate(last)) | (last >= np.maximum.accumulate(last[::-1])[::-1])
     pts = sorted({(float(c), float(r + d)) for r, c in zip(rows[keep_l], first[keep_l]) for d in (0, 1)}
                  | {(float(c), float(r + d)) for r, c in zip(rows[keep_r], last[keep_r]) for d in (0, 1)})
-
-    def half(points):
-        h: list[tuple[float, float]] = []
-        for p in points:
-            while len(h) >= 2 and ((h[-1][0] - h[-2][0]) * (p[1] - h[-2][1])
-                                   - (h[-1][1] - h[-2][1]) * (p[0] - h[-2][0])) <= 0:
-                h.pop()
-            h.append(p)
-        return h
-    hull = half(pts)[:-1] + half(pts[::-1])[:-1]
+    hull = _half_hull(pts)[:-1] + _half_hull(pts[::-1])[:-1]
     x = np.array([q[0] for q in hull]); y = np.array([q[1] for q in hull])
     return float(0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
