@@ -19,7 +19,6 @@ map's win rate in each. ``--write`` stores ``config["inference"]["confidence"]``
 """
 from __future__ import annotations
 
-import argparse
 import os
 
 import numpy as np
@@ -73,20 +72,10 @@ def best_threshold(s, mae_l, mae_h):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m pixgraph_lab.height.confidence_study", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--weights", required=True)
-    ap.add_argument("--heights", required=True)
-    ap.add_argument("--limit", type=int, default=0)
-    ap.add_argument("--out", required=True)
-    ap.add_argument("--write", action="store_true")
-    a = ap.parse_args(argv)
-    import torch
-    torch.set_num_threads(1)
     from pixgraph_nodes.ops.learned_height import SIGNALS, LearnedHeightPredictor
 
-    from .evaluate import height_files, read_height_sample, write_inference
-    from .evaluate_real import _write
+    from .evaluate import _write, height_files, read_height_sample, study_args, write_inference
+    a = study_args("python -m pixgraph_lab.height.confidence_study", __doc__, argv)
     pred = LearnedHeightPredictor(a.weights)
     pred.confidence_rule = None
     rows = []

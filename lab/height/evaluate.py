@@ -52,6 +52,21 @@ def read_height_sample(f):
                 z["mask"])
 
 
+def study_args(prog, doc, argv=None):
+    """The arguments every validation study takes (--weights, --heights, --limit, --out,
+    --write), parsed; torch set to one thread."""
+    ap = argparse.ArgumentParser(prog=prog, description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--weights", required=True)
+    ap.add_argument("--heights", required=True)
+    ap.add_argument("--limit", type=int, default=0)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--write", action="store_true")
+    a = ap.parse_args(argv)
+    import torch
+    torch.set_num_threads(1)
+    return a
+
+
 def write_inference(weights, **entries):
     """Set ``entries`` in the checkpoint's ``config["inference"]`` in place (written atomically)."""
     import torch

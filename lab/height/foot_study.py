@@ -15,7 +15,6 @@ it in the checkpoint's ``config["inference"]["foot_snap"]`` (None = off) in plac
 """
 from __future__ import annotations
 
-import argparse
 import os
 
 import numpy as np
@@ -40,20 +39,11 @@ def choose(mae: dict, foot: dict) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m pixgraph_lab.height.foot_study", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--weights", required=True)
-    ap.add_argument("--heights", required=True)
-    ap.add_argument("--limit", type=int, default=0)
-    ap.add_argument("--out", required=True)
-    ap.add_argument("--write", action="store_true")
-    a = ap.parse_args(argv)
-    import torch
-    torch.set_num_threads(1)
     from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, snap_feet
 
-    from .evaluate import height_files, read_height_sample, write_inference
+    from .evaluate import height_files, read_height_sample, study_args, write_inference
     from .evaluate_real import _errs
+    a = study_args("python -m pixgraph_lab.height.foot_study", __doc__, argv)
     pred = LearnedHeightPredictor(a.weights, foot_snap=None)
     cands = candidates()
     mae = {k: [] for k, _ in cands}

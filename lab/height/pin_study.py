@@ -12,7 +12,6 @@ the lowest MAE wins; ``--write`` stores it in the checkpoint's
 """
 from __future__ import annotations
 
-import argparse
 import os
 
 import numpy as np
@@ -21,19 +20,10 @@ CANDIDATES = {"constant": None, "fade 0.25": 0.25, "fade 0.5": 0.5}
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m pixgraph_lab.height.pin_study", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--weights", required=True)
-    ap.add_argument("--heights", required=True)
-    ap.add_argument("--limit", type=int, default=0)
-    ap.add_argument("--out", required=True)
-    ap.add_argument("--write", action="store_true")
-    a = ap.parse_args(argv)
-    import torch
-    torch.set_num_threads(1)
     from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, contact_band, pin_contact
 
-    from .evaluate import height_files, read_height_sample, write_inference
+    from .evaluate import height_files, read_height_sample, study_args, write_inference
+    a = study_args("python -m pixgraph_lab.height.pin_study", __doc__, argv)
     pred = LearnedHeightPredictor(a.weights, pin_fade=None)
     res = {k: [] for k in ["free", *CANDIDATES]}
     foot = {k: [] for k in res}
