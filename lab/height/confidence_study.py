@@ -74,7 +74,7 @@ def best_threshold(s, mae_l, mae_h):
 def main(argv=None) -> int:
     from pixgraph_nodes.ops.learned_height import SIGNALS, LearnedHeightPredictor
 
-    from .evaluate import _write, height_files, read_height_sample, study_args, write_inference
+    from .evaluate import _write, height_files, read_height_sample, study_args, write_inference, write_report
     a = study_args("python -m pixgraph_lab.height.confidence_study", __doc__, argv)
     pred = LearnedHeightPredictor(a.weights)
     pred.confidence_rule = None
@@ -134,10 +134,7 @@ def main(argv=None) -> int:
         sel = np.array([c == "all" or r["category"] == c for r in rows])
         lines.append(f"| {c} | {sel.sum()} | {mae_l[sel].mean():.2f} | {auto[sel].mean():.2f} | "
                      f"{mae_h[sel].mean():.2f} | {np.mean(~use[sel]):.0%} | {np.mean((mae_l < mae_h)[sel]):.0%} |")
-    text = "\n".join(lines) + "\n"
-    with open(os.path.join(a.out, "confidence_study.md"), "w") as fh:
-        fh.write(text)
-    print(text)
+    write_report(a.out, "confidence_study.md", lines)
     if a.write:
         write_inference(a.weights, confidence=rule)
         print(f"wrote the confidence rule ({best}) into {a.weights}")

@@ -67,6 +67,15 @@ def study_args(prog, doc, argv=None):
     return a
 
 
+def write_report(out, name, lines):
+    """Write ``lines`` (one string each) as ``out/name`` (creating ``out``) and print them."""
+    text = "\n".join(lines) + "\n"
+    os.makedirs(out, exist_ok=True)
+    with open(os.path.join(out, name), "w") as fh:
+        fh.write(text)
+    print(text)
+
+
 def write_inference(weights, **entries):
     """Set ``entries`` in the checkpoint's ``config["inference"]`` in place (written atomically)."""
     import torch

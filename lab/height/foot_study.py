@@ -15,8 +15,6 @@ it in the checkpoint's ``config["inference"]["foot_snap"]`` (None = off) in plac
 """
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 TOLS = (1.0, 2.0, 3.0, 4.0)
@@ -41,7 +39,7 @@ def choose(mae: dict, foot: dict) -> str:
 def main(argv=None) -> int:
     from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, snap_feet
 
-    from .evaluate import height_files, read_height_sample, study_args, write_inference
+    from .evaluate import height_files, read_height_sample, study_args, write_inference, write_report
     from .evaluate_real import _errs
     a = study_args("python -m pixgraph_lab.height.foot_study", __doc__, argv)
     pred = LearnedHeightPredictor(a.weights, foot_snap=None)
@@ -68,11 +66,7 @@ def main(argv=None) -> int:
     for k, _ in cands:
         lines.append(f"| {k} | {mmae[k]:.3f} | {mfoot[k]:.3f} | {np.mean(foot[k]):.3f} |")
     lines += ["", f"chosen: {best}"]
-    text = "\n".join(lines) + "\n"
-    os.makedirs(a.out, exist_ok=True)
-    with open(os.path.join(a.out, "foot_study.md"), "w") as fh:
-        fh.write(text)
-    print(text)
+    write_report(a.out, "foot_study.md", lines)
     if a.write:
         write_inference(a.weights, foot_snap=dict(cands)[best],
                         foot_study={k: [mmae[k], mfoot[k]] for k in mmae})

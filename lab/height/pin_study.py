@@ -12,8 +12,6 @@ the lowest MAE wins; ``--write`` stores it in the checkpoint's
 """
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 CANDIDATES = {"constant": None, "fade 0.25": 0.25, "fade 0.5": 0.5}
@@ -22,7 +20,7 @@ CANDIDATES = {"constant": None, "fade 0.25": 0.25, "fade 0.5": 0.5}
 def main(argv=None) -> int:
     from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, contact_band, pin_contact
 
-    from .evaluate import height_files, read_height_sample, study_args, write_inference
+    from .evaluate import height_files, read_height_sample, study_args, write_inference, write_report
     a = study_args("python -m pixgraph_lab.height.pin_study", __doc__, argv)
     pred = LearnedHeightPredictor(a.weights, pin_fade=None)
     res = {k: [] for k in ["free", *CANDIDATES]}
@@ -44,11 +42,7 @@ def main(argv=None) -> int:
         lines.append(f"| {k} | {np.mean(res[k]):.3f} | {np.median(foot[k]):.3f} |")
     best = min(CANDIDATES, key=lambda k: np.mean(res[k]))
     lines += ["", f"chosen: {best}"]
-    text = "\n".join(lines) + "\n"
-    os.makedirs(a.out, exist_ok=True)
-    with open(os.path.join(a.out, "pin_study.md"), "w") as fh:
-        fh.write(text)
-    print(text)
+    write_report(a.out, "pin_study.md", lines)
     if a.write:
         write_inference(a.weights, pin_fade=CANDIDATES[best],
                         pin_study={k: float(np.mean(v)) for k, v in res.items()})
