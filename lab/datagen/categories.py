@@ -243,12 +243,9 @@ def person(rng, pose=None, parts=None, at=(0.0, 0.0, 0.0), scale=1.0):
         d1 = Rl @ limb_dir(hf, ab, s) if pose not in ("standing", "walking") else limb_dir(hf, ab, s)
         knee = h0 + d1 * thigh
         d2 = limb_dir(hf - kf, ab * 0.5, s)
-        if pose in ("sitting", "sitting_ground"):
-            d2 = limb_dir(hf - kf, ab * 0.5, s)
         ankle = knee + d2 * shin
         P.add(capsule(h0, knee, limb_r * 1.1), bottom_slot)
         P.add(capsule(knee, ankle, limb_r * 0.85), bottom_slot)
-        fd = np.array([0.0, 0.0, 1.0])
         P.add(box(ankle + np.array([0, -foot_h * 0.5, foot_l * 0.3]), [limb_r * 2.0, foot_h * 1.4, foot_l]), shoe_slot)
         feet.append(ankle)
     if rng.random() < 0.3 and pose in ("standing", "walking"):
