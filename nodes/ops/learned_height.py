@@ -297,7 +297,8 @@ SIGNALS = ("disagreement_px", "disagreement_rel", "flip_px", "head_gain_px", "ov
 
 def confidence_signals(height: np.ndarray, heuristic: np.ndarray, mask: np.ndarray,
                        flip_height: np.ndarray | None = None, est_mae_learned: float | None = None,
-                       est_mae_heuristic: float | None = None, which=SIGNALS) -> dict:
+                       est_mae_heuristic: float | None = None, which=SIGNALS,
+                       contact_line: np.ndarray | None = None) -> dict:
     """Per-cutout signals of how far to trust the learned map (docs/height.md,
     "Confidence rule"), each a float (NaN when its inputs are missing):
 
@@ -311,6 +312,7 @@ def confidence_signals(height: np.ndarray, heuristic: np.ndarray, mask: np.ndarr
     * ``solidity``: mask area / its convex hull's area.
 
     ``which``: compute only these (the others are left out of the dict).
+    ``contact_line``: ``contact_line_height(mask)`` when the caller already has it.
     """
     m = np.asarray(mask, bool)
     nan = float("nan")
@@ -330,7 +332,8 @@ def confidence_signals(height: np.ndarray, heuristic: np.ndarray, mask: np.ndarr
         cols = np.nonzero(m.any(0))[0]
         low = m.shape[0] - 1 - np.argmax(m[::-1], axis=0)
         # the contact line's height at a column's lowest pixel centre = v_contact - (low + 0.5)
-        hc = contact_line_height(m)[low[cols], cols]
+        cl = contact_line_height(m) if contact_line is None else contact_line
+        hc = cl[low[cols], cols]
         out["overhang_share"] = float(np.mean(hc - 0.5 > 2.0))
     if "solidity" in which:
         out["solidity"] = float(m.sum()) / max(convex_hull_area(m), 1e-9)
@@ -585,7 +588,7 @@ class LearnedHeightPredictor:
         if rule or signals:
             which = SIGNALS if signals else tuple(rule.get("features", [rule["signal"]]))
             sig = confidence_signals(h, out["heuristic"], mask, h_flip, out["est_mae_learned"],
-                                     out["est_mae_heuristic"], which)
+                                     out["est_mae_heuristic"], which, contact_line=heur)
             if signals:
                 out["signals"] = sig
             if rule:
