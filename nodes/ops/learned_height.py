@@ -92,14 +92,15 @@ def _resize(a: np.ndarray, size: int) -> np.ndarray:
 
 
 def prepare(colour: np.ndarray, alpha: np.ndarray, size: int, threshold: float = 0.5,
-            height: np.ndarray | None = None):
+            height: np.ndarray | None = None, contact_line: np.ndarray | None = None):
     """Network input (6, size, size) float32 and the crop (see module doc).
 
     colour: (H, W, 3) straight sRGB in [0, 1]; alpha: (H, W) coverage;
     height: optional true pixel height (H, W) [px], for training: then also
     returns the target ``height / bh`` and its weight (the resized mask), each
     (size, size). Returns ``(x, box, bh)`` or ``(x, box, bh, target, weight)``;
-    ``box`` is None (and x zeros) for an empty mask.
+    ``box`` is None (and x zeros) for an empty mask. ``contact_line``:
+    ``contact_line_height(alpha > threshold)`` when the caller already has it.
     """
     alpha = np.clip(np.asarray(alpha, np.float32), 0, 1)
     mask = alpha > threshold
@@ -110,7 +111,7 @@ def prepare(colour: np.ndarray, alpha: np.ndarray, size: int, threshold: float =
         return (x, None, 0.0) if height is None else (x, None, 0.0, z, z)
     r0, r1, c0, c1, top, left, side = box
     bh = float(r1 - r0)
-    heur = contact_line_height(mask) / bh
+    heur = (contact_line_height(mask) if contact_line is None else contact_line) / bh
     v = (np.arange(alpha.shape[0], dtype=np.float32) + 0.5)[:, None]
     row = np.broadcast_to((r1 - v) / bh, alpha.shape)
     col = np.asarray(colour, np.float32) * alpha[..., None]
@@ -562,7 +563,7 @@ class LearnedHeightPredictor:
         need_flip = signals or bool(rule and (rule["signal"] == "flip_px" or "flip_px" in rule.get("features", ())))
         lv = float(lift) if contact == "lifted" else 0.0
         with self._threads():
-            x, box, bh = prepare(colour, alpha, self.size, threshold)
+            x, box, bh = prepare(colour, alpha, self.size, threshold, contact_line=heur)
             if box is None:
                 return out
             xs = [x, x[:, :, ::-1]] if (self.flip_average or need_flip) else [x]
