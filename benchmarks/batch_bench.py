@@ -216,13 +216,13 @@ def photo_bench(args) -> None:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-
 def _print_report(report: dict) -> None:
     """The load average at the end (kept in ``report``), then the report as one JSON line."""
     load1 = os.getloadavg()
     report["load_end"] = load1
     print(f"\nload average at end {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
     print("\n" + json.dumps(report))
+
 
 #: functions of the soft shadow node whose time the profile reports separately (cProfile,
 #: cumulative; missing ones are left out): the trace at the proxy, and the work that does not
