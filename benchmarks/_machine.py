@@ -17,3 +17,12 @@ def cpu_model() -> str:
     except (OSError, subprocess.SubprocessError):
         pass
     return f"{model} ({os.cpu_count()} logical CPUs)"
+
+
+def peak_rss_mib() -> float:
+    """This process's peak resident set (VmHWM) [MiB]; NaN where /proc has none."""
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    return float("nan")

@@ -211,12 +211,17 @@ def photo_bench(args) -> None:
                   ", ".join(f"{n} {k}" for n, k in sorted(counts.items())))
         report["medians"] = med
         report["cpu_medians"] = cmed
-        load1 = os.getloadavg()
-        report["load_end"] = load1
-        print(f"\nload average at end {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
-        print("\n" + json.dumps(report))
+        _print_report(report)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _print_report(report: dict) -> None:
+    """The load average at the end (kept in ``report``), then the report as one JSON line."""
+    load1 = os.getloadavg()
+    report["load_end"] = load1
+    print(f"\nload average at end {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
+    print("\n" + json.dumps(report))
 
 
 #: functions of the soft shadow node whose time the profile reports separately (cProfile,
@@ -489,10 +494,7 @@ def main() -> None:
                     sim[machines] = rows / total
                     print(f"| {machines} | {rows / total:.1f} | {'workers' if work >= sched else 'scheduler'} |")
                 report["results"][f"{gname}/scale_out"] = sim
-        load1 = os.getloadavg()
-        report["load_end"] = load1
-        print(f"\nload average at end {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
-        print("\n" + json.dumps(report))
+        _print_report(report)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

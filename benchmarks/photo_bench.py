@@ -46,7 +46,7 @@ import time
 
 import numpy as np
 
-from _machine import cpu_model
+from _machine import cpu_model, peak_rss_mib
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 OUT = ROOT / "out" / "bench" / "photo"
@@ -130,14 +130,6 @@ def make_graph(case: str, size: str) -> pathlib.Path:
     return path
 
 
-def _hwm_mib() -> float:
-    with open("/proc/self/status") as fh:
-        for line in fh:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 1024
-    return float("nan")
-
-
 def _folder_bytes(folder: str) -> int:
     return sum(f.stat().st_size for f in pathlib.Path(folder).rglob("*") if f.is_file())
 
@@ -173,7 +165,7 @@ def one(a) -> int:
             import pstats
             pstats.Stats(prof, stream=sys.stderr).sort_stats("cumulative").print_stats(45)
         timings = dict(sorted(s.last_run.timings.items(), key=lambda kv: -kv[1]))
-        print(json.dumps({"s": t2 - t0, "cpu_s": cpu, "run_s": t1 - t0, "write_s": t2 - t1, "peak_mib": _hwm_mib(),
+        print(json.dumps({"s": t2 - t0, "cpu_s": cpu, "run_s": t1 - t0, "write_s": t2 - t1, "peak_mib": peak_rss_mib(),
                           "disk_mib": _folder_bytes(cache) / 2**20, "file_mib": dest.stat().st_size / 2**20,
                           "nodes": {k: round(v, 3) for k, v in timings.items()}}))
     finally:

@@ -43,7 +43,7 @@ import time
 
 import numpy as np
 
-from _machine import cpu_model
+from _machine import cpu_model, peak_rss_mib
 
 
 def _scene(data, index, factor):
@@ -77,19 +77,11 @@ def one(a) -> int:
     t0 = time.perf_counter()
     d = _trace(dev, big, a.samples, side)
     sec = time.perf_counter() - t0
-    peak = _hwm_mib()
+    peak = peak_rss_mib()
     if a.save:
         np.save(a.save, d.astype(np.float32))
     print(json.dumps({"s": sec, "peak_mib": peak, "before_mib": before}))
     return 0
-
-
-def _hwm_mib() -> float:
-    with open("/proc/self/status") as fh:
-        for line in fh:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 1024
-    return float("nan")
 
 
 def _rss_mib() -> float:

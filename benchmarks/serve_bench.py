@@ -156,13 +156,16 @@ def drag(url: str, steps: int, method: str, offset: float) -> tuple[list[float],
         return times, server, time.perf_counter() - t0
 
 
+#: Debian's chromium without background connections (as tests/serve_helpers.py starts it)
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
 def browser_drag(url: str, steps: int) -> tuple[list[float], list[float]]:
     from playwright.sync_api import sync_playwright
 
-    args = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-            "--disable-background-networking", "--disable-component-update", "--disable-sync"]
     with sync_playwright() as p:
-        b = p.chromium.launch(executable_path="/usr/bin/chromium", args=args)
+        b = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
         page = b.new_page(viewport={"width": 1180, "height": 660})
         page.goto(url + "/")
         page.wait_for_selector("body[data-ready='1']", timeout=120000)
@@ -267,10 +270,8 @@ def photo_browser(url: str, steps: int) -> list[float]:
     """Preview latencies drawn by the page (the photo is already open on the server)."""
     from playwright.sync_api import sync_playwright
 
-    args = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-            "--disable-background-networking", "--disable-component-update", "--disable-sync"]
     with sync_playwright() as p:
-        b = p.chromium.launch(executable_path="/usr/bin/chromium", args=args)
+        b = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
         page = b.new_page(viewport={"width": 1280, "height": 800})
         page.goto(url + "/")
         page.wait_for_selector("body[data-ready='1']", state="attached", timeout=900000)

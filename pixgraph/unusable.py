@@ -45,9 +45,7 @@ def refuse_unusable_inputs(graph: Graph, registry: Registry, nodes: Iterable[str
 
 
 def _unusable(graph: Graph, registry: Registry, nid: str, params: Mapping[str, Any]) -> dict[str, str]:
-    hook = getattr(registry.get(graph.nodes[nid].type).cls, "unusable_outputs", None)
-    if hook is None:
-        return {}
+    """The hook's ``{output: reason}`` (the caller checked that the class has one)."""
     cls = registry.get(graph.nodes[nid].type).cls
     try:
         out = cls().unusable_outputs(nid, Namespace(params))

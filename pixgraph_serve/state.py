@@ -418,10 +418,11 @@ class ServeState:
         full-size final never evict: a drag after a release finds its upstream cached."""
         if scale >= 1.0:
             return self.session
-        if self._scaled is None:
-            self._scaled = Session(device=self.session.device, registry=self.registry, allow_paths=self._roots,
-                                   strict_paths=True, cache_bytes=self.limits.scaled_cache_bytes)
-        return self._scaled
+        with self._active_lock:  # runs start on several threads: make one, never two
+            if self._scaled is None:
+                self._scaled = Session(device=self.session.device, registry=self.registry, allow_paths=self._roots,
+                                       strict_paths=True, cache_bytes=self.limits.scaled_cache_bytes)
+            return self._scaled
 
     def running(self) -> int:
         """How many runs are in progress."""

@@ -91,12 +91,17 @@ def _mode_nodes(calls):
     return Mode, Bad
 
 
-def test_ignored_params_and_inputs_leave_downstream_cached():
+def _mode_session() -> Session:
+    """A session with the test nodes and ``tb.Mode``/``tb.Bad``."""
     calls = []
     reg = make_registry(calls)
     for cls in _mode_nodes(calls):
         reg.add(cls)
-    s = Session(registry=reg)
+    return Session(registry=reg)
+
+
+def test_ignored_params_and_inputs_leave_downstream_cached():
+    s = _mode_session()
     b = s.builder()
     b.add("t.Source", "sa", value=1.0)
     b.add("t.Source", "sb", value=2.0)
@@ -122,11 +127,7 @@ def test_ignored_params_and_inputs_leave_downstream_cached():
 
 
 def test_affects_may_only_name_what_the_node_declares():
-    calls = []
-    reg = make_registry(calls)
-    for cls in _mode_nodes(calls):
-        reg.add(cls)
-    s = Session(registry=reg)
+    s = _mode_session()
     b = s.builder()
     b.add("tb.Bad", "bad")
     b.output("o", "bad.out")

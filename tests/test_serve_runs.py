@@ -168,8 +168,8 @@ def test_deadlines_cancel_only_runs_past_theirs():
     first, removed, last, never = CancelToken(), CancelToken(), CancelToken(), CancelToken()
     e_first = d.add(first, 0.05)
     d.add(never, 3600)
-    d.add(removed, 0.06)
+    d.add(removed, 0.5)   # removed at once; a stall of well under 0.5 s cannot cancel it first
     d.remove(removed)
-    e_last = d.add(last, 0.1)
+    e_last = d.add(last, 0.6)
     assert e_last.wait(30) and e_first.is_set()
     assert first.cancelled and last.cancelled and not removed.cancelled and not never.cancelled

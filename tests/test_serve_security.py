@@ -255,7 +255,9 @@ def test_a_signal_stops_the_server_mid_render(tmp_path, sig):
             async with httpx.AsyncClient(base_url=url, timeout=600) as c:
                 long = asyncio.create_task(c.post("/api/render", json={"params": {"shadow.samples": 65536}}))
                 for _ in range(6000):          # wait (up to 60 s) until the render is running
-                    if (await c.get("/api/status")).json()["running"]:
+                    # (or has already ended: a fast device may finish it between two polls;
+                    # the server must exit 0 either way)
+                    if long.done() or (await c.get("/api/status")).json()["running"]:
                         break
                     await asyncio.sleep(0.01)
                 else:
