@@ -15,8 +15,7 @@ from . import march
 from .camera import Camera, reconstruct
 from .reflection import SOLID, _buf, _program, _read, _Surface, check_shapes, setup_rays, trace_closest
 from .reflection_math import F32, fresnel_dielectric, refract, uvh_direction, view_directions
-from .reflection_proxy import _shrink_part
-from .resample import Window, resize
+from .resample import Window, resize, shrink_part
 from .upsample import AUTO_MAX_SIDE, masked_resize
 
 
@@ -391,7 +390,7 @@ def refraction_proxy(device, camera: Camera, glass, glass_height, background, bg
     n_full, R_full = _box_geometry(camera, glass_height, a, (r0, r1, c0, c1), back_surface == "local_sphere")
     part = np.concatenate([part, n_full * ins[..., None], (R_full * (R_full > 0))[..., None],
                            (ins & (R_full > 0)).astype(np.float32)[..., None]], axis=2)
-    shrunk = np.moveaxis(_shrink_part(part, (r0, c0), (H, W), (h, w)), 2, 0)
+    shrunk = np.moveaxis(shrink_part(part, (r0, c0), (H, W), (h, w)), 2, 0)
     cov, cover, hsum = shrunk[:3]
     # the full-resolution normals and local radius, averaged over each proxy pixel's glass
     n_lo = np.moveaxis(shrunk[3:6], 0, 2)
