@@ -217,6 +217,15 @@ def _background_pix(camera, p0, d, bgs):
     return _background_pos(camera, p0, d, bgs)[1]
 
 
+def _inputs(camera, glass, glass_height, bg_height, background=None):
+    """The tracers' arrays as float32, checked to share the camera's size (ValueError
+    naming them otherwise): (glass, glass_height, bg_height, background or None)."""
+    arrays = dict(glass=glass, glass_height=glass_height, background=background, bg_height=bg_height)
+    arrays = {k: np.asarray(v, np.float32) for k, v in arrays.items() if v is not None}
+    check_shapes(camera, **arrays)
+    return arrays["glass"], arrays["glass_height"], arrays["bg_height"], arrays.get("background")
+
+
 def _setup(device, camera, glass, glass_height, bg_height, back_surface, hiz, normal=None, radius=None):
     """Uploads shared by rt_refract and rt_refract_hits: ``(prg, head, keep)`` with
     ``head`` the kernels' common leading arguments (through ``nlev``) and ``keep``
@@ -279,11 +288,7 @@ def refraction_cl(device, camera: Camera, glass, glass_height, background, bg_he
     transmitted or TIR ray found the background inside the image), ``steps``."""
     import pyopencl as cl
     ctx, queue = device.context, device.queue
-    glass = np.asarray(glass, np.float32)
-    bg = np.asarray(background, np.float32)
-    glass_height = np.asarray(glass_height, np.float32)
-    bg_height = np.asarray(bg_height, np.float32)
-    check_shapes(camera, glass=glass, glass_height=glass_height, background=bg, bg_height=bg_height)
+    glass, glass_height, bg_height, bg = _inputs(camera, glass, glass_height, bg_height, background)
     H, W = bg_height.shape
     if bg.ndim == 2:
         bg = bg[..., None]
@@ -318,10 +323,7 @@ def refraction_hits_cl(device, camera: Camera, glass, glass_height, bg_height, *
     instead of those reconstructed from ``glass_height``."""
     import pyopencl as cl
     ctx, queue = device.context, device.queue
-    glass = np.asarray(glass, np.float32)
-    glass_height = np.asarray(glass_height, np.float32)
-    bg_height = np.asarray(bg_height, np.float32)
-    check_shapes(camera, glass=glass, glass_height=glass_height, bg_height=bg_height)
+    glass, glass_height, bg_height, _ = _inputs(camera, glass, glass_height, bg_height)
     H, W = bg_height.shape
     prg, head, keep = _setup(device, camera, glass, glass_height, bg_height, back_surface, hiz, normal, radius)
     mf = cl.mem_flags
@@ -357,11 +359,7 @@ def refraction_proxy(device, camera: Camera, glass, glass_height, background, bg
     proxy rows); its coverage is the area-averaged alpha, the glass's height the
     mean over glass pixels. Returns :func:`refraction_cl`'s dict at full size
     (``tir``, ``hit`` and ``steps`` of the nearest proxy pixel) plus ``proxy``."""
-    glass = np.asarray(glass, np.float32)
-    bg = np.asarray(background, np.float32)
-    glass_height = np.asarray(glass_height, np.float32)
-    bg_height = np.asarray(bg_height, np.float32)
-    check_shapes(camera, glass=glass, glass_height=glass_height, background=bg, bg_height=bg_height)
+    glass, glass_height, bg_height, bg = _inputs(camera, glass, glass_height, bg_height, background)
     H, W = bg_height.shape
     if max_side < 16:
         raise ValueError(f"a proxy needs a longer side of at least 16 px, got {max_side}")
