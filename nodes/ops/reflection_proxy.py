@@ -22,7 +22,7 @@ import numpy as np
 
 from .camera import Camera
 from .reflection import reflection_cl
-from .resample import Window, _axis_weights, resize, shrink_part
+from .resample import Window, _axis_weights, nonzero_box, resize, shrink_part
 from .upsample import AUTO_MAX_SIDE, MIN_PROXY_THICKNESS, cutout_scene
 
 __all__ = ["AUTO_MAX_SIDE", "proxy_reflection"]
@@ -149,11 +149,7 @@ def _box_of(layer):
     """(r0, r1, c0, c1) of the pixels of an (H, W, 4) layer that are not all 0, or None."""
     nz = layer[..., 3] != 0
     nz |= (layer[..., :3] != 0).any(axis=2)
-    rows = np.flatnonzero(nz.any(axis=1))
-    if rows.size == 0:
-        return None
-    cols = np.flatnonzero(nz.any(axis=0))
-    return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+    return nonzero_box(nz)
 
 
 def _weigh(layer, recv, box) -> None:
@@ -196,11 +192,10 @@ def shrink_in_box(image: np.ndarray, shape) -> np.ndarray:
     part of a photo). Same numbers as resizing the whole image. float32 (h, w, C)."""
     image = np.asarray(image, np.float32)
     nz = (image != 0).any(axis=2)
-    rows = np.flatnonzero(nz.any(axis=1))
-    if rows.size == 0:
+    box = nonzero_box(nz)
+    if box is None:
         return np.zeros(tuple(int(s_) for s_ in shape) + (image.shape[2],), np.float32)
-    cols = np.flatnonzero(nz.any(axis=0))
-    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    r0, r1, c0, c1 = box
     return shrink_part(image[r0:r1, c0:c1], (r0, c0), image.shape[:2], shape)
 
 

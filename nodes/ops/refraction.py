@@ -15,7 +15,7 @@ from . import march
 from .camera import Camera, reconstruct
 from .reflection import SOLID, _buf, _program, _read, _Surface, check_shapes, setup_rays, trace_closest
 from .reflection_math import F32, fresnel_dielectric, refract, uvh_direction, view_directions
-from .resample import Window, resize, shrink_part
+from .resample import Window, nonzero_box, resize, shrink_part
 from .upsample import AUTO_MAX_SIDE, masked_resize
 
 
@@ -376,11 +376,10 @@ def refraction_proxy(device, camera: Camera, glass, glass_height, background, bg
     hit = np.zeros((H, W), bool)
     steps = np.zeros((H, W), np.int32)
     on = a > 0
-    rows = np.flatnonzero(on.any(axis=1))
-    if rows.size == 0:
+    box = nonzero_box(on)
+    if box is None:
         return {"layer": layer, "tir": tir, "hit": hit, "steps": steps, "proxy": (h, w)}
-    cols = np.flatnonzero(on.any(axis=0))
-    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    r0, r1, c0, c1 = box
     # the proxy scene: coverage area-averaged, the glass's height averaged over glass pixels
     ins = on[r0:r1, c0:c1]
     part = np.stack([a[r0:r1, c0:c1], ins.astype(np.float32),

@@ -172,6 +172,18 @@ def resize(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.ascontiguousarray(_resize_axis(_resize_axis(a, shape[1], 1), shape[0], 0))
 
 
+def nonzero_box(nonzero: np.ndarray):
+    """(r0, r1, c0, c1) of the True pixels of a (H, W) bool array (ints), or None: a
+    cutout and its effects cover a small part of a large photo, and only that box is
+    worked on. The columns are searched on the box's rows only."""
+    rows = np.flatnonzero(nonzero.any(axis=1))
+    if rows.size == 0:
+        return None
+    r0, r1 = int(rows[0]), int(rows[-1]) + 1
+    cols = np.flatnonzero(nonzero[r0:r1].any(axis=0))
+    return r0, r1, int(cols[0]), int(cols[-1]) + 1
+
+
 def shrink_part(part: np.ndarray, origin, full_shape, shape) -> np.ndarray:
     """``resize`` to ``shape`` of a (H, W, C) image that is 0 outside ``part``, the
     block of it whose top-left pixel is ``origin`` (row, col): each output pixel

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .resample import Window, _axis_weights, resize, shrink_part
+from .resample import Window, _axis_weights, nonzero_box, resize, shrink_part
 from .shadow import soft_shadow
 
 #: ``proxy="auto"``: images whose longer side is at most this are traced at
@@ -138,11 +138,10 @@ def cutout_scene(win: Window, mask, fg_height):
     H, W = mask.shape
     h, w = win.out_h, win.out_w
     inside = mask > 0.5
-    rows = np.flatnonzero(inside.any(axis=1))
-    if rows.size == 0:
+    box = nonzero_box(inside)
+    if box is None:
         return np.zeros((h, w), np.float32), np.zeros((h, w), np.float32)
-    cols = np.flatnonzero(inside.any(axis=0))
-    r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+    r0, r1, c0, c1 = box
     ins = inside[r0:r1, c0:c1]
     fg = np.where(ins, np.nan_to_num(np.asarray(fg_height[r0:r1, c0:c1], np.float32)), 0.0)
     part = np.stack([ins.astype(np.float32), fg.astype(np.float32)], axis=2)
