@@ -134,11 +134,12 @@ def pixel_heights(where=None, **maps) -> None:
         if h is None or _passed("pixel_heights", h):
             continue
         h = np.asarray(h)
-        finite = np.isfinite(h)
-        bad = ~finite | (np.where(finite, h, 0.0) < 0.0)
-        if not bad.any():
+        # two reductions, no full-size temporaries: a NaN makes the minimum NaN
+        if h.size == 0 or (h.min() >= 0 and h.max() < np.inf):
             _remember("pixel_heights", h)  # valid everywhere: valid under any ``where``
             continue
+        finite = np.isfinite(h)
+        bad = ~finite | (np.where(finite, h, 0.0) < 0.0)
         if where is not None:
             bad &= where
         n = int(np.count_nonzero(bad))
