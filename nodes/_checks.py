@@ -111,7 +111,11 @@ def finite(**arrays) -> None:
     for name, a in arrays.items():
         if a is None or _passed("finite", a):
             continue
-        bad = ~np.isfinite(np.asarray(a))
+        a = np.asarray(a)
+        if a.size == 0 or np.isfinite(a.min()) and np.isfinite(a.max()):  # a NaN makes the minimum NaN
+            _remember("finite", a)
+            continue
+        bad = ~np.isfinite(a)
         n = int(np.count_nonzero(bad))
         if n:
             i, j = np.unravel_index(int(np.argmax(bad.reshape(bad.shape[0], bad.shape[1], -1).any(-1))),
