@@ -111,7 +111,11 @@ def finite(**arrays) -> None:
     for name, a in arrays.items():
         if a is None or _passed("finite", a):
             continue
-        bad = ~np.isfinite(np.asarray(a))
+        a = np.asarray(a)
+        if a.size == 0 or np.isfinite(a.min()) and np.isfinite(a.max()):  # a NaN makes the minimum NaN
+            _remember("finite", a)
+            continue
+        bad = ~np.isfinite(a)
         n = int(np.count_nonzero(bad))
         if n:
             i, j = np.unravel_index(int(np.argmax(bad.reshape(bad.shape[0], bad.shape[1], -1).any(-1))),
@@ -134,11 +138,12 @@ def pixel_heights(where=None, **maps) -> None:
         if h is None or _passed("pixel_heights", h):
             continue
         h = np.asarray(h)
-        finite = np.isfinite(h)
-        bad = ~finite | (np.where(finite, h, 0.0) < 0.0)
-        if not bad.any():
+        # two reductions, no full-size temporaries: a NaN makes the minimum NaN
+        if h.size == 0 or (h.min() >= 0 and h.max() < np.inf):
             _remember("pixel_heights", h)  # valid everywhere: valid under any ``where``
             continue
+        finite = np.isfinite(h)
+        bad = ~finite | (np.where(finite, h, 0.0) < 0.0)
         if where is not None:
             bad &= where
         n = int(np.count_nonzero(bad))

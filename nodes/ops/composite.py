@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .resample import nonzero_box
+
 
 def _hwc(a: np.ndarray, name: str) -> np.ndarray:
     a = np.asarray(a, dtype=np.float32)
@@ -13,24 +15,13 @@ def _hwc(a: np.ndarray, name: str) -> np.ndarray:
     return a
 
 
-def _bbox(nonzero: np.ndarray):
-    """(r0, r1, c0, c1) of the True pixels of a (H, W) bool array, or None: the
-    effects of a shadow or a cutout cover a part of a large photo, and only that
-    part is worked on."""
-    rows = np.flatnonzero(nonzero.any(axis=1))
-    if len(rows) == 0:
-        return None
-    cols = np.flatnonzero(nonzero[rows[0]:rows[-1] + 1].any(axis=0))
-    return rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-
-
 def _shadow_into(out: np.ndarray, darkness: np.ndarray, opacity: float, tint) -> None:
     """``apply_shadow`` in place on ``out`` (H, W, C) float32, only over the box
     where the darkness is above 0 (elsewhere the factor is exactly 1)."""
     d = np.asarray(darkness, dtype=np.float32)
     if d.shape != out.shape[:2]:
         raise ValueError(f"shadow is {d.shape[::-1]} but the background is {out.shape[1::-1]} (W, H)")
-    box = _bbox(d > 0.0)
+    box = nonzero_box(d > 0.0)
     if box is None or opacity == 0.0:
         return
     r0, r1, c0, c1 = box
@@ -81,7 +72,7 @@ def _over_into(out: np.ndarray, fg_premultiplied: np.ndarray, alpha: np.ndarray)
     touched = a != 0.0
     for c in range(nf):
         touched |= fg[:, :, c] != 0.0
-    box = _bbox(touched)
+    box = nonzero_box(touched)
     if box is None:
         return
     r0, r1, c0, c1 = box

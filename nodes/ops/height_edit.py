@@ -61,6 +61,8 @@ import math
 
 import numpy as np
 
+from .light_screen import object_top
+
 
 def _points(points) -> np.ndarray:
     P = np.asarray(points, np.float64).reshape(-1, 2) if len(points) else np.zeros((0, 2))
@@ -162,19 +164,14 @@ def top_point(mask: np.ndarray, edited: np.ndarray, tilt_deg: float = 0.0, eleva
     """(u, v, h, h0) [px] of the object's top: the middle pixel of the mask's highest
     row, its edited height ``h``, and ``h0`` its height before tilt and lift
     (``h = g h0 + lift``, step 3); None for an empty mask or a top at height 0."""
-    m = np.asarray(mask)
-    m = (m[..., 0] if m.ndim == 3 else m) > 0.5
-    rows = np.nonzero(m.any(axis=1))[0]
-    if rows.size == 0:
+    top = object_top(mask, edited)   # the same point as the Light node's handle
+    if top is None:
         return None
-    r = int(rows[0])
-    cols = np.nonzero(m[r])[0]
-    c = int(cols[len(cols) // 2])
-    h = float(np.asarray(edited)[r, c])
+    u, v, h = top
     h0 = (h - float(lift)) / tilt_gain(tilt_deg, elevation_deg)
     if not h0 > 0:
         return None
-    return c + 0.5, r + 0.5, h, h0
+    return u, v, h, h0
 
 
 #: the tallest ``tilt_for_height`` makes an object: this many times its height before the tilt

@@ -389,6 +389,20 @@ __kernel void rt_reflect(int W, int H, int y0, float f, float horizon, float cam
 }
 
 /* ---- refraction through the front surface of a transparent cutout ---- */
+
+/* Whether the ray p0 + s e is already behind the background (height bg0 at its
+ * origin's pixel) where it leaves that pixel: the ray's height at the pixel's
+ * edge along its major axis (a ray nearly along the view ray: going down, behind;
+ * else its own height). Shared by rt_background_along and rt_background_pos. */
+inline int rt_behind_at_origin(float3 p0, float3 e, float bg0)
+{
+    float major = fmax(fabs(e.x), fabs(e.y));
+    float h_edge;
+    if (major >= PH_MIN_IMAGE_LENGTH) h_edge = p0.z + 0.5f * e.z / major;
+    else h_edge = e.z < 0.0f ? -RT_SOLID : p0.z;
+    return ph_side(h_edge, bg0) == 1;
+}
+
 /* Background colour seen along the (u, v, h) ray p0 + s e: the first background
  * pixel where the ray goes behind the background surface (solid: ground, walls).
  * The origin's own pixel counts when the ray is already behind the surface at
@@ -400,15 +414,10 @@ inline float4 rt_background_along(float3 p0, float3 e, float s_max, int W, int H
                                    __global const int *lvl, int nlev,
                                    __global const float4 *bg_rgb, int *steps, int *hitflag)
 {
-    int j0 = (int)floor(p0.x), i0 = (int)floor(p0.y);
-    int origin = i0 * W + j0;
-    float adu = fabs(e.x), adv = fabs(e.y);
-    float major = fmax(adu, adv);
-    float h_edge;
-    if (major >= PH_MIN_IMAGE_LENGTH) h_edge = p0.z + 0.5f * e.z / major;
-    else h_edge = e.z < 0.0f ? -RT_SOLID : p0.z;
+    int origin = (int)floor(p0.y) * W + (int)floor(p0.x);
+    int behind = rt_behind_at_origin(p0, e, bgs[origin]);
     *hitflag = 1;
-    if (ph_side(h_edge, bgs[origin]) == 1) return bg_rgb[origin];
+    if (behind) return bg_rgb[origin];
     ph_march m;
     int lst = origin;
     if (ph_march_setup(p0.x, p0.y, p0.z, e.x, e.y, e.z, s_max, &m)
@@ -432,16 +441,11 @@ inline float2 rt_background_pos(float3 p0, float3 e, float s_max, int W, int H,
                                 __global const float *bgs, __global const float *pyr,
                                 __global const int *lvl, int nlev, int *steps, int *hitflag, int *pix)
 {
-    int j0 = (int)floor(p0.x), i0 = (int)floor(p0.y);
-    int origin = i0 * W + j0;
-    float adu = fabs(e.x), adv = fabs(e.y);
-    float major = fmax(adu, adv);
-    float h_edge;
-    if (major >= PH_MIN_IMAGE_LENGTH) h_edge = p0.z + 0.5f * e.z / major;
-    else h_edge = e.z < 0.0f ? -RT_SOLID : p0.z;
+    int origin = (int)floor(p0.y) * W + (int)floor(p0.x);
+    int behind = rt_behind_at_origin(p0, e, bgs[origin]);
     *hitflag = 1;
     *pix = origin;
-    if (ph_side(h_edge, bgs[origin]) == 1) return p0.xy;
+    if (behind) return p0.xy;
     ph_march m;
     int lst = origin, k = -1;
     if (ph_march_setup(p0.x, p0.y, p0.z, e.x, e.y, e.z, s_max, &m)

@@ -22,8 +22,8 @@ import numpy as np
 
 from .camera import Camera
 from .reflection import reflection_cl
-from .resample import Window, _axis_weights, resize
-from .upsample import AUTO_MAX_SIDE, MIN_PROXY_THICKNESS
+from .resample import Window, _axis_weights, nonzero_box, resize, shrink_part
+from .upsample import AUTO_MAX_SIDE, MIN_PROXY_THICKNESS, cutout_scene
 
 __all__ = ["AUTO_MAX_SIDE", "proxy_reflection"]
 
@@ -149,11 +149,7 @@ def _box_of(layer):
     """(r0, r1, c0, c1) of the pixels of an (H, W, 4) layer that are not all 0, or None."""
     nz = layer[..., 3] != 0
     nz |= (layer[..., :3] != 0).any(axis=2)
-    rows = np.flatnonzero(nz.any(axis=1))
-    if rows.size == 0:
-        return None
-    cols = np.flatnonzero(nz.any(axis=0))
-    return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+    return nonzero_box(nz)
 
 
 def _weigh(layer, recv, box) -> None:
@@ -196,64 +192,19 @@ def shrink_in_box(image: np.ndarray, shape) -> np.ndarray:
     part of a photo). Same numbers as resizing the whole image. float32 (h, w, C)."""
     image = np.asarray(image, np.float32)
     nz = (image != 0).any(axis=2)
-    rows = np.flatnonzero(nz.any(axis=1))
-    if rows.size == 0:
+    box = nonzero_box(nz)
+    if box is None:
         return np.zeros(tuple(int(s_) for s_ in shape) + (image.shape[2],), np.float32)
-    cols = np.flatnonzero(nz.any(axis=0))
-    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-    return _shrink_part(image[r0:r1, c0:c1], (r0, c0), image.shape[:2], shape)
-
-
-def _shrink_part(part: np.ndarray, origin, full_shape, shape) -> np.ndarray:
-    """``resize`` to ``shape`` of a (H, W, C) image that is 0 outside ``part``, the
-    block of it whose top-left pixel is ``origin`` (row, col): each output pixel
-    from the same taps and weights as ``resample.resize`` (columns, then rows)."""
-    H, W = full_shape
-    h, w = (int(s_) for s_ in shape)
-    C = part.shape[2]
-    out = np.zeros((h, w, C), np.float32)
-    R0, C0 = (int(o) for o in origin)
-    R1, C1 = R0 + part.shape[0], C0 + part.shape[1]
-    ridx, rwt = _axis_weights(H, h) if H != h else (np.arange(H)[:, None], np.ones((H, 1), np.float32))
-    cidx, cwt = _axis_weights(W, w) if W != w else (np.arange(W)[:, None], np.ones((W, 1), np.float32))
-    orow = np.flatnonzero(((ridx >= R0) & (ridx < R1) & (rwt > 0)).any(axis=1))
-    ocol = np.flatnonzero(((cidx >= C0) & (cidx < C1) & (cwt > 0)).any(axis=1))
-    if orow.size == 0 or ocol.size == 0:
-        return out
-    o0, o1, p0, p1 = orow[0], orow[-1] + 1, ocol[0], ocol[-1] + 1
-    ri, rw = ridx[o0:o1], rwt[o0:o1]
-    ci, cw = cidx[p0:p1], cwt[p0:p1]
-    lo, hi = int(ri.min()), int(ri.max()) + 1          # input rows read (may reach outside the part: 0)
-    clo, chi = int(ci.min()), int(ci.max()) + 1
-    block = np.zeros((hi - lo, chi - clo, C), np.float32)
-    a, b = max(lo, R0), min(hi, R1)
-    c, d = max(clo, C0), min(chi, C1)
-    block[a - lo:b - lo, c - clo:d - clo] = part[a - R0:b - R0, c - C0:d - C0]
-    for k in range(C):
-        colpass = np.einsum("rot,ot->ro", np.ascontiguousarray(block[:, :, k])[:, ci - clo], cw)
-        out[o0:o1, p0:p1, k] = np.einsum("otx,ot->ox", colpass[ri - lo], rw)
-    return out
+    r0, r1, c0, c1 = box
+    return shrink_part(image[r0:r1, c0:c1], (r0, c0), image.shape[:2], shape)
 
 
 def proxy_scene(win: Window, mask, fg_height, bg_height):
     """``win.scene(mask, fg_height, bg_height)`` of a whole-image window, the same
     numbers, with the mask and the cutout's height shrunk over the cutout's box
-    only (only the background's height is resized whole)."""
-    mask = np.asarray(mask)
-    H, W = mask.shape
-    h, w = win.out_h, win.out_w
-    inside = mask > 0.5
-    rows = np.flatnonzero(inside.any(axis=1))
-    if rows.size:
-        cols = np.flatnonzero(inside.any(axis=0))
-        r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-        ins = inside[r0:r1, c0:c1]
-        fg = np.where(ins, np.nan_to_num(np.asarray(fg_height[r0:r1, c0:c1], np.float32)), 0.0)
-        part = np.stack([ins.astype(np.float32), fg.astype(np.float32)], axis=2)
-        cover, fg_sum = np.moveaxis(_shrink_part(part, (r0, c0), (H, W), (h, w)), 2, 0)
-    else:
-        cover = fg_sum = np.zeros((h, w), np.float32)
-    m = (cover > 0.5).astype(np.float32)
-    fg_w = np.where(cover > 1e-6, fg_sum / np.maximum(cover, 1e-6), 0.0) * win.ky * m
-    bg = np.nan_to_num(np.asarray(bg_height, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
-    return m, fg_w.astype(np.float32), (resize(bg, (h, w)) * win.ky).astype(np.float32)
+    only (``upsample.cutout_scene``; only the background's height is resized whole)."""
+    m, fg_w = cutout_scene(win, mask, fg_height)
+    bg = np.asarray(bg_height, np.float32)
+    if not np.isfinite(bg.min() + bg.max()):      # one pass each; nan_to_num only when needed
+        bg = np.nan_to_num(bg, nan=0.0, posinf=0.0, neginf=0.0)
+    return m, fg_w, (resize(bg, (win.out_h, win.out_w)) * win.ky).astype(np.float32)

@@ -15,8 +15,7 @@ from . import march
 from .camera import Camera, reconstruct
 from .reflection import SOLID, _buf, _program, _read, _Surface, check_shapes, setup_rays, trace_closest
 from .reflection_math import F32, fresnel_dielectric, refract, uvh_direction, view_directions
-from .reflection_proxy import _shrink_part
-from .resample import Window, resize
+from .resample import Window, nonzero_box, resize, shrink_part
 from .upsample import AUTO_MAX_SIDE, masked_resize
 
 
@@ -218,6 +217,15 @@ def _background_pix(camera, p0, d, bgs):
     return _background_pos(camera, p0, d, bgs)[1]
 
 
+def _inputs(camera, glass, glass_height, bg_height, background=None):
+    """The tracers' arrays as float32, checked to share the camera's size (ValueError
+    naming them otherwise): (glass, glass_height, bg_height, background or None)."""
+    arrays = dict(glass=glass, glass_height=glass_height, background=background, bg_height=bg_height)
+    arrays = {k: np.asarray(v, np.float32) for k, v in arrays.items() if v is not None}
+    check_shapes(camera, **arrays)
+    return arrays["glass"], arrays["glass_height"], arrays["bg_height"], arrays.get("background")
+
+
 def _setup(device, camera, glass, glass_height, bg_height, back_surface, hiz, normal=None, radius=None):
     """Uploads shared by rt_refract and rt_refract_hits: ``(prg, head, keep)`` with
     ``head`` the kernels' common leading arguments (through ``nlev``) and ``keep``
@@ -280,11 +288,7 @@ def refraction_cl(device, camera: Camera, glass, glass_height, background, bg_he
     transmitted or TIR ray found the background inside the image), ``steps``."""
     import pyopencl as cl
     ctx, queue = device.context, device.queue
-    glass = np.asarray(glass, np.float32)
-    bg = np.asarray(background, np.float32)
-    glass_height = np.asarray(glass_height, np.float32)
-    bg_height = np.asarray(bg_height, np.float32)
-    check_shapes(camera, glass=glass, glass_height=glass_height, background=bg, bg_height=bg_height)
+    glass, glass_height, bg_height, bg = _inputs(camera, glass, glass_height, bg_height, background)
     H, W = bg_height.shape
     if bg.ndim == 2:
         bg = bg[..., None]
@@ -319,10 +323,7 @@ def refraction_hits_cl(device, camera: Camera, glass, glass_height, bg_height, *
     instead of those reconstructed from ``glass_height``."""
     import pyopencl as cl
     ctx, queue = device.context, device.queue
-    glass = np.asarray(glass, np.float32)
-    glass_height = np.asarray(glass_height, np.float32)
-    bg_height = np.asarray(bg_height, np.float32)
-    check_shapes(camera, glass=glass, glass_height=glass_height, bg_height=bg_height)
+    glass, glass_height, bg_height, _ = _inputs(camera, glass, glass_height, bg_height)
     H, W = bg_height.shape
     prg, head, keep = _setup(device, camera, glass, glass_height, bg_height, back_surface, hiz, normal, radius)
     mf = cl.mem_flags
@@ -358,11 +359,7 @@ def refraction_proxy(device, camera: Camera, glass, glass_height, background, bg
     proxy rows); its coverage is the area-averaged alpha, the glass's height the
     mean over glass pixels. Returns :func:`refraction_cl`'s dict at full size
     (``tir``, ``hit`` and ``steps`` of the nearest proxy pixel) plus ``proxy``."""
-    glass = np.asarray(glass, np.float32)
-    bg = np.asarray(background, np.float32)
-    glass_height = np.asarray(glass_height, np.float32)
-    bg_height = np.asarray(bg_height, np.float32)
-    check_shapes(camera, glass=glass, glass_height=glass_height, background=bg, bg_height=bg_height)
+    glass, glass_height, bg_height, bg = _inputs(camera, glass, glass_height, bg_height, background)
     H, W = bg_height.shape
     if max_side < 16:
         raise ValueError(f"a proxy needs a longer side of at least 16 px, got {max_side}")
@@ -379,11 +376,10 @@ def refraction_proxy(device, camera: Camera, glass, glass_height, background, bg
     hit = np.zeros((H, W), bool)
     steps = np.zeros((H, W), np.int32)
     on = a > 0
-    rows = np.flatnonzero(on.any(axis=1))
-    if rows.size == 0:
+    box = nonzero_box(on)
+    if box is None:
         return {"layer": layer, "tir": tir, "hit": hit, "steps": steps, "proxy": (h, w)}
-    cols = np.flatnonzero(on.any(axis=0))
-    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    r0, r1, c0, c1 = box
     # the proxy scene: coverage area-averaged, the glass's height averaged over glass pixels
     ins = on[r0:r1, c0:c1]
     part = np.stack([a[r0:r1, c0:c1], ins.astype(np.float32),
@@ -391,7 +387,7 @@ def refraction_proxy(device, camera: Camera, glass, glass_height, background, bg
     n_full, R_full = _box_geometry(camera, glass_height, a, (r0, r1, c0, c1), back_surface == "local_sphere")
     part = np.concatenate([part, n_full * ins[..., None], (R_full * (R_full > 0))[..., None],
                            (ins & (R_full > 0)).astype(np.float32)[..., None]], axis=2)
-    shrunk = np.moveaxis(_shrink_part(part, (r0, c0), (H, W), (h, w)), 2, 0)
+    shrunk = np.moveaxis(shrink_part(part, (r0, c0), (H, W), (h, w)), 2, 0)
     cov, cover, hsum = shrunk[:3]
     # the full-resolution normals and local radius, averaged over each proxy pixel's glass
     n_lo = np.moveaxis(shrunk[3:6], 0, 2)

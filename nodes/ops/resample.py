@@ -172,6 +172,49 @@ def resize(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.ascontiguousarray(_resize_axis(_resize_axis(a, shape[1], 1), shape[0], 0))
 
 
+def nonzero_box(nonzero: np.ndarray):
+    """(r0, r1, c0, c1) of the True pixels of a (H, W) bool array (ints), or None: a
+    cutout and its effects cover a small part of a large photo, and only that box is
+    worked on. The columns are searched on the box's rows only."""
+    rows = np.flatnonzero(nonzero.any(axis=1))
+    if rows.size == 0:
+        return None
+    r0, r1 = int(rows[0]), int(rows[-1]) + 1
+    cols = np.flatnonzero(nonzero[r0:r1].any(axis=0))
+    return r0, r1, int(cols[0]), int(cols[-1]) + 1
+
+
+def shrink_part(part: np.ndarray, origin, full_shape, shape) -> np.ndarray:
+    """``resize`` to ``shape`` of a (H, W, C) image that is 0 outside ``part``, the
+    block of it whose top-left pixel is ``origin`` (row, col): each output pixel
+    from the same taps and weights as ``resample.resize`` (columns, then rows)."""
+    H, W = full_shape
+    h, w = (int(s_) for s_ in shape)
+    C = part.shape[2]
+    out = np.zeros((h, w, C), np.float32)
+    R0, C0 = (int(o) for o in origin)
+    R1, C1 = R0 + part.shape[0], C0 + part.shape[1]
+    ridx, rwt = _axis_weights(H, h) if H != h else (np.arange(H)[:, None], np.ones((H, 1), np.float32))
+    cidx, cwt = _axis_weights(W, w) if W != w else (np.arange(W)[:, None], np.ones((W, 1), np.float32))
+    orow = np.flatnonzero(((ridx >= R0) & (ridx < R1) & (rwt > 0)).any(axis=1))
+    ocol = np.flatnonzero(((cidx >= C0) & (cidx < C1) & (cwt > 0)).any(axis=1))
+    if orow.size == 0 or ocol.size == 0:
+        return out
+    o0, o1, p0, p1 = orow[0], orow[-1] + 1, ocol[0], ocol[-1] + 1
+    ri, rw = ridx[o0:o1], rwt[o0:o1]
+    ci, cw = cidx[p0:p1], cwt[p0:p1]
+    lo, hi = int(ri.min()), int(ri.max()) + 1          # input rows read (may reach outside the part: 0)
+    clo, chi = int(ci.min()), int(ci.max()) + 1
+    block = np.zeros((hi - lo, chi - clo, C), np.float32)
+    a, b = max(lo, R0), min(hi, R1)
+    c, d = max(clo, C0), min(chi, C1)
+    block[a - lo:b - lo, c - clo:d - clo] = part[a - R0:b - R0, c - C0:d - C0]
+    for k in range(C):
+        colpass = np.einsum("rot,ot->ro", np.ascontiguousarray(block[:, :, k])[:, ci - clo], cw)
+        out[o0:o1, p0:p1, k] = np.einsum("otx,ot->ox", colpass[ri - lo], rw)
+    return out
+
+
 def ceil_to(x: float, m: int) -> int:
     return int(m * math.ceil(x / m - 1e-9))
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .resample import Window, _axis_weights, resize
+from .resample import Window, _axis_weights, nonzero_box, resize, shrink_part
 from .shadow import soft_shadow
 
 #: ``proxy="auto"``: images whose longer side is at most this are traced at
@@ -112,14 +112,6 @@ def support_box(active_lo: np.ndarray, shape, pad: int = 2):
             max(0, int(np.floor(c * W / w))), min(W, int(np.ceil(d * W / w))))
 
 
-def _taps_range(idx: np.ndarray, wts: np.ndarray, lo: int, hi: int):
-    """The outputs [o0, o1) of a 1-D resize (``_axis_weights``) with a nonzero tap on
-    inputs [lo, hi), or None."""
-    hit = ((idx >= lo) & (idx < hi) & (wts > 0)).any(axis=1)
-    o = np.flatnonzero(hit)
-    return (int(o[0]), int(o[-1]) + 1) if o.size else None
-
-
 def _shrink_rows_first(a: np.ndarray, shape) -> np.ndarray:
     """``resize(a, shape)`` (the same antialiased bilinear weights) made rows first,
     one tap at a time: a tap reads whole rows, which is ~1.6x faster than the
@@ -137,49 +129,43 @@ def _shrink_rows_first(a: np.ndarray, shape) -> np.ndarray:
     return np.einsum("rot,ot->ro", rows[:, cidx], cwt)
 
 
-def proxy_scene(win: Window, mask, fg_height, bg_height):
-    """``win.scene(mask, fg_height, bg_height)`` of a whole-image window (``Window.whole``):
-    the two maps that are zero off the cutout (its coverage and its height) resized
-    only over the cutout's box (a cutout covers a small part of a 20 MP photo), the
-    same numbers; the background's height rows first (``_shrink_rows_first``), the
-    same up to float rounding.
-
-    Returns (mask, fg_height, bg_height) at (out_h, out_w), heights in proxy pixels."""
+def cutout_scene(win: Window, mask, fg_height):
+    """The cutout's half of ``win.scene`` of a whole-image window: (mask, fg_height)
+    at (out_h, out_w), the same numbers, resized only over the cutout's box (the
+    two maps are zero off it, and a cutout covers a small part of a 20 MP photo;
+    ``resample.shrink_part``). Heights in proxy pixels."""
     mask = np.asarray(mask)
     H, W = mask.shape
-    if (win.x0, win.y0, win.w, win.h) != (0, 0, W, H):
-        raise ValueError(f"proxy_scene takes a whole-image window, got {win} for {W}x{H}")
     h, w = win.out_h, win.out_w
     inside = mask > 0.5
-    rows, cols = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
+    box = nonzero_box(inside)
+    if box is None:
+        return np.zeros((h, w), np.float32), np.zeros((h, w), np.float32)
+    r0, r1, c0, c1 = box
+    ins = inside[r0:r1, c0:c1]
+    fg = np.where(ins, np.nan_to_num(np.asarray(fg_height[r0:r1, c0:c1], np.float32)), 0.0)
+    part = np.stack([ins.astype(np.float32), fg.astype(np.float32)], axis=2)
+    cover, fg_sum = np.moveaxis(shrink_part(part, (r0, c0), (H, W), (h, w)), 2, 0)
+    m = (cover > 0.5).astype(np.float32)
+    fg_w = np.where(cover > 1e-6, fg_sum / np.maximum(cover, 1e-6), 0.0) * win.ky * m
+    return m, fg_w.astype(np.float32)
+
+
+def proxy_scene(win: Window, mask, fg_height, bg_height):
+    """``win.scene(mask, fg_height, bg_height)`` of a whole-image window (``Window.whole``):
+    the cutout's coverage and height as :func:`cutout_scene` (the same numbers), the
+    background's height rows first (``_shrink_rows_first``), the same up to float
+    rounding.
+
+    Returns (mask, fg_height, bg_height) at (out_h, out_w), heights in proxy pixels."""
+    H, W = np.shape(mask)
+    if (win.x0, win.y0, win.w, win.h) != (0, 0, W, H):
+        raise ValueError(f"proxy_scene takes a whole-image window, got {win} for {W}x{H}")
+    m, fg_w = cutout_scene(win, mask, fg_height)
     bg = np.asarray(bg_height, np.float32)
     if not np.isfinite(bg.min() + bg.max()):      # one pass each; nan_to_num only when needed
         bg = np.nan_to_num(bg, nan=0.0, posinf=0.0, neginf=0.0)
-    bg_w = (_shrink_rows_first(bg, (h, w)) * win.ky).astype(np.float32)
-    m = np.zeros((h, w), np.float32)
-    fg_w = np.zeros((h, w), np.float32)
-    if rows.size == 0:
-        return m, fg_w, bg_w
-    r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
-    ridx, rwt = _axis_weights(H, h)
-    cidx, cwt = _axis_weights(W, w)
-    o0, o1 = _taps_range(ridx, rwt, r0, r1)
-    p0, p1 = _taps_range(cidx, cwt, c0, c1)
-    ins = inside[r0:r1, c0:c1]
-    fg = np.where(ins, np.nan_to_num(np.asarray(fg_height[r0:r1, c0:c1], np.float32)), 0.0).astype(np.float32)
-    # column pass on the box's rows (output columns p0..p1), zero rows elsewhere
-    planes = np.zeros((2, H, p1 - p0), np.float32)
-    ci, cw = cidx[p0:p1] - c0, cwt[p0:p1].copy()
-    off = (ci < 0) | (ci >= c1 - c0)               # taps outside the box read zeros
-    cw[off] = 0.0
-    ci = np.clip(ci, 0, c1 - c0 - 1)
-    for k, a in enumerate((ins.astype(np.float32), fg)):
-        planes[k, r0:r1] = np.einsum("rot,ot->ro", a[:, ci], cw)
-    ri, rw = ridx[o0:o1], rwt[o0:o1]
-    cover, fg_sum = (np.einsum("otc,ot->oc", planes[k][ri], rw) for k in range(2))
-    mm = (cover > 0.5).astype(np.float32)
-    m[o0:o1, p0:p1] = mm
-    fg_w[o0:o1, p0:p1] = np.where(cover > 1e-6, fg_sum / np.maximum(cover, 1e-6), 0.0) * win.ky * mm
+    bg_w = (_shrink_rows_first(bg, (win.out_h, win.out_w)) * win.ky).astype(np.float32)
     return m, fg_w, bg_w
 
 
