@@ -16,7 +16,12 @@ cylinders, cones, tori, surfaces of revolution, convex prisms):
   desk lamps, potted plants, sofas, shelves;
 * ``product``: bottles, vases, shoes, handbags, backpacks, parcels, cans,
   jars, open laptops;
-* ``vehicle``: cars, vans, trucks, bicycles, motorbikes.
+* ``vehicle``: cars, vans, trucks, bicycles, motorbikes;
+* ``organic``: smooth rounded things (soft unions of ellipsoids through
+  ``blob_surface``, a marching-cubes metaball): plush-like sitting or lying
+  creatures whose round head may overhang the body, rounded birds, bath-toy and
+  penguin-like figures, fish, random blobs, fruit and gourds, pebbles, cushions,
+  bean bags, rounded vases. Generic shapes, none modelled on a test mesh.
 
 None of pybullet_data's named meshes (duck, teddy, bunny, mug, table, lego,
 soccer ball, ...) is used: they are the held-out test objects.
@@ -33,7 +38,7 @@ import math
 
 import numpy as np
 
-CATEGORIES = ("person", "animal", "figurine", "furniture", "product", "vehicle")
+CATEGORIES = ("person", "animal", "figurine", "furniture", "product", "vehicle", "organic")
 
 
 class Parts:
@@ -611,6 +616,239 @@ def vehicle(rng):
     return P, "vehicle/" + kind
 
 
+# ---------------------------------------------------------------- organic (smooth rounded shapes)
+def blob_surface(C, radii, R=None, sharp=3.0, power=None, res=40, slots=None):
+    """A smooth closed surface around overlapping ellipsoids (a metaball / soft union).
+
+    ``C`` (n, 3) centres, ``radii`` (n, 3) semi-axes, ``R`` optional (n, 3, 3) rotations
+    (body axes -> world), ``power`` optional (n,) superquadric exponents (2 = ellipsoid,
+    larger = boxier, for cushions). The field is ``sum_i exp(-sharp (q_i - 1))`` with
+    ``q_i`` the i-th shape's normalised squared distance; the surface is its level 1, so
+    a lone shape is reproduced exactly and overlapping ones blend with a fillet whose
+    size falls as ``sharp`` grows. ``res`` grid cells along the largest extent
+    (marching cubes). ``slots`` (n,) int: a face gets the slot of the shape contributing
+    most at its centre. Returns ``(trimesh.Trimesh, face slots (m,) int64)``.
+    """
+    from skimage.measure import marching_cubes
+    tm = _tm()
+    C = np.asarray(C, float).reshape(-1, 3)
+    Rad = np.asarray(radii, float).reshape(-1, 3)
+    n = len(C)
+    Rm = np.broadcast_to(np.eye(3), (n, 3, 3)) if R is None else np.asarray(R, float)
+    pw = np.full(n, 2.0) if power is None else np.asarray(power, float)
+    ext = Rad.max(1)[:, None] * 1.15
+    lo, hi = (C - ext).min(0), (C + ext).max(0)
+    h = float((hi - lo).max()) / res
+    axes = [np.arange(lo[k] - h, hi[k] + 2 * h, h) for k in range(3)]
+    G = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
+    field = np.zeros(G.shape[:3])
+    contrib = np.zeros((n,) + G.shape[:3], np.float32) if slots is not None else None
+    for i in range(n):
+        L = ((G - C[i]) @ Rm[i]) / Rad[i]          # world -> body axes, normalised
+        q = (np.abs(L) ** pw[i]).sum(-1) ** (2.0 / pw[i])
+        c = np.exp(-sharp * np.minimum(q - 1.0, 30.0))
+        field += c
+        if contrib is not None:
+            contrib[i] = c
+    field = np.pad(field, 1)                         # closed surface: zero outside the grid
+    verts, faces, _, _ = marching_cubes(field, level=1.0, spacing=(h, h, h))
+    verts = verts + np.array([a[0] for a in axes]) - h
+    m = tm.Trimesh(verts, faces, process=True)
+    if m.volume < 0:
+        m.invert()
+    fs = np.zeros(len(m.faces), np.int64)
+    if slots is not None:
+        cen = (np.asarray(m.triangles_center) - (np.array([a[0] for a in axes]))) / h
+        ijk = np.clip(np.round(cen).astype(int), 0, np.array(field.shape) - 3)
+        best = contrib[:, ijk[:, 0], ijk[:, 1], ijk[:, 2]].argmax(0)
+        fs = np.asarray(slots, np.int64)[best]
+    return m, fs
+
+
+class _Blobs:
+    """Shapes collected for one blob_surface, each with a material slot name."""
+
+    def __init__(self):
+        self.C, self.r, self.R, self.p, self.slot = [], [], [], [], []
+
+    def add(self, c, r, slot, R=None, p=2.0):
+        self.C.append(np.asarray(c, float))
+        self.r.append(np.asarray(r, float) * np.ones(3))
+        self.R.append(np.eye(3) if R is None else np.asarray(R, float))
+        self.p.append(p)
+        self.slot.append(slot)
+
+    def into(self, P: Parts, rng, sharp=None, res=40):
+        names = list(dict.fromkeys(self.slot))
+        m, fs = blob_surface(self.C, self.r, self.R, sharp if sharp is not None else rng.uniform(2.0, 5.0),
+                             self.p, res, [names.index(s) for s in self.slot])
+        # one Parts entry per slot (faces split by slot)
+        for k, nm in enumerate(names):
+            sel = fs == k
+            if sel.any():
+                P.add(m.submesh([np.nonzero(sel)[0]], append=True, repair=False), nm)
+        return m
+
+
+def _eyes(P, rng, head_c, head_r, fwd=np.array([0.0, 0.0, 1.0])):
+    """Two small dark beads on the front of a round head."""
+    u = rng.uniform
+    if rng.random() < 0.25:
+        return
+    sp, up = u(0.3, 0.55), u(0.05, 0.35)
+    side = np.cross([0.0, 1.0, 0.0], fwd)
+    side /= max(np.linalg.norm(side), 1e-9)
+    for s in (-1, 1):
+        d = fwd * math.sqrt(max(1 - sp ** 2 - up ** 2, 0.05)) + side * s * sp + np.array([0, up, 0])
+        d /= np.linalg.norm(d)
+        P.add(ellipsoid(head_c + d * head_r * 0.97, [head_r * u(0.08, 0.15)] * 3, subdiv=1), "eye")
+
+
+def organic(rng):
+    """Smooth, rounded, organic things (module doc): plush-like creatures, rounded birds and
+    bath toys, fish, blobs, fruit and gourds, pebbles, cushions and bean bags, rounded vases."""
+    u = rng.uniform
+    P = Parts()
+    kind = str(rng.choice(["plush", "plush_loaf", "bird", "fish", "blob", "fruit", "pebble",
+                           "cushion", "beanbag", "vase", "penguin"],
+                          p=[0.2, 0.1, 0.15, 0.05, 0.1, 0.1, 0.06, 0.07, 0.05, 0.06, 0.06]))
+    one = rng.random() < 0.5          # a single material for the whole body
+    B = _Blobs()
+    body_s = "fabric" if rng.random() < 0.6 else "plastic"
+    head_s = body_s if one else "head"
+    acc = body_s if one else "accent"
+    if kind == "plush":                 # sitting creature, round head that may overhang the body
+        bw, bh, bd = u(0.35, 0.55), u(0.4, 0.7), u(0.3, 0.5)
+        bc = np.array([0, bh, 0.0])
+        B.add(bc, [bw, bh, bd], body_s)
+        hr = u(0.3, 0.55) * (bw + bh) / 1.6 * 1.6
+        hc = bc + np.array([0, bh * u(0.8, 1.05) + hr * u(0.5, 0.9), bd * u(-0.1, 0.8)])
+        B.add(hc, [hr * u(0.95, 1.15), hr, hr * u(0.9, 1.05)], head_s)
+        if rng.random() < 0.7:          # muzzle
+            B.add(hc + np.array([0, -hr * u(0.1, 0.35), hr * 0.85]), [hr * 0.4, hr * 0.3, hr * 0.3], acc)
+        er = hr * u(0.2, 0.4)           # ears: round, or long (rabbit-like)
+        long_ears = rng.random() < 0.25
+        for s in (-1, 1):
+            ang = math.radians(u(15, 45))
+            ec = hc + np.array([s * hr * math.sin(ang), hr * math.cos(ang), -hr * 0.1])
+            if long_ears:
+                B.add(ec + np.array([0, hr * 0.6, 0]), [er * 0.6, hr * u(0.6, 1.0), er * 0.4], head_s,
+                      R=rot_z(-s * u(0.0, 0.5)))
+            else:
+                B.add(ec, [er, er, er * 0.55], head_s)
+            # stubby arms on the body's front sides, legs sticking forward
+            B.add(bc + np.array([s * bw * 0.85, bh * u(0.0, 0.4), bd * 0.4]), [bw * 0.3, bh * 0.45, bw * 0.3],
+                  body_s, R=rot_z(s * u(0.2, 0.7)) @ rot_x(u(-0.6, 0.2)))
+            lr = bw * u(0.28, 0.4)
+            B.add(np.array([s * bw * 0.5, lr, bd * u(0.5, 1.0)]), [lr, lr, lr * u(1.2, 1.8)],
+                  acc if rng.random() < 0.3 else body_s)
+        B.into(P, rng)
+        _eyes(P, rng, hc, hr)
+    elif kind == "plush_loaf":         # lying creature: long body, head at the front, higher up
+        L, r = u(0.5, 0.9), u(0.25, 0.4)
+        bc = np.array([0, r, 0.0])
+        B.add(bc, [r * u(0.9, 1.2), r, L], body_s)
+        hr = r * u(0.7, 1.1)
+        hc = np.array([0, r * u(1.2, 1.9), L * u(0.75, 1.05)])
+        B.add(hc, [hr, hr * u(0.85, 1.0), hr], head_s)
+        for s in (-1, 1):
+            B.add(hc + np.array([s * hr * 0.6, hr * 0.75, -hr * 0.1]), [hr * 0.3, hr * 0.35, hr * 0.18], head_s)
+            for z in (L * 0.6, -L * 0.6):
+                B.add([s * r * 0.7, r * 0.3, z], [r * 0.3, r * 0.3, r * 0.45], body_s)
+        if rng.random() < 0.6:
+            B.add([0, r * u(0.8, 1.6), -L * 1.1], [r * 0.2, r * 0.2, r * u(0.5, 0.8)], body_s, R=rot_x(u(-0.8, 0.2)))
+        B.into(P, rng)
+        _eyes(P, rng, hc, hr)
+    elif kind in ("bird", "penguin"):  # rounded bird / bath toy: head above the front of the body
+        if kind == "bird":
+            L, r = u(0.45, 0.75), u(0.25, 0.4)
+            tilt = rot_x(u(-0.5, 0.1))
+            bc = np.array([0, r * u(0.8, 1.0), 0.0])
+            B.add(bc, [r * u(0.9, 1.2), r, L], body_s, R=tilt)
+            hr = r * u(0.55, 0.85)
+            hc = np.array([0, bc[1] + r * u(0.7, 1.3) + hr * 0.6, L * u(0.35, 0.8)])
+            B.add(hc, [hr] * 3, head_s)
+            B.add([0, bc[1] + r * u(0.2, 0.8), -L * u(0.8, 1.0)], [r * 0.4, r * 0.25, r * 0.6], body_s,
+                  R=rot_x(u(-0.9, -0.2)))   # tail, up at the back
+            for s in (-1, 1):           # wings
+                B.add(bc + np.array([s * r * 0.85, r * 0.2, -L * 0.1]), [r * 0.2, r * 0.5, L * 0.6], body_s)
+            B.into(P, rng)
+            # beak: flattened and forward, its own part
+            bk = hc + np.array([0, -hr * u(0.0, 0.3), hr * 0.8])
+            P.add(ellipsoid(bk + np.array([0, 0, hr * 0.35]), [hr * u(0.3, 0.5), hr * u(0.1, 0.2), hr * u(0.35, 0.7)]),
+                  "beak")
+        else:   # penguin / egg-shaped figure
+            r, H = u(0.3, 0.45), u(0.9, 1.4)
+            B.add([0, r * 1.1, 0], [r, r * 1.1, r * 0.9], body_s)
+            hr = r * u(0.6, 0.85)
+            hc = np.array([0, r * 1.1 + H * r, r * u(0.0, 0.3)])
+            B.add(hc, [hr] * 3, head_s)
+            B.add([0, r * 1.1 + H * r * 0.5, 0], [r * 0.8, H * r * 0.5, r * 0.75], body_s)
+            for s in (-1, 1):
+                B.add([s * r * 0.95, r * 1.3, 0], [r * 0.15, r * 0.6, r * 0.35], acc, R=rot_z(s * 0.3))
+                B.add([s * r * 0.4, r * 0.1, r * 0.5], [r * 0.25, r * 0.1, r * 0.35], acc)
+            B.into(P, rng)
+            P.add(ellipsoid(hc + np.array([0, -hr * 0.1, hr * 1.0]), [hr * 0.25, hr * 0.15, hr * 0.4]), "beak")
+        _eyes(P, rng, hc, hr)
+    elif kind == "fish":
+        L, r = u(0.5, 0.9), u(0.15, 0.3)
+        B.add([0, r * 1.6, 0], [r * u(0.5, 0.8), r * 1.5, L], body_s)
+        B.add([0, r * 1.6, -L * 1.1], [r * 0.12, r * 1.3, r * 0.5], acc)
+        B.add([0, r * 3.0, -L * 0.1], [r * 0.1, r * 0.6, L * 0.4], acc)
+        B.into(P, rng)
+        _eyes(P, rng, np.array([0, r * 1.9, L * 0.7]), r * 0.8)
+    elif kind == "blob":               # a random soft union of 3-8 ellipsoids
+        n = int(rng.integers(3, 9))
+        c = np.zeros(3)
+        for i in range(n):
+            rr = u(0.15, 0.45, 3)
+            B.add(c.copy(), rr, body_s if (one or rng.random() < 0.6) else "accent",
+                  R=rot_y(u(0, 6.3)) @ rot_x(u(-0.6, 0.6)))
+            step = rng.normal(size=3)   # the next one overlaps this one (one connected body)
+            c = c + step / np.linalg.norm(step) * rr.mean() * u(0.5, 1.0)
+        B.into(P, rng)
+    elif kind == "fruit":              # apple / pear / gourd: stacked spheres along a bent axis, a stem
+        n = int(rng.integers(1, 4))
+        y, r = 0.0, u(0.3, 0.5)
+        x = 0.0
+        for i in range(n):
+            y += r * (0.9 if i == 0 else u(0.5, 0.9))
+            B.add([x, y, 0], [r * u(0.9, 1.1), r * u(0.8, 1.1), r * u(0.9, 1.1)], body_s)
+            top = y + r
+            r *= u(0.55, 0.85)
+            x += r * u(-0.3, 0.3)
+        B.into(P, rng)
+        P.add(capsule([x, top - 0.02, 0], [x + u(-0.05, 0.05), top + u(0.05, 0.18), u(-0.05, 0.05)], 0.02, 6),
+              "stem")
+    elif kind == "pebble":
+        a = u(0.3, 0.6)
+        for i in range(int(rng.integers(1, 4))):
+            B.add(rng.normal(size=3) * a * 0.25 * np.array([1, 0.3, 1]) + [0, a * 0.4, 0],
+                  [a * u(0.6, 1.0), a * u(0.25, 0.55), a * u(0.5, 0.9)], body_s, R=rot_y(u(0, 6.3)))
+        B.into(P, rng, sharp=u(1.5, 3.0))
+    elif kind == "cushion":            # a rounded box, flat or standing, possibly with a dent
+        w, h, d = u(0.4, 0.7), u(0.1, 0.25), u(0.4, 0.7)
+        standing = rng.random() < 0.5
+        R = rot_x(math.pi / 2 + u(-0.35, 0.0)) if standing else np.eye(3)
+        B.add([0, 0.0, 0], [w, h, d], body_s, R=R, p=u(3.0, 6.0))
+        B.into(P, rng, sharp=u(3.0, 6.0))
+    elif kind == "beanbag":            # a big squashed sack with a droopy top
+        r = u(0.5, 0.8)
+        B.add([0, r * 0.6, 0], [r, r * 0.6, r], body_s)
+        B.add([u(-0.2, 0.2) * r, r * u(0.9, 1.3), u(-0.3, 0.3) * r], [r * 0.7, r * 0.45, r * 0.7], body_s)
+        B.into(P, rng, sharp=u(1.5, 3.0))
+    else:   # vase: a smooth bulbous profile, revolved
+        ys = np.linspace(0, 1, 13) * u(0.6, 1.4)
+        k = rng.normal(size=3)
+        t = ys / ys[-1]
+        prof = u(0.2, 0.4) * (1 + 0.6 * np.exp(-((t - u(0.2, 0.6)) / 0.25) ** 2) * abs(k[0])
+                              - 0.4 * np.exp(-((t - u(0.7, 0.95)) / 0.12) ** 2) * min(abs(k[1]), 1.2))
+        prof = np.clip(prof, 0.05, None)
+        profile = [(0.0, 0.0)] + list(zip(prof, ys)) + [(0.0, ys[-1])]
+        P.add(revolve(profile, 24), body_s)
+    return P, "organic/" + kind
+
+
 def make_object(category: str, rng: np.random.Generator):
     """(V, F, face material slot, slot names, kind) of a random object of ``category`` (module doc)."""
     if category == "person":
@@ -627,6 +865,8 @@ def make_object(category: str, rng: np.random.Generator):
         P, kind = product(rng)
     elif category == "vehicle":
         P, kind = vehicle(rng)
+    elif category == "organic":
+        P, kind = organic(rng)
     else:
         raise ValueError(f"unknown category {category!r}; known: {', '.join(CATEGORIES)}")
     V, F, L, names = P.build()

@@ -247,13 +247,16 @@ def render_cutout(camera, V, F, rng: np.random.Generator, subsamples: int = 2):
     return rgb, alpha.reshape(H, W), m, height.reshape(H, W)
 
 
-def make_sample(split: str, index: int, seed: int = 0, res: int = 256, mix: str = "v2"):
+def make_sample(split: str, index: int, seed: int = 0, res: int = 256, mix: str = "v2",
+                category: str | None = None):
     """One sample of ``split``. ``mix``: ``v2`` (the random-shape mix of the second model,
     unchanged) or ``real`` (``pixgraph_lab.height.real``: people, animals, figurines,
     furniture, products, vehicles; test = pybullet_data's named meshes)."""
-    if mix == "real":
+    if mix in ("real", "real_organic"):
         from .real import make_real_sample
-        return make_real_sample(split, index, seed, res)
+        return make_real_sample(split, index, seed, res, mix, category)
+    if category is not None:
+        raise ValueError("--category needs --mix real or real_organic")
     from pixgraph_nodes.ops.camera import Camera
     rng = np.random.default_rng([seed, 7, SPLIT_CODE[split], index])
     urdfs, procs = object_pool(split)
@@ -315,9 +318,11 @@ def main(argv=None) -> int:
     ap.add_argument("--res", type=int, default=256)
     ap.add_argument("--out", required=True)
     ap.add_argument("--threads", type=int, default=1, help="Dr.Jit worker threads")
-    ap.add_argument("--mix", choices=("v2", "real"), default="v2",
+    ap.add_argument("--mix", choices=("v2", "real", "real_organic"), default="v2",
                     help="object mix: v2 = random shapes (the second model), real = things people cut out "
-                         "(pixgraph_lab.height.real)")
+                         "(pixgraph_lab.height.real), real_organic = real plus 20 %% smooth rounded things")
+    ap.add_argument("--category", default=None,
+                    help="with --mix real*: only this procedural category (e.g. organic; train/val only)")
     a = ap.parse_args(argv)
     from pixgraph_lab.datagen.raycast import select_variant
     variant = select_variant()
@@ -329,7 +334,7 @@ def main(argv=None) -> int:
         p = os.path.join(a.out, f"{i:05d}.npz")
         if os.path.exists(p):
             continue
-        arrays, meta = make_sample(a.split, i, a.seed, a.res, a.mix)
+        arrays, meta = make_sample(a.split, i, a.seed, a.res, a.mix, a.category)
         tmp = p + ".tmp"
         with open(tmp, "wb") as fh:
             np.savez_compressed(fh, meta=np.array(json.dumps(meta)), **arrays)
@@ -341,6 +346,7 @@ def main(argv=None) -> int:
     dt = time.perf_counter() - t0
     cfg = {"command": " ".join(["python -m pixgraph_lab.height.generate"] + (argv or sys.argv[1:])),
            "split": a.split, "n": a.n, "start": a.start, "seed": a.seed, "res": a.res, "mix": a.mix,
+           "category": a.category,
            "mitsuba_variant": variant, "new_samples": made, "seconds": dt}
     with open(os.path.join(a.out, f"config_{a.start}.json"), "w") as fh:
         json.dump(cfg, fh, indent=1)

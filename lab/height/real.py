@@ -27,7 +27,13 @@ balance. Alpha: 2x2 sub-pixel coverage, then like matting output: blurred
 a pixel, 30 %). Colour: photo degradations: blur (30 %), Gaussian noise (0-3 %),
 JPEG quality 40-95 (60 %). ``height`` and ``mask`` stay exact (centre rays).
 
-Sample ``i`` depends only on ``(seed, split, i)`` (``default_rng([seed, 11, split, i])``).
+``--mix real_organic`` draws the same categories in the same proportions scaled by
+0.8 plus 20 % ``organic`` (smooth rounded things, ``categories.organic``; poses
+upright 70 %, tilted 15 %, lying 10 %, random 5 %); ``--category organic`` makes
+samples of that category only (how the fifth candidate's extra data was made).
+
+Sample ``i`` depends only on ``(seed, split, i)`` (``default_rng([seed, 11, split, i])``;
+with ``--category C``: ``default_rng([seed, 13, split, i, CATEGORIES.index(C)])``).
 """
 from __future__ import annotations
 
@@ -54,10 +60,14 @@ NAMED = {   # id: (file under pybullet_data, up axis of the file)
     "named:torus": ("torus/torus_textured.obj", "y"),
     "named:tray": ("tray/tray_textured2.obj", "z"),
 }
-CATEGORY_P = {"person": 0.3, "animal": 0.15, "figurine": 0.15, "furniture": 0.17, "product": 0.13,
-              "vehicle": 0.1}
+CATEGORY_P_REAL = {"person": 0.3, "animal": 0.15, "figurine": 0.15, "furniture": 0.17, "product": 0.13,
+                   "vehicle": 0.1}   # --mix real: the fourth model's data (unchanged, so it regenerates)
+ORGANIC_SHARE = 0.2
+# --mix real_organic: the same categories in the same proportions, plus 20 % organic
+CATEGORY_P = {**{k: v * (1 - ORGANIC_SHARE) for k, v in CATEGORY_P_REAL.items()}, "organic": ORGANIC_SHARE}
 REAL_POSES = ("upright", "tilted", "lying", "random")
 REAL_POSE_P = (0.8, 0.1, 0.06, 0.04)
+ORGANIC_POSE_P = (0.7, 0.15, 0.1, 0.05)   # rounded things lean and lie more often
 
 
 @functools.lru_cache(maxsize=None)
@@ -235,18 +245,36 @@ def degrade(srgb8, rng):
     return out, ops
 
 
-def make_real_sample(split: str, index: int, seed: int = 0, res: int = 256):
-    from pixgraph_lab.datagen.categories import make_object
+def make_real_sample(split: str, index: int, seed: int = 0, res: int = 256, mix: str = "real",
+                     category: str | None = None):
+    """One sample (arrays, meta). ``mix``: ``real`` (the fourth model's categories, module doc)
+    or ``real_organic`` (the same plus 20 % ``organic``). ``category``: only that procedural
+    category (train/val only; its own random stream ``[seed, 13, split, index, category
+    number]``, so organic-only samples are not copies of mixed ones)."""
+    from pixgraph_lab.datagen.categories import CATEGORIES, make_object
     from pixgraph_nodes.ops.camera import Camera
-    rng = np.random.default_rng([seed, 11, SPLIT_CODE[split], index])
+    if mix not in ("real", "real_organic"):
+        raise ValueError(f"unknown mix {mix!r}; known: real, real_organic")
+    if category is not None:
+        if category not in CATEGORIES:
+            raise ValueError(f"unknown category {category!r}; known: {', '.join(CATEGORIES)}")
+        if split == "test":
+            raise ValueError("the test split is the named meshes only; --category is for train/val")
+        rng = np.random.default_rng([seed, 13, SPLIT_CODE[split], index, CATEGORIES.index(category)])
+    else:
+        rng = np.random.default_rng([seed, 11, SPLIT_CODE[split], index])
     t0 = time.perf_counter()
-    cats = list(CATEGORY_P)
+    cat_p = CATEGORY_P if mix == "real_organic" else CATEGORY_P_REAL
+    cats = list(cat_p)
     for tries in range(1, 200):
         kind, slots, names = None, None, ["body"]
         if split == "test":
             obj = list(NAMED)[rng.integers(len(NAMED))]
             V0, F = named_mesh(obj)
-            category = obj
+            category_ = obj
+        elif category is not None:
+            V0, F, slots, names, kind = make_object(category, rng)
+            obj, category_ = kind, category
         elif rng.random() < 0.15:
             urdfs, procs = object_pool(split)
             obj = urdfs[rng.integers(len(urdfs))] if rng.random() >= 0.3 else procs[rng.integers(len(procs))]
@@ -254,14 +282,14 @@ def make_real_sample(split: str, index: int, seed: int = 0, res: int = 256):
                 V0, F = raw_object(obj, rng)
             except ValueError:
                 continue
-            category = "v2"
+            category_ = "v2"
         else:
-            category = str(rng.choice(cats, p=list(CATEGORY_P.values())))
-            V0, F, slots, names, kind = make_object(category, rng)
+            category_ = str(rng.choice(cats, p=list(cat_p.values())))
+            V0, F, slots, names, kind = make_object(category_, rng)
             obj = kind
         if slots is None:
             slots = np.zeros(len(F), np.int64)
-        pose = str(rng.choice(REAL_POSES, p=REAL_POSE_P))
+        pose = str(rng.choice(REAL_POSES, p=ORGANIC_POSE_P if category_ == "organic" else REAL_POSE_P))
         V = pose_real(V0, pose, rng)
         cam = Camera(res, res, hfov=float(rng.uniform(30, 70)), horizon=0.0,
                      cam_height=float(np.exp(rng.uniform(np.log(0.3), np.log(3.0)))))
@@ -275,7 +303,7 @@ def make_real_sample(split: str, index: int, seed: int = 0, res: int = 256):
             continue
         srgb8, ops = degrade(np.round(srgb_encode(rgb) * 255).astype(np.uint8), rng)
         meta = {"split": split, "index": index, "rng": [seed, 11, SPLIT_CODE[split], index], "mix": "real",
-                "object": obj, "category": category, "pose": pose, "overhang": is_overhang(mask, height),
+                "object": obj, "category": category_, "pose": pose, "overhang": is_overhang(mask, height),
                 "camera": cam.to_dict(), "object_height": float(V[:, 1].max()), "degradations": ops,
                 "mask_px": int(mask.sum()), "tries": tries, "seconds": time.perf_counter() - t0}
         arrays = {"rgb": srgb8, "alpha": np.round(alpha * 255).astype(np.uint8), "mask": mask,
