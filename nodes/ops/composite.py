@@ -3,7 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .memo import FrozenMemo
 from .resample import nonzero_box
+
+#: the box a frozen cutout touches (ops/memo.py): a light sweep composites the same cutout again and again
+_BOXES = FrozenMemo(size=4)
 
 
 def _hwc(a: np.ndarray, name: str) -> np.ndarray:
@@ -69,11 +73,15 @@ def _over_into(out: np.ndarray, fg_premultiplied: np.ndarray, alpha: np.ndarray)
     C = out.shape[2]
     ncol = 3 if C >= 3 else 1
     nf = min(fg.shape[2], 3)
-    touched = a != 0.0
-    for c in range(nf):
-        touched |= fg[:, :, c] != 0.0
-    box = nonzero_box(touched)
+    key = (fg_premultiplied, alpha)
+    box = _BOXES.get(key)
     if box is None:
+        touched = a != 0.0
+        for c in range(nf):
+            touched |= fg[:, :, c] != 0.0
+        box = nonzero_box(touched) or ()
+        _BOXES.put(key, None, box)
+    if not box:
         return
     r0, r1, c0, c1 = box
     ab = np.clip(a[r0:r1, c0:c1], 0.0, 1.0)
