@@ -472,6 +472,10 @@ def read_data(path: str | os.PathLike, white: float = 1.0) -> np.ndarray:
 
 
 def _write_atomic(oiio, path, spec, pixels: np.ndarray) -> None:
+    # no time stamp (OpenImageIO writes the clock's time into EXR and TIFF headers): the
+    # same pixels give the same bytes, so a file's digest says whether its image changed
+    spec.attribute("DateTime", "")
+
     def fill(f, via):
         out = oiio.ImageOutput.create("x" + os.path.splitext(str(path))[1])  # the format, by extension
         if out is None:
