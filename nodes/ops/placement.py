@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from .bands import for_bands
 from .lights import foot_of_mask
 
 
@@ -61,7 +62,8 @@ def _taps(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _resample(planes: np.ndarray, wy: np.ndarray, wx: np.ndarray, band: int = 256) -> np.ndarray:
     """(h, w, C) -> (len(wy), len(wx), C) with separable weights (``planes @`` the dense
     weights on each axis, computed as taps: ``_taps``, in float64); only the canvas rows
-    and columns the cutout reaches are computed, the columns in bands of ``band`` rows."""
+    and columns the cutout reaches are computed, ``band`` canvas rows at a time on the
+    machine's cores (ops/bands.py)."""
     out = np.zeros((wy.shape[0], wx.shape[0], planes.shape[2]), np.float32)
     rows = np.nonzero(wy.any(axis=1))[0]
     cols = np.nonzero(wx.any(axis=1))[0]
@@ -70,17 +72,18 @@ def _resample(planes: np.ndarray, wy: np.ndarray, wx: np.ndarray, band: int = 25
     r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
     iy, ay = _taps(wy[r0:r1])
     ix, ax = _taps(wx[c0:c1])
-    for c in range(planes.shape[2]):
-        p = planes[:, :, c].astype(np.float64)
-        t = ay[:, :1] * p[iy[:, 0]]                       # rows: (r1 - r0, w)
-        for k in range(1, iy.shape[1]):
-            t += ay[:, k:k + 1] * p[iy[:, k]]
-        for b0 in range(0, r1 - r0, band):
-            tb = t[b0:b0 + band]
-            acc = tb[:, ix[:, 0]] * ax[:, 0]              # columns: (band, c1 - c0)
+    p = [planes[:, :, c].astype(np.float64) for c in range(planes.shape[2])]
+
+    def rows(b0, b1):
+        for c, pc in enumerate(p):
+            t = ay[b0:b1, :1] * pc[iy[b0:b1, 0]]            # the band's rows: (b1 - b0, w)
+            for k in range(1, iy.shape[1]):
+                t += ay[b0:b1, k:k + 1] * pc[iy[b0:b1, k]]
+            acc = t[:, ix[:, 0]] * ax[:, 0]                  # its columns: (b1 - b0, c1 - c0)
             for k in range(1, ix.shape[1]):
-                acc += tb[:, ix[:, k]] * ax[:, k]
-            out[r0 + b0:r0 + b0 + len(tb), c0:c1, c] = acc
+                acc += t[:, ix[:, k]] * ax[:, k]
+            out[r0 + b0:r0 + b1, c0:c1, c] = acc
+    for_bands(rows, 0, r1 - r0, band)
     return out
 
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .bands import for_bands
 from .memo import FrozenMemo
 from .resample import Window, _axis_weights, nonzero_box, resize, shrink_part
 from .shadow import soft_shadow
@@ -81,8 +82,8 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
         cidx, cwt = cidx[c0b:c1b], cwt[c0b:c1b]
         cols = [np.einsum("rot,ot->ro", p_[:, cidx], cwt) for p_ in planes]      # (q1 - q0, c1 - c0) each
     out = np.empty((r1b - r0b, c1b - c0b), np.float32)
-    for r0 in range(r0b, r1b, band):
-        r1 = min(r1b, r0 + band)
+
+    def band_rows(r0, r1):
         ix, wt = idx[r0:r1], wts[r0:r1]
 
         def rows(c):
@@ -97,6 +98,7 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
             ok = side_hi & (den > 1e-3)
             res[ok] = num[ok] / den[ok]
         out[r0 - r0b:r1 - r0b] = res
+    for_bands(band_rows, r0b, r1b, band)        # on the machine's cores (ops/bands.py)
     return out
 
 
