@@ -21,7 +21,7 @@ Cases (the graphs are written next to the photo):
 * ``glossy``: the same scene with the floor glossy (Reflection: roughness 0.2,
   dielectric, receivers ground) and ReflectionComposite, as graphs/glossy_floor.yaml.
 
-Sizes: ``20mp`` (5120x3840), ``5mp`` (2560x1920), ``1280`` (1280x960), ``512``
+Sizes: ``50mp`` (8192x6144), ``20mp`` (5120x3840), ``5mp`` (2560x1920), ``1280`` (1280x960), ``512``
 (512x384); the cutout is placed at 0.8x (640 / photo width) its size.
 
 Each run is a fresh process (``pixgraph run`` as a user runs it) with an empty
@@ -52,7 +52,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 OUT = ROOT / "out" / "bench" / "photo"
 ASSETS = ROOT / "graphs" / "assets"
 #: (width, height) of each size; the own photo is 640x480 (4:3)
-SIZES = {"20mp": (5120, 3840), "5mp": (2560, 1920), "1280": (1280, 960), "512": (512, 384)}
+SIZES = {"50mp": (8192, 6144), "20mp": (5120, 3840), "5mp": (2560, 1920), "1280": (1280, 960), "512": (512, 384)}
 
 GRAPH = """pixgraph: 1
 nodes:

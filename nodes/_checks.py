@@ -14,6 +14,7 @@ import numpy as np
 
 from pixgraph.node import InputError
 from pixgraph_nodes.types import Shape
+from .ops.memo import frozen
 
 
 def same_size(camera=None, **arrays) -> tuple[int, int]:
@@ -80,26 +81,16 @@ def rgba(**images) -> None:
 _PASSED: dict[tuple[str, int], weakref.ref] = {}
 
 
-def _frozen(a) -> bool:
-    """True when no one can write ``a``'s numbers: it and every array it views are
-    read-only (the engine freezes every node output it hands on)."""
-    while isinstance(a, np.ndarray):
-        if a.flags.writeable:
-            return False
-        a = a.base
-    return a is None
-
-
 def _passed(check: str, a) -> bool:
     """``a`` is a frozen array that already passed ``check``: a batch's later rows feed
     the same upstream arrays (a 20-megapixel photo, its heights) to every row's nodes,
     whose checks need not read them again."""
     ref = _PASSED.get((check, id(a)))
-    return ref is not None and ref() is a and _frozen(a)
+    return ref is not None and ref() is a and frozen(a)
 
 
 def _remember(check: str, a) -> None:
-    if isinstance(a, np.ndarray) and _frozen(a):
+    if isinstance(a, np.ndarray) and frozen(a):
         key = (check, id(a))
         _PASSED[key] = weakref.ref(a, lambda _, key=key: _PASSED.pop(key, None))
 

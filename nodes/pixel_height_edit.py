@@ -18,9 +18,9 @@ class PixelHeightEdit(Node):
     derivations: pixgraph_nodes.ops.height_edit). ``contact_points`` (flat list u1, v1,
     u2, v2, ... in the cutout's pixels, u right, v down): where the object touches the
     ground — one point, two for a line, three or more for several feet. ``contact_mode``
-    ``shift`` keeps the input's shape and subtracts the affine ramp that puts every
-    contact point at height 0; ``upright`` replaces it by the height above the ground
-    line through the points. ``lying``: the object lies on the ground (each column's
+    ``shift`` keeps the input's shape up each column and subtracts a per-column
+    offset, linear in u, that puts the contact points at height 0; ``upright``
+    replaces it by the height above the ground line through the points. ``lying``: the object lies on the ground (each column's
     lowest pixel on it, nowhere higher than ``thickness`` px; 0 = half the silhouette's
     median column extent). ``tilt`` leans it away from (> 0) or toward (< 0) the camera
     about its contact, for a camera looking down by ``elevation``; a sideways lean needs
@@ -43,7 +43,7 @@ class PixelHeightEdit(Node):
                                             doc="u1, v1, u2, v2, ...: where the object touches the ground "
                                                 "(cutout pixels; empty: keep the input's contact)")
         contact_mode: str = param("shift", choices=("shift", "upright"),
-                                  doc="shift: keep the shape, put the contact points at 0; upright: "
+                                  doc="shift: keep the shape up each column, put the contact points at 0; upright: "
                                       "height above the ground line through the points")
         tilt: float = param(0.0, min=-80.0, max=80.0, unit="deg",
                             doc="lean away from (> 0) or toward (< 0) the camera about the contact")
@@ -58,7 +58,7 @@ class PixelHeightEdit(Node):
     class Outputs:
         height: T.PixelHeight = port(doc="edited pixel height [px], 0 outside the mask")
 
-    impl_version = "2"   # 2: the defaults pass the input through unchanged
+    impl_version = "3"   # 2: the defaults pass the input through unchanged; 3: shift is a per-column offset
 
     #: what a shell's page draws (read by pixgraph_serve): contact points, the tilt handle,
     #: the lying toggle, by these params; ``mask`` names the input with the coverage in

@@ -1,13 +1,11 @@
 """pixgraph.ReflectionComposite: background, shadow, reflection, refraction and cutout in linear light."""
 from __future__ import annotations
 
-import numpy as np
-
 from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, same_size
-from .ops.composite import _over_into, _shadow_into
+from .ops.composite import composite_layers
 
 
 @node("pixgraph.ReflectionComposite", version=1)
@@ -45,14 +43,10 @@ class ReflectionComposite(Node):
                   reflection=inputs.reflection, shadow=inputs.shadow, refraction=inputs.refraction)
         finite(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha,
                reflection=inputs.reflection, shadow=inputs.shadow, refraction=inputs.refraction)
-        out = np.array(inputs.background, np.float32)        # the one full-size copy, layered in place
-        if out.ndim == 2:
-            out = out[..., None]
-        if inputs.shadow is not None:
-            _shadow_into(out, inputs.shadow, params.opacity, params.tint)
+        layers = [(inputs.cutout, inputs.alpha)]
         if inputs.reflection is not None:
-            _over_into(out, inputs.reflection, inputs.reflection[..., 3])
-        _over_into(out, inputs.cutout, inputs.alpha)
+            layers.insert(0, (inputs.reflection, inputs.reflection[..., 3]))
         if inputs.refraction is not None:
-            _over_into(out, inputs.refraction, inputs.refraction[..., 3])
+            layers.append((inputs.refraction, inputs.refraction[..., 3]))
+        out = composite_layers(inputs.background, inputs.shadow, params.opacity, params.tint, layers)
         return {"image": out}

@@ -11,7 +11,7 @@ from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
 from .ops import choose as C
 from .ops.softness import softness_of
 from .ops.lights import disk_extremes, disk_samples, light_point
-from .ops.upsample import AUTO_MAX_SIDE, proxy_soft_shadow
+from .ops.upsample import AUTO_MAX_SIDE, lit_and_darkness, proxy_soft_shadow_parts
 from .ssn_soft_shadow import SoftShadowSSN
 
 
@@ -107,7 +107,9 @@ class Shadow(Node):
             samples = light_point(light, cam)[None]
         else:
             samples = disk_samples(light, cam, int(method.split(":")[1]), 0)
-        lit = proxy_soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, samples,
-                                params.thickness, side, progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        parts = proxy_soft_shadow_parts(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, samples,
+                                        params.thickness, side, progress=ctx.progress,
+                                        check_cancelled=ctx.check_cancelled)
+        lit, darkness = lit_and_darkness(*parts, np.shape(inputs.mask))
         finite_outputs(lit=lit)
-        return {"lit": lit, "darkness": np.subtract(np.float32(1.0), lit, dtype=np.float32)}
+        return {"lit": lit, "darkness": darkness}

@@ -9,7 +9,7 @@ from pixgraph.node import Node, node, param, port
 from ._checks import finite_outputs
 from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
 from .ops.lights import disk_samples, light_point
-from .ops.upsample import AUTO_MAX_SIDE, proxy_soft_shadow
+from .ops.upsample import AUTO_MAX_SIDE, lit_and_darkness, proxy_soft_shadow_parts
 
 
 @node("pixgraph.SoftShadow", version=1)
@@ -53,7 +53,9 @@ class SoftShadow(Node):
         else:  # every sample would be the same point: one hard shadow is the exact answer
             samples = light_point(light, cam)[None]
         side = max(inputs.mask.shape) if params.proxy == 0 else params.proxy
-        lit = proxy_soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, samples,
-                                params.thickness, side, progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        parts = proxy_soft_shadow_parts(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height, samples,
+                                        params.thickness, side, progress=ctx.progress,
+                                        check_cancelled=ctx.check_cancelled)
+        lit, darkness = lit_and_darkness(*parts, np.shape(inputs.mask))
         finite_outputs(lit=lit)
-        return {"lit": lit, "darkness": np.subtract(np.float32(1.0), lit, dtype=np.float32)}
+        return {"lit": lit, "darkness": darkness}

@@ -30,39 +30,44 @@ def test_one_contact_point_shifts_by_its_height():
     assert abs(he.sample_height(out, 10.5, 50.5)) < 1e-4
 
 
-def test_two_contact_points_remove_the_ramp_along_the_line_only():
+def test_two_contact_points_remove_a_ramp_across_the_columns_only():
     H, W = 50, 80
     u, v = grid(H, W)
     h = 40.0 + 0.3 * u                      # a map that rises to the right: the right foot 'floats'
     c = he.contact_correction(h, [(10.5, 45.5), (70.5, 45.5)])
-    # through both points exactly, and constant across the (horizontal) line: c = 40 + 0.3 u
     np.testing.assert_allclose(c, 40.0 + 0.3 * u, atol=1e-6)
-    # a slanted line: the ramp is along (d_u, d_v), constant across it
+    # a slanted line: the offset goes through both points' heights and is constant up each column
     p1, p2 = np.array([10.5, 40.5]), np.array([50.5, 20.5])
     hh = 2.0 * u - 1.0 * v
     c2 = he.contact_correction(hh, [tuple(p1), tuple(p2)])
     for p in (p1, p2):
         assert abs(he.sample_height(c2, *p) - he.sample_height(hh, *p)) < 1e-6
-    d = p2 - p1
-    n = np.array([-d[1], d[0]]) / np.linalg.norm(d)        # across the line
-    a = he.sample_height(c2, *(p1 + 5 * n))
-    assert abs(a - he.sample_height(c2, *p1)) < 1e-6
+    np.testing.assert_allclose(c2, np.broadcast_to(c2[:1], c2.shape), atol=1e-9)
+    # two points in one column: their mean
+    c3 = he.contact_correction(hh, [(30.5, 10.5), (30.5, 40.5)])
+    np.testing.assert_allclose(c3, (he.sample_height(hh, 30.5, 10.5) + he.sample_height(hh, 30.5, 40.5)) / 2)
 
 
-def test_three_feet_fit_the_plane_through_their_heights():
+def test_three_feet_remove_the_least_squares_column_offset_and_keep_the_slope_up_the_object():
     H, W = 64, 64
     u, v = grid(H, W)
-    h = 100.0 - v + 5.0 + 0.2 * u - 0.1 * v       # the true heights + a wrong affine offset
-    truth = 100.0 - v
-    feet = [(10.5, 60.5), (50.5, 60.5), (30.5, 55.5)]
+    truth = np.maximum(60.5 - v, 0.0)              # an upright object, contact at row 60.5
     m = np.ones((H, W), bool)
+    # front feet on the contact row, a back foot 12 rows up that the map gives 12 px (it took it
+    # for the body): a plane through the three would tilt by 1 px per row and wipe the map
+    h = truth + 5.0 + 0.2 * u                      # the object floats, more to the right
+    feet = [(10.5, 60.5), (50.5, 60.5), (30.5, 48.5)]
     out = he.edit_pixel_height(h, m, feet)
-    # the offset 5 + 0.2 u - 0.1 v is affine: removing the plane through the feet's errors... leaves
-    # truth minus the plane of truth at the feet (an affine function zero at the three feet)
-    expect = truth - he.contact_correction(truth, feet)
-    np.testing.assert_allclose(out, np.maximum(expect, 0), atol=1e-4)
-    for f in feet:
-        assert abs(he.sample_height(out, *f)) < 1e-3
+    hs = np.array([he.sample_height(h, *f) for f in feet])
+    fu = np.array([f[0] for f in feet])
+    A = np.c_[np.ones(3), fu]
+    a, b = np.linalg.lstsq(A, hs, rcond=None)[0]
+    np.testing.assert_allclose(out, np.maximum(h - (a + b * u), 0), atol=1e-4)
+    # the slope up each column is the input's: one px per row above the contact
+    assert np.allclose(np.diff(out[10:40, 32]), -1.0, atol=1e-4)
+    # the residuals at the feet are the least-squares ones (they sum to 0)
+    assert abs(sum(he.sample_height(h, *f) - (a + b * f[0]) for f in feet)) < 1e-6
+    assert out[5, 32] > 40
 
 
 def test_upright_mode_is_the_contact_line_model():

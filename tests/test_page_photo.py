@@ -318,6 +318,11 @@ def test_open_a_photo_of_20mp_in_the_page(browser, tmp_path):
     run_photo(browser, tmp_path, 5120, 3840)     # the server's default limits take it
 
 
+@pytest.mark.slow
+def test_open_a_photo_of_50mp_in_the_page(browser, tmp_path):
+    run_photo(browser, tmp_path, 8192, 6144)     # 50.3 MP: still under the default --max-pixels
+
+
 def test_drop_photo_and_rgba_cutout_on_the_image(browser, tmp_path):
     """Two files dropped on the image together: the larger is the photo, the RGBA one the cutout."""
     files = photo_files(str(tmp_path / "mine"), 960, 720, mask=False)

@@ -240,3 +240,21 @@ def test_soft_mattes_are_not_refined():
     a1 = place_cutout(rgba, soft, None, (200, 200), (100.0, 190.0), 3.0, smooth_edge=True)[1]
     a0 = place_cutout(rgba, soft, None, (200, 200), (100.0, 190.0), 3.0)[1]
     assert np.array_equal(a0, a1)
+
+
+@pytest.mark.parametrize("h, w, H, W, s, dy, dx", [(300, 200, 900, 600, 3.0, -3.3, 2.1),
+                                                   (500, 400, 200, 160, 0.37, 0.0, 0.0),
+                                                   (64, 80, 64, 80, 1.0, 0.25, -0.5),
+                                                   (100, 120, 257, 300, 2.3, 40.0, -60.0)])
+def test_resampling_by_taps_is_the_dense_weights_product(h, w, H, W, s, dy, dx):
+    """``_resample`` (taps, banded) equals ``wy @ plane @ wx.T`` with the dense weights,
+    enlarging, shrinking, at scale 1 and with the cutout partly off the canvas."""
+    from pixgraph_nodes.ops import placement as P
+    planes = np.random.default_rng(5).uniform(0, 1, (h, w, 3)).astype(np.float32)
+    sup = max(1.0, 1.0 / s)
+    wy = P._weights(h, (np.arange(H) + 0.5) / s + dy, sup)
+    wx = P._weights(w, (np.arange(W) + 0.5) / s + dx, sup)
+    want = np.stack([wy @ planes[:, :, c].astype(np.float64) @ wx.T for c in range(3)], axis=2)
+    got = P._resample(planes, wy, wx, band=37)
+    np.testing.assert_allclose(got, want.astype(np.float32), rtol=0, atol=2e-7)
+    assert (got[want == 0] == 0).all()

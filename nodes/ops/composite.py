@@ -3,7 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .bands import for_bands
+from .memo import FrozenMemo
 from .resample import nonzero_box
+
+#: the box a frozen cutout touches (ops/memo.py): a light sweep composites the same cutout again and again
+_BOXES = FrozenMemo(size=4)
 
 
 def _hwc(a: np.ndarray, name: str) -> np.ndarray:
@@ -15,26 +20,35 @@ def _hwc(a: np.ndarray, name: str) -> np.ndarray:
     return a
 
 
-def _shadow_into(out: np.ndarray, darkness: np.ndarray, opacity: float, tint) -> None:
-    """``apply_shadow`` in place on ``out`` (H, W, C) float32, only over the box
-    where the darkness is above 0 (elsewhere the factor is exactly 1)."""
+def _shadow_plan(shape, darkness: np.ndarray, opacity: float, tint):
+    """What ``apply_shadow`` needs, once: the darkness, the box where it is above 0
+    (elsewhere the factor is exactly 1) and each colour channel's factor scale; None
+    when nothing is shadowed."""
     d = np.asarray(darkness, dtype=np.float32)
-    if d.shape != out.shape[:2]:
-        raise ValueError(f"shadow is {d.shape[::-1]} but the background is {out.shape[1::-1]} (W, H)")
+    if d.shape != tuple(shape[:2]):
+        raise ValueError(f"shadow is {d.shape[::-1]} but the background is {tuple(shape[1::-1])} (W, H)")
     box = nonzero_box(d > 0.0)
     if box is None or opacity == 0.0:
-        return
-    r0, r1, c0, c1 = box
-    ncol = 3 if out.shape[2] >= 3 else 1
+        return None
+    ncol = 3 if shape[2] >= 3 else 1
     tint = np.asarray(tint, dtype=np.float32).reshape(-1)
     if tint.size == 1:
         tint = np.repeat(tint, ncol)
     t = tint[:ncol] if ncol == 3 else tint[:1]
+    return d, box, [np.float32(-float(opacity) * (1.0 - float(t[c]))) for c in range(ncol)]
+
+
+def _shadow_rows(out: np.ndarray, plan, r0: int, r1: int) -> None:
+    """``apply_shadow`` in place on the rows [r0, r1) of ``out`` (H, W, C) float32."""
+    d, (b0, b1, c0, c1), scales = plan
+    r0, r1 = max(r0, b0), min(r1, b1)
+    if r0 >= r1:
+        return
     sub = np.clip(d[r0:r1, c0:c1], np.float32(0.0), np.float32(1.0))
     factor = np.empty_like(sub)
-    for c in range(ncol):
+    for c, k in enumerate(scales):
         # bg * (1 - opacity * d * (1 - tint_c)), one channel at a time: no (H, W, 3) temporaries
-        np.multiply(sub, np.float32(-float(opacity) * (1.0 - float(t[c]))), out=factor)
+        np.multiply(sub, k, out=factor)
         factor += np.float32(1.0)
         out[r0:r1, c0:c1, c] *= factor
 
@@ -52,30 +66,40 @@ def apply_shadow(background: np.ndarray, darkness: np.ndarray, opacity: float = 
     box where the darkness is above 0 is computed (a 20 MP photo's shadow covers
     a part of it).
     """
-    bg = _hwc(background, "background")
-    out = bg.copy()
-    _shadow_into(out, darkness, opacity, tint)
+    out = composite_layers(background, darkness, opacity, tint)
     return out.reshape(np.shape(background)) if np.ndim(background) == 2 else out
 
 
-def _over_into(out: np.ndarray, fg_premultiplied: np.ndarray, alpha: np.ndarray) -> None:
-    """``over`` in place on ``out`` (the background, (H, W, C) float32), only over the
-    box where the cutout has coverage or colour (elsewhere the result is ``out``)."""
+def _over_plan(shape, fg_premultiplied: np.ndarray, alpha: np.ndarray):
+    """What ``over`` needs, once: the cutout, its coverage, the box where it has
+    coverage or colour (elsewhere the result is the background; remembered for a
+    frozen cutout, ``_BOXES``) and which of its channels go where; None when the
+    cutout touches nothing."""
     fg = _hwc(fg_premultiplied, "cutout")
     a = np.asarray(alpha, dtype=np.float32)
-    if fg.shape[:2] != out.shape[:2] or a.shape != out.shape[:2]:
+    if fg.shape[:2] != tuple(shape[:2]) or a.shape != tuple(shape[:2]):
         raise ValueError(f"cutout {fg.shape[1::-1]}, alpha {a.shape[::-1]} and background "
-                         f"{out.shape[1::-1]} must have the same size (W, H)")
+                         f"{tuple(shape[1::-1])} must have the same size (W, H)")
+    nf = min(fg.shape[2], 3)
+    key = (fg_premultiplied, alpha)
+    box = _BOXES.get(key)
+    if box is None:
+        touched = a != 0.0
+        for c in range(nf):
+            touched |= fg[:, :, c] != 0.0
+        box = nonzero_box(touched) or ()
+        _BOXES.put(key, None, box)
+    return (fg, a, box, nf) if box else None
+
+
+def _over_rows(out: np.ndarray, plan, r0: int, r1: int) -> None:
+    """``over`` in place on the rows [r0, r1) of ``out`` (the background, (H, W, C) float32)."""
+    fg, a, (b0, b1, c0, c1), nf = plan
+    r0, r1 = max(r0, b0), min(r1, b1)
+    if r0 >= r1:
+        return
     C = out.shape[2]
     ncol = 3 if C >= 3 else 1
-    nf = min(fg.shape[2], 3)
-    touched = a != 0.0
-    for c in range(nf):
-        touched |= fg[:, :, c] != 0.0
-    box = nonzero_box(touched)
-    if box is None:
-        return
-    r0, r1, c0, c1 = box
     ab = np.clip(a[r0:r1, c0:c1], 0.0, 1.0)
     keep = np.float32(1.0) - ab
     fb = fg[r0:r1, c0:c1]
@@ -104,16 +128,31 @@ def over(fg_premultiplied: np.ndarray, alpha: np.ndarray, background: np.ndarray
     alpha is ``alpha + bg_alpha (1 - alpha)``. Only the box the cutout touches is
     computed.
     """
-    out = _hwc(background, "background").copy()
-    _over_into(out, fg_premultiplied, alpha)
+    return composite_layers(background, layers=[(fg_premultiplied, alpha)])
+
+
+def composite_layers(background, darkness=None, opacity: float = 1.0, tint=(0.0, 0.0, 0.0), layers=(),
+                     band: int = 256) -> np.ndarray:
+    """The background darkened by the shadow (``apply_shadow``; none when ``darkness``
+    is None), then each ``(premultiplied colour, alpha)`` of ``layers`` over it in
+    order (``over``), in one copy of the background (H, W, C) float32 made a band of
+    ``band`` rows at a time on the machine's cores (ops/bands.py)."""
+    bg = _hwc(background, "background")
+    out = np.empty(bg.shape, np.float32)
+    shadow = None if darkness is None else _shadow_plan(out.shape, darkness, opacity, tint)
+    covers = [p for p in (_over_plan(out.shape, fg, a) for fg, a in layers) if p is not None]
+
+    def rows(r0, r1):
+        out[r0:r1] = bg[r0:r1]
+        if shadow is not None:
+            _shadow_rows(out, shadow, r0, r1)
+        for cover in covers:
+            _over_rows(out, cover, r0, r1)
+    for_bands(rows, 0, out.shape[0], band)
     return out
 
 
 def composite(background, cutout, alpha, darkness=None, opacity: float = 1.0, tint=(0.0, 0.0, 0.0)):
     """Shadow on the background (``apply_shadow``), then the cutout over it (``over``),
-    in one copy of the background."""
-    out = _hwc(background, "background").copy()
-    if darkness is not None:
-        _shadow_into(out, darkness, opacity, tint)
-    _over_into(out, cutout, alpha)
-    return out
+    in one copy of the background (``composite_layers``)."""
+    return composite_layers(background, darkness, opacity, tint, [(cutout, alpha)])

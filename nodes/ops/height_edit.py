@@ -10,12 +10,17 @@ image distance from an object point down to its foot on the ground).
 1. **Contact points** ``[(u1, v1), ...]`` (where the object touches the ground:
    one point, two for a line, three or more for several feet):
 
-   * ``contact_mode="shift"`` keeps the map's shape and subtracts the affine
-     correction ``c(u, v)`` that makes the height 0 at every contact point: a
-     constant for one point (its height), a ramp along the line for two (the
-     least-norm affine function through both: constant across the line), the
-     least-squares plane ``a + b u + d v`` through the points' heights for three
-     or more (exact when they are not collinear and there are three).
+   * ``contact_mode="shift"`` keeps the map's shape up each column and
+     subtracts a per-column offset ``c(u)``, linear across the columns, that
+     brings the contact points to height 0: a constant for one point (its
+     height), the line through both points' heights for two (exact), the
+     least-squares line ``a + b u`` for three or more (exact when two of them
+     share a column only if their heights agree). ``c`` does not vary with the
+     row ``v``: the contact says how far the object floats or sinks, not how its
+     height grows up a column, so feet at different rows (front and back feet)
+     cannot take away the map's own slope up the object (a plane ``a + b u +
+     d v`` through three feet did: ``d`` times the object's pixel height, often
+     the whole map).
    * ``contact_mode="upright"`` replaces the map by the height above the
      ground line through the points (the contact-line model of an upright object
      facing the camera): ``h = v_line(u) - v`` with ``v_line`` the row of the
@@ -84,26 +89,17 @@ def sample_height(height: np.ndarray, u: float, v: float) -> float:
 
 
 def contact_correction(height: np.ndarray, points) -> np.ndarray:
-    """The affine map c(u, v) (H, W) that ``contact_mode="shift"`` subtracts (module doc)."""
+    """The per-column offset c(u) (H, W) that ``contact_mode="shift"`` subtracts (module doc)."""
     P = _points(points)
     H, W = height.shape
-    v, u = np.mgrid[0:H, 0:W] + 0.5
+    u = np.broadcast_to(np.arange(W) + 0.5, (H, W))
     if len(P) == 0:
         return np.zeros((H, W))
     hs = np.array([sample_height(height, pu, pv) for pu, pv in P])
-    if len(P) == 1:
-        return np.full((H, W), hs[0])
-    if len(P) == 2:
-        # the ramp along the line p1 -> p2, constant across it (the smallest gradient through both)
-        d = P[1] - P[0]
-        n2 = float(d @ d)
-        if n2 < 1e-12:
-            return np.full((H, W), hs.mean())
-        s = ((u - P[0, 0]) * d[0] + (v - P[0, 1]) * d[1]) / n2
-        return hs[0] + (hs[1] - hs[0]) * s
-    A = np.c_[np.ones(len(P)), P]
-    coef = np.linalg.lstsq(A, hs, rcond=None)[0]
-    return coef[0] + coef[1] * u + coef[2] * v
+    if len(P) == 1 or np.ptp(P[:, 0]) < 1e-9:
+        return np.full((H, W), hs.mean())
+    b, a = np.polyfit(P[:, 0], hs, 1)
+    return a + b * u
 
 
 def ground_line(points) -> tuple[float, float]:

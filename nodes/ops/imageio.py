@@ -22,6 +22,7 @@ import numpy as np
 
 from pixgraph.node import InputError
 
+from .bands import for_bands
 from .png import write_png
 
 #: file extensions whose colour is linear float (everything else is sRGB-encoded)
@@ -120,16 +121,23 @@ def _decode_srgb8(data: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     H, W, C = data.shape
     ai = _alpha_channel(C)
     image = np.empty((H, W, C), np.float32)
+    table = _SRGB8_TO_LINEAR
     if ai is None:
-        np.take(_SRGB8_TO_LINEAR, data, out=image)
+        # bands of rows on the machine's cores (ops/bands.py); "clip" never clips (256
+        # entries for uint8 codes) but spares numpy a buffered copy of ``out``
+        for_bands(lambda r0, r1: np.take(table, data[r0:r1], out=image[r0:r1], mode="clip"), 0, H, 128)
         # a photo's coverage is all ones: a read-only broadcast of one value, not H*W floats
         return image, np.broadcast_to(np.float32(1.0), (H, W))
-    a = data[:, :, ai].astype(np.float32) * np.float32(1.0 / 255.0)
-    for c in range(C):
-        if c == ai:
-            image[:, :, c] = a
-        else:
-            image[:, :, c] = _SRGB8_TO_LINEAR[data[:, :, c]] * a
+    a = np.empty((H, W), np.float32)
+
+    def band(r0, r1):
+        np.multiply(data[r0:r1, :, ai], np.float32(1.0 / 255.0), out=a[r0:r1])
+        for c in range(C):
+            if c == ai:
+                image[r0:r1, :, c] = a[r0:r1]
+            else:
+                image[r0:r1, :, c] = table[data[r0:r1, :, c]] * a[r0:r1]
+    for_bands(band, 0, H, 128)
     return image, a
 
 
@@ -370,26 +378,27 @@ def _encode_srgb8(img: np.ndarray, ai: int | None, band: int = 256) -> np.ndarra
     lut = _LINEAR16_TO_SRGB8
     H, W, C = img.shape
     out = np.empty((H, W, C), np.uint8)
-    if ai is None:  # all channels through the table at once, into buffers reused band after band
-        level = np.empty((min(band, H), W, C), np.float32)
-        index = np.empty((min(band, H), W, C), np.uint16)
-        for r0 in range(0, H, band):
-            blk = img[r0:r0 + band]
-            t, ix = level[:len(blk)], index[:len(blk)]
-            np.clip(blk, 0.0, 1.0, out=t)
+    if ai is None:  # all channels through the table at once, a band's temporaries per band
+
+        def opaque(r0, r1):
+            t = np.clip(img[r0:r1], 0.0, 1.0)
             np.multiply(t, np.float32(65535.0), out=t)
             np.add(t, np.float32(0.5), out=t)
+            ix = np.empty(t.shape, np.uint16)
             np.copyto(ix, t, casting="unsafe")  # truncation of x + 0.5: rounding
-            np.take(lut, ix, out=out[r0:r0 + band])
+            np.take(lut, ix, out=out[r0:r1], mode="clip")
+        for_bands(opaque, 0, H, band)
         return out
-    for r0 in range(0, H, band):
-        blk = img[r0:r0 + band]
+
+    def straight(r0, r1):
+        blk = img[r0:r1]
         a = np.clip(blk[:, :, ai], 0.0, 1.0)
         colour = np.clip(_unpremultiply(np.delete(blk, ai, axis=2), a), 0.0, 1.0)
-        out[r0:r0 + band, :, ai] = np.round(a * 255.0).astype(np.uint8)
+        out[r0:r1, :, ai] = np.round(a * 255.0).astype(np.uint8)
         idx = (colour * np.float32(65535.0) + np.float32(0.5)).astype(np.uint16)
         for k, c in enumerate(c for c in range(C) if c != ai):
-            out[r0:r0 + band, :, c] = lut[idx[:, :, k]]
+            out[r0:r1, :, c] = lut[idx[:, :, k]]
+    for_bands(straight, 0, H, band)
     return out
 
 
@@ -472,6 +481,10 @@ def read_data(path: str | os.PathLike, white: float = 1.0) -> np.ndarray:
 
 
 def _write_atomic(oiio, path, spec, pixels: np.ndarray) -> None:
+    # no time stamp (OpenImageIO writes the clock's time into EXR and TIFF headers): the
+    # same pixels give the same bytes, so a file's digest says whether its image changed
+    spec.attribute("DateTime", "")
+
     def fill(f, via):
         out = oiio.ImageOutput.create("x" + os.path.splitext(str(path))[1])  # the format, by extension
         if out is None:

@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from .bands import for_bands
 from .lights import foot_of_mask
 
 
@@ -43,18 +44,46 @@ def _weights(n_src: int, x_src: np.ndarray, support: float) -> np.ndarray:
     return w[:, pad:pad + n_src]
 
 
-def _resample(planes: np.ndarray, wy: np.ndarray, wx: np.ndarray) -> np.ndarray:
-    """(h, w, C) -> (len(wy), len(wx), C) with separable weights; only the canvas rows
-    and columns the cutout reaches are multiplied."""
+def _taps(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Dense weights (n_out, n_src) as taps: ``idx``, ``wts`` (n_out, K), each row's
+    span of nonzero weights from its first (K = the widest span; taps past a row's
+    span have weight 0). A triangle filter reaches 2 source pixels when enlarging,
+    about 2 / s when shrinking by s: K is small whatever the sizes."""
+    nz = w != 0
+    some = nz.any(axis=1)
+    lo = np.where(some, nz.argmax(axis=1), 0)
+    hi = np.where(some, w.shape[1] - nz[:, ::-1].argmax(axis=1), 0)
+    K = max(1, int((hi - lo).max()))
+    idx = lo[:, None] + np.arange(K)
+    wts = np.take_along_axis(np.pad(w, ((0, 0), (0, K))), idx, axis=1)
+    return np.minimum(idx, w.shape[1] - 1), wts
+
+
+def _resample(planes: np.ndarray, wy: np.ndarray, wx: np.ndarray, band: int = 256) -> np.ndarray:
+    """(h, w, C) -> (len(wy), len(wx), C) with separable weights (``planes @`` the dense
+    weights on each axis, computed as taps: ``_taps``, in float64); only the canvas rows
+    and columns the cutout reaches are computed, ``band`` canvas rows at a time on the
+    machine's cores (ops/bands.py)."""
     out = np.zeros((wy.shape[0], wx.shape[0], planes.shape[2]), np.float32)
     rows = np.nonzero(wy.any(axis=1))[0]
     cols = np.nonzero(wx.any(axis=1))[0]
     if len(rows) == 0 or len(cols) == 0:
         return out
     r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-    a, b = wy[r0:r1], wx[c0:c1]
-    for c in range(planes.shape[2]):
-        out[r0:r1, c0:c1, c] = a @ planes[:, :, c].astype(np.float64) @ b.T
+    iy, ay = _taps(wy[r0:r1])
+    ix, ax = _taps(wx[c0:c1])
+    p = [planes[:, :, c].astype(np.float64) for c in range(planes.shape[2])]
+
+    def rows(b0, b1):
+        for c, pc in enumerate(p):
+            t = ay[b0:b1, :1] * pc[iy[b0:b1, 0]]            # the band's rows: (b1 - b0, w)
+            for k in range(1, iy.shape[1]):
+                t += ay[b0:b1, k:k + 1] * pc[iy[b0:b1, k]]
+            acc = t[:, ix[:, 0]] * ax[:, 0]                  # its columns: (b1 - b0, c1 - c0)
+            for k in range(1, ix.shape[1]):
+                acc += t[:, ix[:, k]] * ax[:, k]
+            out[r0 + b0:r0 + b1, c0:c1, c] = acc
+    for_bands(rows, 0, r1 - r0, band)
     return out
 
 

@@ -19,8 +19,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from .bands import for_bands
+from .memo import FrozenMemo
 from .resample import Window, _axis_weights, nonzero_box, resize, shrink_part
 from .shadow import soft_shadow
+
+#: proxy scenes of frozen full-size inputs (ops/memo.py): a light sweep or drag traces
+#: the same mask and heights again and again
+_SCENES = FrozenMemo(size=2)
 
 #: ``proxy="auto"``: images whose longer side is at most this are traced at
 #: full resolution; larger ones at a proxy of this longer side (docs/auto.md
@@ -76,8 +82,8 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
         cidx, cwt = cidx[c0b:c1b], cwt[c0b:c1b]
         cols = [np.einsum("rot,ot->ro", p_[:, cidx], cwt) for p_ in planes]      # (q1 - q0, c1 - c0) each
     out = np.empty((r1b - r0b, c1b - c0b), np.float32)
-    for r0 in range(r0b, r1b, band):
-        r1 = min(r1b, r0 + band)
+
+    def band_rows(r0, r1):
         ix, wt = idx[r0:r1], wts[r0:r1]
 
         def rows(c):
@@ -92,6 +98,7 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
             ok = side_hi & (den > 1e-3)
             res[ok] = num[ok] / den[ok]
         out[r0 - r0b:r1 - r0b] = res
+    for_bands(band_rows, r0b, r1b, band)        # on the machine's cores (ops/bands.py)
     return out
 
 
@@ -169,6 +176,39 @@ def proxy_scene(win: Window, mask, fg_height, bg_height):
     return m, fg_w, bg_w
 
 
+def proxy_soft_shadow_parts(device, mask, fg_height, bg_height, light_samples, thickness=1.0,
+                            max_side: int = AUTO_MAX_SIDE, *, progress=None, check_cancelled=None):
+    """:func:`proxy_soft_shadow` as parts: ``(full, box, part)``. At or below
+    ``max_side`` ``full`` is the whole lit fraction (H, W) and ``box``, ``part``
+    are None; above it ``full`` is None and the image is fully lit (1) except in
+    ``box`` = (r0, r1, c0, c1), where it is ``part`` (None when nothing is shadowed).
+    The proxy scene of frozen inputs is remembered (``_SCENES``)."""
+    mask = np.asarray(mask)
+    H, W = mask.shape
+    if max_side < 16:
+        raise ValueError(f"a proxy needs a longer side of at least 16 px, got {max_side}")
+    win = Window.whole(H, W, max_side)
+    if (win.out_h, win.out_w) == (H, W):
+        return soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness,
+                           progress=progress, check_cancelled=check_cancelled), None, None
+    inputs = (mask, fg_height, bg_height)
+    scene = _SCENES.get(inputs, (H, W, max_side))
+    if scene is None:
+        scene = proxy_scene(win, mask, fg_height, bg_height)
+        for a in scene:
+            a.flags.writeable = False
+        _SCENES.put(inputs, (H, W, max_side), scene)
+    m, fg, bg = scene
+    lit = soft_shadow(device, m, fg, bg, win.light_points(light_samples),
+                      max(thickness * win.ky, MIN_PROXY_THICKNESS), progress=progress,
+                      check_cancelled=check_cancelled)
+    box = support_box(lit < 1.0, (H, W))
+    if box is None:
+        return None, None, None
+    part = masked_resize(lit, m, mask, (H, W), box=box)
+    return None, box, np.clip(part, 0.0, 1.0, out=part)
+
+
 def proxy_soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness=1.0,
                       max_side: int = AUTO_MAX_SIDE, *, progress=None, check_cancelled=None) -> np.ndarray:
     """Lit fraction float32 (H, W) of :func:`shadow.soft_shadow`, traced on a copy of
@@ -177,22 +217,24 @@ def proxy_soft_shadow(device, mask, fg_height, bg_height, light_samples, thickne
     proxy but never below ``MIN_PROXY_THICKNESS`` proxy pixels. At or below
     ``max_side`` it is exactly ``soft_shadow``. progress, check_cancelled: as
     ``soft_shadow``'s (banded trace)."""
-    mask = np.asarray(mask)
-    H, W = mask.shape
-    if max_side < 16:
-        raise ValueError(f"a proxy needs a longer side of at least 16 px, got {max_side}")
-    win = Window.whole(H, W, max_side)
-    if (win.out_h, win.out_w) == (H, W):
-        return soft_shadow(device, mask, fg_height, bg_height, light_samples, thickness,
-                           progress=progress, check_cancelled=check_cancelled)
-    m, fg, bg = proxy_scene(win, mask, fg_height, bg_height)
-    lit = soft_shadow(device, m, fg, bg, win.light_points(light_samples),
-                      max(thickness * win.ky, MIN_PROXY_THICKNESS), progress=progress,
-                      check_cancelled=check_cancelled)
-    out = np.ones((H, W), np.float32)           # fully lit, except where the proxy's shadow reaches
-    box = support_box(lit < 1.0, (H, W))
+    return lit_and_darkness(*proxy_soft_shadow_parts(
+        device, mask, fg_height, bg_height, light_samples, thickness, max_side, progress=progress,
+        check_cancelled=check_cancelled), np.shape(mask), darkness=False)[0]
+
+
+def lit_and_darkness(full, box, part, shape, darkness: bool = True):
+    """(lit, darkness = 1 - lit) float32 (H, W) from :func:`proxy_soft_shadow_parts`'
+    ``(full, box, part)``; outside the box only the lit array is written (the
+    darkness is a fresh zero array: the system hands its pages over zeroed), so a
+    20-megapixel shadow costs one full-size fill, not two and a subtraction.
+    ``darkness=False``: (lit, None)."""
+    if full is not None:
+        return full, (np.subtract(np.float32(1.0), full, dtype=np.float32) if darkness else None)
+    lit = np.ones(shape, np.float32)
+    dark = np.zeros(shape, np.float32) if darkness else None
     if box is not None:
         r0, r1, c0, c1 = box
-        part = masked_resize(lit, m, mask, (H, W), box=box)
-        out[r0:r1, c0:c1] = np.clip(part, 0.0, 1.0, out=part)
-    return out
+        lit[r0:r1, c0:c1] = part
+        if darkness:
+            np.subtract(np.float32(1.0), part, out=dark[r0:r1, c0:c1])
+    return lit, dark

@@ -1,0 +1,72 @@
+"""Full-size array work a band of rows at a time, on the machine's cores.
+
+numpy releases the interpreter lock inside its loops, so the bands of a banded
+computation (decoding a photo through a table, compositing, enlarging a proxy
+shadow) can run on several threads at once: each band reads shared inputs and
+writes its own rows of a preallocated output, so the result is the same numbers
+as one thread's, band for band. ``PIXGRAPH_THREADS`` sets how many threads
+(default: the CPUs this process may run on); 1 runs every band in the caller.
+A band's function that itself calls :func:`for_bands` runs those bands in line
+(no pool inside the pool: a full pool waiting on itself would never finish).
+"""
+from __future__ import annotations
+
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+_POOL: ThreadPoolExecutor | None = None
+_LOCK = threading.Lock()
+_IN_BAND = threading.local()
+
+
+def workers() -> int:
+    """Threads for banded work: ``PIXGRAPH_THREADS`` or the CPUs this process may use."""
+    env = os.environ.get("PIXGRAPH_THREADS", "").strip()
+    if env:
+        try:
+            return max(1, int(env))
+        except ValueError:
+            raise ValueError(f"PIXGRAPH_THREADS must be a whole number of threads, got {env!r}") from None
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:          # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _pool(n: int) -> ThreadPoolExecutor:
+    global _POOL
+    with _LOCK:
+        if _POOL is None or _POOL._max_workers != n:
+            _POOL = ThreadPoolExecutor(max_workers=n, thread_name_prefix="pixgraph-band")
+        return _POOL
+
+
+def _run(fn, r0: int, r1: int) -> None:
+    _IN_BAND.on = True
+    try:
+        fn(r0, r1)
+    finally:
+        _IN_BAND.on = False
+
+
+def for_bands(fn, start: int, stop: int, band: int, min_bands: int = 2) -> None:
+    """``fn(r0, r1)`` for the consecutive bands ``[r0, r1)`` of ``band`` rows covering
+    ``[start, stop)``, on up to :func:`workers` threads; returns when every band is
+    done and re-raises the first band's error. Fewer than ``min_bands`` bands, one
+    worker, or a call from inside a band: in the caller's thread, in order."""
+    bands = [(r0, min(stop, r0 + band)) for r0 in range(start, stop, max(1, band))]
+    n = workers()
+    if n == 1 or len(bands) < min_bands or getattr(_IN_BAND, "on", False):
+        for r0, r1 in bands:
+            fn(r0, r1)
+        return
+    futures = [_pool(n).submit(_run, fn, r0, r1) for r0, r1 in bands]
+    error = None
+    for f in futures:               # wait for all, even after an error: no band still writing on return
+        try:
+            f.result()
+        except BaseException as e:  # noqa: BLE001 - re-raised below
+            error = error or e
+    if error is not None:
+        raise error

@@ -1,0 +1,97 @@
+"""Banded work on the machine's cores (nodes/ops/bands.py): every band once, errors
+re-raised after all bands stop, no pool inside the pool, and the banded operations
+give the same numbers on one thread and on several."""
+import threading
+
+import numpy as np
+import pytest
+
+from pixgraph_nodes.ops import bands
+
+
+def test_every_band_once_and_in_parallel_threads(monkeypatch):
+    monkeypatch.setenv("PIXGRAPH_THREADS", "3")
+    seen, names = [], set()
+    lock = threading.Lock()
+
+    def fn(r0, r1):
+        with lock:
+            seen.append((r0, r1))
+            names.add(threading.current_thread().name)
+    bands.for_bands(fn, 5, 1000, 64)
+    assert sorted(seen) == [(r, min(1000, r + 64)) for r in range(5, 1000, 64)]
+    assert all(n.startswith("pixgraph-band") for n in names)
+
+
+def test_one_thread_runs_in_the_caller_in_order(monkeypatch):
+    monkeypatch.setenv("PIXGRAPH_THREADS", "1")
+    seen = []
+    bands.for_bands(lambda r0, r1: seen.append((r0, threading.current_thread() is threading.main_thread())),
+                    0, 10, 3)
+    assert seen == [(0, True), (3, True), (6, True), (9, True)]
+    monkeypatch.setenv("PIXGRAPH_THREADS", "two")
+    with pytest.raises(ValueError, match="PIXGRAPH_THREADS"):
+        bands.for_bands(lambda r0, r1: None, 0, 10, 3)
+
+
+def test_an_error_is_raised_after_every_band_has_stopped(monkeypatch):
+    monkeypatch.setenv("PIXGRAPH_THREADS", "2")
+    done = []
+
+    def fn(r0, r1):
+        if r0 == 0:
+            raise RuntimeError("band 0 failed")
+        done.append(r0)
+    with pytest.raises(RuntimeError, match="band 0 failed"):
+        bands.for_bands(fn, 0, 40, 10)
+    assert sorted(done) == [10, 20, 30]
+
+
+def test_bands_inside_a_band_run_in_line(monkeypatch):
+    monkeypatch.setenv("PIXGRAPH_THREADS", "2")
+    inner = []
+
+    def outer(r0, r1):
+        me = threading.current_thread()
+        bands.for_bands(lambda a, b: inner.append(threading.current_thread() is me), 0, 8, 2)
+    bands.for_bands(outer, 0, 4, 1)             # 4 outer bands on a 2-thread pool, 4 inner each
+    assert len(inner) == 16 and all(inner)
+
+
+def _photo(tmp_path, H=300, W=200):
+    from pixgraph_nodes.ops.imageio import write_image
+    rng = np.random.default_rng(2)
+    img = rng.uniform(0, 1, (H, W, 3)).astype(np.float32)
+    write_image(tmp_path / "p.png", img)
+    rgba = np.concatenate([img, rng.uniform(0, 1, (H, W, 1)).astype(np.float32)], axis=2)
+    return img, rgba
+
+
+def test_banded_operations_give_one_threads_numbers(monkeypatch, tmp_path):
+    from pixgraph_nodes.ops import composite as C
+    from pixgraph_nodes.ops import placement as P
+    from pixgraph_nodes.ops import upsample as U
+    from pixgraph_nodes.ops.imageio import _decode_srgb8, _encode_srgb8, read_image
+    rng = np.random.default_rng(4)
+    img, rgba = _photo(tmp_path)
+    codes = (rng.uniform(0, 1, (300, 200, 4)) * 255).astype(np.uint8)
+    alpha = np.zeros((300, 200), np.float32)
+    alpha[50:250, 40:160] = rng.uniform(0, 1, (200, 120))
+    dark = rng.uniform(0, 1, (300, 200)).astype(np.float32)
+    lo, m_lo = rng.uniform(0, 1, (40, 30)).astype(np.float32), rng.uniform(0, 1, (40, 30)) > 0.5
+    m_hi = rng.uniform(0, 1, (300, 200)) > 0.5
+    wy = P._weights(60, (np.arange(300) + 0.5) / 4.7, 1.0)
+    wx = P._weights(40, (np.arange(200) + 0.5) / 4.7, 1.0)
+    planes = rng.uniform(0, 1, (60, 40, 2)).astype(np.float32)
+
+    def every():
+        return [read_image(tmp_path / "p.png")[0], *_decode_srgb8(codes), _encode_srgb8(img, None, band=16),
+                _encode_srgb8(rgba, 3, band=16),
+                C.composite(img, img * alpha[..., None], alpha, dark, 0.8, (0.1, 0.2, 0.3)),
+                U.masked_resize(lo, m_lo, m_hi, (300, 200), band=16), P._resample(planes, wy, wx, band=16)]
+    monkeypatch.setenv("PIXGRAPH_THREADS", "1")
+    one = every()
+    monkeypatch.setenv("PIXGRAPH_THREADS", "4")
+    four = every()
+    for a, b in zip(one, four):
+        np.testing.assert_array_equal(a, b)
