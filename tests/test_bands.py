@@ -95,3 +95,29 @@ def test_banded_operations_give_one_threads_numbers(monkeypatch, tmp_path):
     four = every()
     for a, b in zip(one, four):
         np.testing.assert_array_equal(a, b)
+
+
+def _bands_in_a_forked_child(queue):
+    seen = []
+    bands.for_bands(lambda r0, r1: seen.append(r0), 0, 8, 2)
+    queue.put(sorted(seen))
+
+
+def test_a_forked_child_gets_a_pool_of_its_own(monkeypatch):
+    """A process forked after banded work (an embedding host's fork-based workers)
+    inherits the pool's bookkeeping but none of its threads: its bands must still run
+    (they waited forever on threads that do not exist in the child)."""
+    import multiprocessing
+    monkeypatch.setenv("PIXGRAPH_THREADS", "2")
+    bands.for_bands(lambda r0, r1: None, 0, 8, 2)           # the parent's pool has started its threads
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_bands_in_a_forked_child, args=(queue,))
+    child.start()
+    child.join(60)
+    hung = child.is_alive()
+    if hung:
+        child.kill()
+        child.join()
+    assert not hung, "the forked child's bands never ran"
+    assert queue.get(timeout=5) == [0, 2, 4, 6]

@@ -34,6 +34,17 @@ def workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def _forget_pool_in_child() -> None:
+    # a forked child has none of the pool's threads but would believe it had (its
+    # bands would wait forever): it starts a pool of its own
+    global _POOL, _LOCK
+    _POOL, _LOCK = None, threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool_in_child)
+
+
 def _pool(n: int) -> ThreadPoolExecutor:
     global _POOL
     with _LOCK:
