@@ -121,3 +121,16 @@ def test_a_forked_child_gets_a_pool_of_its_own(monkeypatch):
         child.join()
     assert not hung, "the forked child's bands never ran"
     assert queue.get(timeout=5) == [0, 2, 4, 6]
+
+
+@pytest.mark.parametrize("threads", ["1", "2"])
+def test_a_band_below_one_row_still_covers_every_row(monkeypatch, threads):
+    """``band`` 0 or less: one row a band (it made empty bands [r, r): no row was
+    computed, and an output made with np.empty kept its garbage)."""
+    monkeypatch.setenv("PIXGRAPH_THREADS", threads)
+    rows = np.zeros(7, int)
+
+    def fn(r0, r1):
+        rows[r0:r1] += 1
+    bands.for_bands(fn, 0, 7, 0)
+    assert rows.tolist() == [1] * 7

@@ -66,7 +66,8 @@ def for_bands(fn, start: int, stop: int, band: int, min_bands: int = 2) -> None:
     ``[start, stop)``, on up to :func:`workers` threads; returns when every band is
     done and re-raises the first band's error. Fewer than ``min_bands`` bands, one
     worker, or a call from inside a band: in the caller's thread, in order."""
-    bands = [(r0, min(stop, r0 + band)) for r0 in range(start, stop, max(1, band))]
+    band = max(1, int(band))
+    bands = [(r0, min(stop, r0 + band)) for r0 in range(start, stop, band)]
     n = workers()
     if n == 1 or len(bands) < min_bands or getattr(_IN_BAND, "on", False):
         for r0, r1 in bands:
