@@ -134,3 +134,22 @@ def test_a_band_below_one_row_still_covers_every_row(monkeypatch, threads):
         rows[r0:r1] += 1
     bands.for_bands(fn, 0, 7, 0)
     assert rows.tolist() == [1] * 7
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "2.5"])
+def test_a_bad_thread_count_is_the_nodes_error_naming_the_variable(monkeypatch, tmp_path, value):
+    """PIXGRAPH_THREADS below 1 is refused like a non-number (0 and -2 silently ran one
+    thread), and the run reports it as the node's error, raised in the node's thread."""
+    from pixgraph.session import Session
+    monkeypatch.setenv("PIXGRAPH_THREADS", value)
+    with pytest.raises(ValueError, match="PIXGRAPH_THREADS"):
+        bands.workers()
+    g = tmp_path / "g.yaml"
+    g.write_text("pixgraph: 1\nnodes:\n"
+                 "  c: {type: pixgraph.Constant, params: {width: 64, height: 48, color: [0.2, 0.5, 0.8, 1.0]}}\n"
+                 "  s: {type: pixgraph.SaveImage, inputs: {image: c.image}, params: {path: out.png}}\n"
+                 "outputs: {png: s.path}\n")
+    s = Session()
+    with pytest.raises(Exception, match=r"(?s)'s'.*PIXGRAPH_THREADS.*" + value):
+        s.run(s.load(str(g)), ["png"])
+    assert not (tmp_path / "out.png").exists()

@@ -25,9 +25,12 @@ def workers() -> int:
     env = os.environ.get("PIXGRAPH_THREADS", "").strip()
     if env:
         try:
-            return max(1, int(env))
+            n = int(env)
         except ValueError:
-            raise ValueError(f"PIXGRAPH_THREADS must be a whole number of threads, got {env!r}") from None
+            n = 0
+        if n < 1:
+            raise ValueError(f"PIXGRAPH_THREADS must be a whole number of threads, at least 1, got {env!r}")
+        return n
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:          # not on Linux
