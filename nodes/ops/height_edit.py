@@ -13,7 +13,8 @@ image distance from an object point down to its foot on the ground).
    * ``contact_mode="shift"`` keeps the map's shape up each column and
      subtracts a per-column offset ``c(u)``, linear across the columns, that
      brings the contact points to height 0: a constant for one point (its
-     height), the line through both points' heights for two (exact), the
+     height), the line through both points' heights for two (exact, unless both
+     are in one column: then their mean), the
      least-squares line ``a + b u`` for three or more (exact when two of them
      share a column only if their heights agree). ``c`` does not vary with the
      row ``v``: the contact says how far the object floats or sinks, not how its
