@@ -103,6 +103,7 @@ def _bands_in_a_forked_child(queue):
     queue.put(sorted(seen))
 
 
+@pytest.mark.filterwarnings("ignore:.*fork.*:DeprecationWarning")     # Python 3.12+: fork with threads
 def test_a_forked_child_gets_a_pool_of_its_own(monkeypatch):
     """A process forked after banded work (an embedding host's fork-based workers)
     inherits the pool's bookkeeping but none of its threads: its bands must still run
