@@ -5,7 +5,7 @@ computation (decoding a photo through a table, compositing, enlarging a proxy
 shadow) can run on several threads at once: each band reads shared inputs and
 writes its own rows of a preallocated output, so the result is the same numbers
 as one thread's, band for band. ``PIXGRAPH_THREADS`` sets how many threads
-(default: the CPUs this process may run on); 1 runs every band in the caller.
+(default: the CPUs this process may run on, at most 8); 1 runs every band in the caller.
 A band's function that itself calls :func:`for_bands` runs those bands in line
 (no pool inside the pool: a full pool waiting on itself would never finish).
 """
@@ -20,8 +20,15 @@ _LOCK = threading.Lock()
 _IN_BAND = threading.local()
 
 
+#: the default's cap: each band in flight holds its own temporaries (a 50 MP image's
+#: band of 64 rows: about 8 MB per float plane), and memory bandwidth, not cores, bounds
+#: these loops well before 8 threads
+DEFAULT_MAX = 8
+
+
 def workers() -> int:
-    """Threads for banded work: ``PIXGRAPH_THREADS`` or the CPUs this process may use."""
+    """Threads for banded work: ``PIXGRAPH_THREADS`` or the CPUs this process may use,
+    at most ``DEFAULT_MAX``."""
     env = os.environ.get("PIXGRAPH_THREADS", "").strip()
     if env:
         try:
@@ -32,9 +39,10 @@ def workers() -> int:
             raise ValueError(f"PIXGRAPH_THREADS must be a whole number of threads, at least 1, got {env!r}")
         return n
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cpus = len(os.sched_getaffinity(0))
     except AttributeError:          # not on Linux
-        return max(1, os.cpu_count() or 1)
+        cpus = os.cpu_count() or 1
+    return max(1, min(cpus, DEFAULT_MAX))
 
 
 def _forget_pool_in_child() -> None:
