@@ -299,6 +299,7 @@ def in_page(url: str, plan: list, sc: dict, page_shot: str | None) -> tuple:
                 sel = page.locator('[data-param="fg_h.method"]')
                 if not sel.is_visible():     # the node's box in the panel is closed: open it (a click)
                     page.locator("details.node", has=sel).locator("summary").click()
+                    actions += 1             # a page action too (PLANS count the switch as one)
                 sel.select_option(OTHER[sc["method"]])
                 wait_final(page, seq)
                 actions += 1

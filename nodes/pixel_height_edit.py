@@ -58,7 +58,7 @@ class PixelHeightEdit(Node):
     class Outputs:
         height: T.PixelHeight = port(doc="edited pixel height [px], 0 outside the mask")
 
-    impl_version = "3"   # 2: the defaults pass the input through unchanged; 3: shift is a per-column offset
+    impl_version = "4"   # 2: defaults pass through; 3: shift is a per-column offset; 4: close points: their mean
 
     #: what a shell's page draws (read by pixgraph_serve): contact points, the tilt handle,
     #: the lying toggle, by these params; ``mask`` names the input with the coverage in

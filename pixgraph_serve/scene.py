@@ -251,9 +251,11 @@ def _height_edit(state: ServeState, nid: str) -> dict:
         foot = [(box[0] + box[2]) / 2, box[3]] if box else [cols / 2, rows]
     names = {k: h.get(k, k) for k in ("points", "mode", "tilt", "elevation", "lying", "lift")}
     top = spec.cls.top_point(mask, edited, v[names["tilt"]], v[names["elevation"]], v[names["lift"]])
+    # the nodes whose output the edit edits (not its coverage): the page opens their params
+    sources = sorted({ref.node for port, ref in inst.inputs.items() if port != h.get("mask", "mask")})
     return {"id": nid, "params": names, "values": {k: v[p] for k, p in names.items()},
             "frame": [sx, tx, sy, ty], "size": [cols, rows], "foot": foot, "place": place,
-            "top": list(top) if top else None}
+            "top": list(top) if top else None, "sources": sources}
 
 
 # -- what a drag means -------------------------------------------------------------------

@@ -95,3 +95,62 @@ def test_banded_operations_give_one_threads_numbers(monkeypatch, tmp_path):
     four = every()
     for a, b in zip(one, four):
         np.testing.assert_array_equal(a, b)
+
+
+def _bands_in_a_forked_child(queue):
+    seen = []
+    bands.for_bands(lambda r0, r1: seen.append(r0), 0, 8, 2)
+    queue.put(sorted(seen))
+
+
+@pytest.mark.filterwarnings("ignore:.*fork.*:DeprecationWarning")     # Python 3.12+: fork with threads
+def test_a_forked_child_gets_a_pool_of_its_own(monkeypatch):
+    """A process forked after banded work (an embedding host's fork-based workers)
+    inherits the pool's bookkeeping but none of its threads: its bands must still run
+    (they waited forever on threads that do not exist in the child)."""
+    import multiprocessing
+    monkeypatch.setenv("PIXGRAPH_THREADS", "2")
+    bands.for_bands(lambda r0, r1: None, 0, 8, 2)           # the parent's pool has started its threads
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_bands_in_a_forked_child, args=(queue,))
+    child.start()
+    child.join(60)
+    hung = child.is_alive()
+    if hung:
+        child.kill()
+        child.join()
+    assert not hung, "the forked child's bands never ran"
+    assert queue.get(timeout=5) == [0, 2, 4, 6]
+
+
+@pytest.mark.parametrize("threads", ["1", "2"])
+def test_a_band_below_one_row_still_covers_every_row(monkeypatch, threads):
+    """``band`` 0 or less: one row a band (it made empty bands [r, r): no row was
+    computed, and an output made with np.empty kept its garbage)."""
+    monkeypatch.setenv("PIXGRAPH_THREADS", threads)
+    rows = np.zeros(7, int)
+
+    def fn(r0, r1):
+        rows[r0:r1] += 1
+    bands.for_bands(fn, 0, 7, 0)
+    assert rows.tolist() == [1] * 7
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "2.5"])
+def test_a_bad_thread_count_is_the_nodes_error_naming_the_variable(monkeypatch, tmp_path, value):
+    """PIXGRAPH_THREADS below 1 is refused like a non-number (0 and -2 silently ran one
+    thread), and the run reports it as the node's error, raised in the node's thread."""
+    from pixgraph.session import Session
+    monkeypatch.setenv("PIXGRAPH_THREADS", value)
+    with pytest.raises(ValueError, match="PIXGRAPH_THREADS"):
+        bands.workers()
+    g = tmp_path / "g.yaml"
+    g.write_text("pixgraph: 1\nnodes:\n"
+                 "  c: {type: pixgraph.Constant, params: {width: 64, height: 48, color: [0.2, 0.5, 0.8, 1.0]}}\n"
+                 "  s: {type: pixgraph.SaveImage, inputs: {image: c.image}, params: {path: out.png}}\n"
+                 "outputs: {png: s.path}\n")
+    s = Session()
+    with pytest.raises(Exception, match=r"(?s)'s'.*PIXGRAPH_THREADS.*" + value):
+        s.run(s.load(str(g)), ["png"])
+    assert not (tmp_path / "out.png").exists()

@@ -43,7 +43,10 @@ def test_two_contact_points_remove_a_ramp_across_the_columns_only():
     for p in (p1, p2):
         assert abs(he.sample_height(c2, *p) - he.sample_height(hh, *p)) < 1e-6
     np.testing.assert_allclose(c2, np.broadcast_to(c2[:1], c2.shape), atol=1e-9)
-    # two points in one column: their mean
+    # two points in one column, or closer than a tenth of the object's width: their mean
+    for pts, width in (([(30.5, 10.5), (30.5, 40.5)], None), ([(30.5, 10.5), (31.0, 40.5)], 60.0)):
+        c3 = he.contact_correction(hh, pts, width)
+        np.testing.assert_allclose(c3, np.mean([he.sample_height(hh, *p) for p in pts]))
     c3 = he.contact_correction(hh, [(30.5, 10.5), (30.5, 40.5)])
     np.testing.assert_allclose(c3, (he.sample_height(hh, 30.5, 10.5) + he.sample_height(hh, 30.5, 40.5)) / 2)
 
@@ -154,3 +157,21 @@ outputs: {out: e.height}
     _, v2 = grid(40, 40)
     mh = m[::2, ::2] > 0
     np.testing.assert_allclose(half[mh], (30.0 - v2 + 2.0)[mh], atol=1e-5)
+
+
+def test_shift_with_two_feet_a_pixel_apart_does_not_tilt_the_map():
+    """A pole's front and back foot, 0.5 px apart in u, heights 10 and 2: one place, shifted
+    by their mean; a line through them would tilt the map by 16 px per px (the review's
+    case: heights up to 940 and half the mask zeroed)."""
+    H, W = 200, 60
+    u, v = grid(H, W)
+    m = np.zeros((H, W), bool)
+    m[20:180, 20:40] = True
+    truth = np.where(m, 179.5 - v, 0.0)
+    h = truth.copy()
+    h[176:180, 29] = 10.0
+    h[176:180, 30] = 2.0
+    out = he.edit_pixel_height(h, m, [(29.5, 178.0), (30.0, 178.0)], "shift")
+    shift = (he.sample_height(h, 29.5, 178.0) + he.sample_height(h, 30.0, 178.0)) / 2
+    np.testing.assert_allclose(out, np.where(m, np.maximum(h - shift, 0), 0), atol=1e-4)
+    assert out.max() < truth.max() and (out[m] > 0).mean() > 0.9

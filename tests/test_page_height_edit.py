@@ -60,6 +60,11 @@ def test_drag_the_cutouts_contact_and_tilt_in_the_page(browser, tmp_path):
         e = scene["height_edit"]
         assert page.locator("#height-tools").is_visible()
         check_handles_visible(page)
+        # the height's source (the template's CutoutHeight) has its params open beside the
+        # handles: its method is one choice away; the edit's coverage source (cutout) is not
+        assert e["sources"] == ["fg_h"]
+        assert page.locator('[data-param="fg_h.method"]').is_visible()
+        assert not page.locator('[data-param="cutout.path"]').is_visible()
         # the hollow contact handle sits on the cutout's foot, the tilt handle on its top
         for sel, (u, v) in {"#contact-new": scene["place"]["foot"],
                             "#tilt-handle": to_canvas(e, e["top"][0], e["top"][1])}.items():

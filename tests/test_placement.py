@@ -258,3 +258,25 @@ def test_resampling_by_taps_is_the_dense_weights_product(h, w, H, W, s, dy, dx):
     got = P._resample(planes, wy, wx, band=37)
     np.testing.assert_allclose(got, want.astype(np.float32), rtol=0, atol=2e-7)
     assert (got[want == 0] == 0).all()
+
+
+def test_resampling_holds_no_float64_copy_of_the_source(monkeypatch):
+    """``_resample`` reads the float32 source as it is: a float64 copy of every plane
+    at once (6 planes: colour, alpha, height) was twice the source's bytes, held for
+    the whole resampling (a 20 MP cutout: ~1 GB). Allocations traced by numpy."""
+    import tracemalloc
+
+    from pixgraph_nodes.ops import placement as P
+    monkeypatch.setenv("PIXGRAPH_THREADS", "1")
+    h, w = 600, 400
+    planes = np.random.default_rng(2).uniform(0, 1, (h, w, 6)).astype(np.float32)
+    wy = P._weights(h, np.arange(h) + 0.5, 1.0)
+    wx = P._weights(w, np.arange(w) + 0.5, 1.0)
+    tracemalloc.start()
+    try:
+        out = P._resample(planes, wy, wx)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    np.testing.assert_allclose(out, planes, atol=1e-6)          # scale 1, no shift: the source
+    assert peak - out.nbytes < planes.nbytes, (peak, out.nbytes, planes.nbytes)

@@ -5,7 +5,7 @@ computation (decoding a photo through a table, compositing, enlarging a proxy
 shadow) can run on several threads at once: each band reads shared inputs and
 writes its own rows of a preallocated output, so the result is the same numbers
 as one thread's, band for band. ``PIXGRAPH_THREADS`` sets how many threads
-(default: the CPUs this process may run on); 1 runs every band in the caller.
+(default: the CPUs this process may run on, at most 8); 1 runs every band in the caller.
 A band's function that itself calls :func:`for_bands` runs those bands in line
 (no pool inside the pool: a full pool waiting on itself would never finish).
 """
@@ -20,18 +20,40 @@ _LOCK = threading.Lock()
 _IN_BAND = threading.local()
 
 
+#: the default's cap: each band in flight holds its own temporaries (a 50 MP image's
+#: band of 64 rows: about 8 MB per float plane), and memory bandwidth, not cores, bounds
+#: these loops well before 8 threads
+DEFAULT_MAX = 8
+
+
 def workers() -> int:
-    """Threads for banded work: ``PIXGRAPH_THREADS`` or the CPUs this process may use."""
+    """Threads for banded work: ``PIXGRAPH_THREADS`` or the CPUs this process may use,
+    at most ``DEFAULT_MAX``."""
     env = os.environ.get("PIXGRAPH_THREADS", "").strip()
     if env:
         try:
-            return max(1, int(env))
+            n = int(env)
         except ValueError:
-            raise ValueError(f"PIXGRAPH_THREADS must be a whole number of threads, got {env!r}") from None
+            n = 0
+        if n < 1:
+            raise ValueError(f"PIXGRAPH_THREADS must be a whole number of threads, at least 1, got {env!r}")
+        return n
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cpus = len(os.sched_getaffinity(0))
     except AttributeError:          # not on Linux
-        return max(1, os.cpu_count() or 1)
+        cpus = os.cpu_count() or 1
+    return max(1, min(cpus, DEFAULT_MAX))
+
+
+def _forget_pool_in_child() -> None:
+    # a forked child has none of the pool's threads but would believe it had (its
+    # bands would wait forever): it starts a pool of its own
+    global _POOL, _LOCK
+    _POOL, _LOCK = None, threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool_in_child)
 
 
 def _pool(n: int) -> ThreadPoolExecutor:
@@ -55,7 +77,8 @@ def for_bands(fn, start: int, stop: int, band: int, min_bands: int = 2) -> None:
     ``[start, stop)``, on up to :func:`workers` threads; returns when every band is
     done and re-raises the first band's error. Fewer than ``min_bands`` bands, one
     worker, or a call from inside a band: in the caller's thread, in order."""
-    bands = [(r0, min(stop, r0 + band)) for r0 in range(start, stop, max(1, band))]
+    band = max(1, int(band))
+    bands = [(r0, min(stop, r0 + band)) for r0 in range(start, stop, band)]
     n = workers()
     if n == 1 or len(bands) < min_bands or getattr(_IN_BAND, "on", False):
         for r0, r1 in bands:

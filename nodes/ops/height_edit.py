@@ -13,9 +13,12 @@ image distance from an object point down to its foot on the ground).
    * ``contact_mode="shift"`` keeps the map's shape up each column and
      subtracts a per-column offset ``c(u)``, linear across the columns, that
      brings the contact points to height 0: a constant for one point (its
-     height), the line through both points' heights for two (exact), the
-     least-squares line ``a + b u`` for three or more (exact when two of them
-     share a column only if their heights agree). ``c`` does not vary with the
+     height), the line through both points' heights for two, the least-squares
+     line ``a + b u`` for three or more; points that span less than
+     ``ONE_PLACE`` of the object's width (its mask's columns) are one place and
+     get their mean (a pole's front and back foot: a line through two points a
+     pixel apart would tilt the map by their height difference per pixel).
+     ``c`` does not vary with the
      row ``v``: the contact says how far the object floats or sinks, not how its
      height grows up a column, so feet at different rows (front and back feet)
      cannot take away the map's own slope up the object (a plane ``a + b u +
@@ -88,15 +91,20 @@ def sample_height(height: np.ndarray, u: float, v: float) -> float:
                  + fy * ((1 - fx) * height[y1, x0] + fx * height[y1, x1]))
 
 
-def contact_correction(height: np.ndarray, points) -> np.ndarray:
-    """The per-column offset c(u) (H, W) that ``contact_mode="shift"`` subtracts (module doc)."""
+#: contact points spanning less than this fraction of the object's width are one place
+ONE_PLACE = 0.1
+
+
+def contact_correction(height: np.ndarray, points, width: float | None = None) -> np.ndarray:
+    """The per-column offset c(u) (H, W) that ``contact_mode="shift"`` subtracts (module
+    doc); ``width`` [px]: the object's width (default: the map's)."""
     P = _points(points)
     H, W = height.shape
     u = np.broadcast_to(np.arange(W) + 0.5, (H, W))
     if len(P) == 0:
         return np.zeros((H, W))
     hs = np.array([sample_height(height, pu, pv) for pu, pv in P])
-    if len(P) == 1 or np.ptp(P[:, 0]) < 1e-9:
+    if len(P) == 1 or np.ptp(P[:, 0]) < max(ONE_PLACE * (W if width is None else width), 1e-9):
         return np.full((H, W), hs.mean())
     b, a = np.polyfit(P[:, 0], hs, 1)
     return a + b * u
@@ -214,6 +222,7 @@ def edit_pixel_height(height: np.ndarray, mask: np.ndarray, points=(), contact_m
         a, b = ground_line(P)
         h = a + b * u - v
     elif len(P):
-        h = h - contact_correction(h, P)
+        cols = np.flatnonzero(m.any(axis=0))
+        h = h - contact_correction(h, P, float(cols[-1] - cols[0] + 1) if len(cols) else None)
     h = tilt_gain(tilt_deg, elevation_deg) * h + float(lift)
     return np.where(m, np.maximum(h, 0.0), 0.0).astype(np.float32)

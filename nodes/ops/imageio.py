@@ -366,7 +366,7 @@ def _to_uint16(values: np.ndarray) -> np.ndarray:
 _LINEAR16_TO_SRGB8 = None
 
 
-def _encode_srgb8(img: np.ndarray, ai: int | None, band: int = 256) -> np.ndarray:
+def _encode_srgb8(img: np.ndarray, ai: int | None, band: int = 64) -> np.ndarray:
     """Linear premultiplied float (H, W, C) -> 8-bit sRGB codes with straight alpha
     (uint8, H, W, C), by a table of 65536 linear levels: within one code of
     ``round(255 * linear_to_srgb(x))`` (off by one only where x lies within 1/131070

@@ -72,7 +72,7 @@ def _resample(planes: np.ndarray, wy: np.ndarray, wx: np.ndarray, band: int = 25
     r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
     iy, ay = _taps(wy[r0:r1])
     ix, ax = _taps(wx[c0:c1])
-    p = [planes[:, :, c].astype(np.float64) for c in range(planes.shape[2])]
+    p = [planes[:, :, c] for c in range(planes.shape[2])]     # float32: a tap times its float64 weight is float64
 
     def rows(b0, b1):
         for c, pc in enumerate(p):

@@ -45,15 +45,24 @@ function readField(el, p) {
   return raw;
 }
 
+// The nodes whose boxes start open: the light, the shadow, and the source of the
+// cutout's height that the page's hand edit edits (its params, e.g. a predictor's
+// method, beside the edit's handles).
+function openAtStart() {
+  const scene = ui.scene || {};
+  const roles = scene.roles || {};
+  return new Set([roles.light, roles.shadow, ...((scene.height_edit || {}).sources || [])]);
+}
+
 export function buildPanel() {
   const root = $("nodes");
   root.replaceChildren();
+  const open = openAtStart();
   for (const node of ui.info.nodes) {
     const spec = ui.info.types[node.type];
     const box = document.createElement("details");
     box.className = "node";
-    const roles = (ui.scene && ui.scene.roles) || {};
-    box.open = node.id === roles.light || node.id === roles.shadow;
+    box.open = open.has(node.id);
     const sum = document.createElement("summary");
     sum.innerHTML = `<b></b><span class="type"></span>`;
     sum.querySelector("b").textContent = node.id;
