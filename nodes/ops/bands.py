@@ -26,23 +26,33 @@ _IN_BAND = threading.local()
 DEFAULT_MAX = 8
 
 
+def usable_cpus() -> int:
+    """The CPUs this process may run on (its affinity; the machine's count elsewhere)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):   # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def threads_from_env(name: str, default: int) -> int:
+    """The thread count in the environment variable ``name``: a whole number, at
+    least 1 (else ``ValueError`` naming the variable), or ``default`` when unset."""
+    raw = os.environ.get(name, "").strip()
+    if not raw:
+        return default
+    try:
+        n = int(raw)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise ValueError(f"{name} must be a whole number of threads, at least 1, got {raw!r}")
+    return n
+
+
 def workers() -> int:
     """Threads for banded work: ``PIXGRAPH_THREADS`` or the CPUs this process may use,
     at most ``DEFAULT_MAX``."""
-    env = os.environ.get("PIXGRAPH_THREADS", "").strip()
-    if env:
-        try:
-            n = int(env)
-        except ValueError:
-            n = 0
-        if n < 1:
-            raise ValueError(f"PIXGRAPH_THREADS must be a whole number of threads, at least 1, got {env!r}")
-        return n
-    try:
-        cpus = len(os.sched_getaffinity(0))
-    except AttributeError:          # not on Linux
-        cpus = os.cpu_count() or 1
-    return max(1, min(cpus, DEFAULT_MAX))
+    return threads_from_env("PIXGRAPH_THREADS", min(usable_cpus(), DEFAULT_MAX))
 
 
 def _forget_pool_in_child() -> None:

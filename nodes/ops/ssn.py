@@ -24,13 +24,14 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
-import os
 import pathlib
 
 import numpy as np
 import torch
 from torch import nn
 import torch.nn.functional as F
+
+from .bands import threads_from_env, usable_cpus
 
 VARIANTS: dict[str, tuple[str, ...]] = {
     "ssg": ("cutout_height", "hard_shadow"),
@@ -217,7 +218,7 @@ def inference_threads() -> int:
     """Torch intra-op threads for one SSN++ inference.
 
     ``PIXGRAPH_TORCH_THREADS`` when set (a host's choice; ValueError if it is
-    not a positive integer), else 1 thread per 4 CPUs this process may use
+    not a whole number of at least 1), else 1 thread per 4 CPUs this process may use
     (at least 1, at most 4). Torch's own default (one thread per core) fights
     PoCL's workers and any busy neighbour for the cores: its threads meet at a
     barrier after every layer, so one preempted thread stalls them all.
@@ -226,20 +227,7 @@ def inference_threads() -> int:
     process (1.7x); with torch's default 2 threads 1869 ms and 1996 ms
     (docs/ssn.md has the table).
     """
-    raw = os.environ.get(THREADS_ENV, "").strip()
-    if raw:
-        try:
-            n = int(raw)
-        except ValueError:
-            n = 0
-        if n < 1:
-            raise ValueError(f"{THREADS_ENV} must be a positive integer, got {raw!r}")
-        return n
-    try:
-        cpus = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        cpus = os.cpu_count() or 1
-    return max(1, min(4, cpus // 4))
+    return threads_from_env(THREADS_ENV, max(1, min(4, usable_cpus() // 4)))
 
 
 @contextlib.contextmanager
