@@ -22,8 +22,8 @@ import numpy as np
 
 from .camera import Camera
 from .reflection import reflection_cl
-from .resample import Window, _axis_weights, nonzero_box, resize, shrink_part
-from .upsample import AUTO_MAX_SIDE, MIN_PROXY_THICKNESS, cutout_scene
+from .resample import Window, _axis_weights, nonzero_box, shrink_part
+from .upsample import AUTO_MAX_SIDE, MIN_PROXY_THICKNESS, proxy_scene
 
 __all__ = ["AUTO_MAX_SIDE", "proxy_reflection"]
 
@@ -198,13 +198,3 @@ def shrink_in_box(image: np.ndarray, shape) -> np.ndarray:
     r0, r1, c0, c1 = box
     return shrink_part(image[r0:r1, c0:c1], (r0, c0), image.shape[:2], shape)
 
-
-def proxy_scene(win: Window, mask, fg_height, bg_height):
-    """``win.scene(mask, fg_height, bg_height)`` of a whole-image window, the same
-    numbers, with the mask and the cutout's height shrunk over the cutout's box
-    only (``upsample.cutout_scene``; only the background's height is resized whole)."""
-    m, fg_w = cutout_scene(win, mask, fg_height)
-    bg = np.asarray(bg_height, np.float32)
-    if not np.isfinite(bg.min() + bg.max()):      # one pass each; nan_to_num only when needed
-        bg = np.nan_to_num(bg, nan=0.0, posinf=0.0, neginf=0.0)
-    return m, fg_w, (resize(bg, (win.out_h, win.out_w)) * win.ky).astype(np.float32)
