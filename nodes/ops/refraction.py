@@ -15,8 +15,8 @@ from . import march
 from .camera import Camera, reconstruct
 from .reflection import SOLID, _buf, _program, _read, _Surface, check_shapes, setup_rays, trace_closest
 from .reflection_math import F32, fresnel_dielectric, refract, uvh_direction, view_directions
-from .resample import Window, nonzero_box, resize, shrink_part
-from .upsample import AUTO_MAX_SIDE, masked_resize
+from .resample import Window, nonzero_box, shrink_part
+from .upsample import AUTO_MAX_SIDE, masked_resize, proxy_bg_height
 
 
 def local_radius(geo: dict, mask: np.ndarray, max_radius: float = np.inf) -> np.ndarray:
@@ -397,7 +397,7 @@ def refraction_proxy(device, camera: Camera, glass, glass_height, background, bg
     g_lo = np.zeros((h, w, 4), np.float32)
     g_lo[..., 3] = np.where(cover > 1e-6, cov, 0.0)
     gh_lo = (np.where(cover > 1e-6, hsum / np.maximum(cover, 1e-6), 0.0) * win.ky).astype(np.float32)
-    bg_lo = (resize(np.nan_to_num(bg_height, nan=0.0, posinf=0.0, neginf=0.0), (h, w)) * win.ky).astype(np.float32)
+    bg_lo = proxy_bg_height(win, bg_height)
     cam = dataclasses.replace(camera, width=w, height=h, horizon=camera.horizon * win.ky)
     r = refraction_hits_cl(device, cam, g_lo, gh_lo, bg_lo, normal=n_lo, radius=R_lo, **kw)
     # displacement of each hit from the pixel's own centre, in full-resolution pixels

@@ -169,11 +169,17 @@ def proxy_scene(win: Window, mask, fg_height, bg_height):
     if (win.x0, win.y0, win.w, win.h) != (0, 0, W, H):
         raise ValueError(f"proxy_scene takes a whole-image window, got {win} for {W}x{H}")
     m, fg_w = cutout_scene(win, mask, fg_height)
+    return m, fg_w, proxy_bg_height(win, bg_height)
+
+
+def proxy_bg_height(win: Window, bg_height) -> np.ndarray:
+    """The background's height of ``win.scene`` of a whole-image window, in proxy pixels
+    (non-finite values as 0), shrunk rows first (``_shrink_rows_first``): the same up
+    to float rounding."""
     bg = np.asarray(bg_height, np.float32)
     if not np.isfinite(bg.min() + bg.max()):      # one pass each; nan_to_num only when needed
         bg = np.nan_to_num(bg, nan=0.0, posinf=0.0, neginf=0.0)
-    bg_w = (_shrink_rows_first(bg, (win.out_h, win.out_w)) * win.ky).astype(np.float32)
-    return m, fg_w, bg_w
+    return (_shrink_rows_first(bg, (win.out_h, win.out_w)) * win.ky).astype(np.float32)
 
 
 def proxy_soft_shadow_parts(device, mask, fg_height, bg_height, light_samples, thickness=1.0,
