@@ -314,9 +314,11 @@ inline int ph_span_end(const ph_march *m, int k, int tile)
  * is in front --, or short of the smallest by more than
  * max(thickness, PH_BEHIND_EPS) -- behind, beyond the thickness.
  * A tracer may then jump from k to e and evaluate e with prev_side = 0: all of
- * k..e are on one side or have no surface, so no flip happens inside. */
+ * k..e are on one side or have no surface, so no flip happens inside.
+ * ext (px, >= 0) widens the ray's foot range each side (shadow.cl: the half
+ * steps beyond the samples at the edges of a run); 0 for the samples alone. */
 inline int ph_span_skippable(__global const float2 *tiles, int TW, int TH, int tile,
-                             const ph_march *m, int k, int e, float thickness)
+                             const ph_march *m, int k, int e, float thickness, float ext)
 {
     int ti = ph_floordiv((int)floor(ph_sample_v(m, k)), tile);
     int tj = ph_floordiv((int)floor(ph_sample_u(m, k)), tile);
@@ -324,7 +326,7 @@ inline int ph_span_skippable(__global const float2 *tiles, int TW, int TH, int t
     tj = clamp(tj, 0, TW - 1);
     float2 b = tiles[ti * TW + tj];
     float fa = ph_ray_foot(m, k), fb = ph_ray_foot(m, e);
-    float lo = fmin(fa, fb), hi = fmax(fa, fb);
+    float lo = fmin(fa, fb) - ext, hi = fmax(fa, fb) + ext;
     return lo >= b.y || hi < b.x - fmax(thickness, PH_BEHIND_EPS);
 }
 

@@ -349,14 +349,16 @@ def span_end(m: March, k, tile: int = TILE) -> np.ndarray:
     return np.where(m.major_u, end_u, end_v)
 
 
-def span_skippable(tiles: np.ndarray, m: March, k, e, thickness, tile: int = TILE) -> np.ndarray:
+def span_skippable(tiles: np.ndarray, m: March, k, e, thickness, tile: int = TILE, ext: float = 0.0) -> np.ndarray:
     """Mirror of ph_span_skippable: True where no sample of k..e can occlude or
     flip side (the ray's foot is beyond every surface foot of the tile
-    neighbourhood, or short of all of them by more than max(thickness, BEHIND_EPS))."""
+    neighbourhood, or short of all of them by more than max(thickness, BEHIND_EPS));
+    ``ext`` [px] widens the ray's foot range each side (shadow.cl: the half steps at
+    the edges of a run)."""
     TH, TW = tiles.shape[:2]
     ti = np.clip(np.floor(m.sample_v(k)).astype(np.int64) // tile, 0, TH - 1)
     tj = np.clip(np.floor(m.sample_u(k)).astype(np.int64) // tile, 0, TW - 1)
     b = tiles[ti, tj]
     fa, fb = ray_foot(m, k), ray_foot(m, e)
-    lo, hi = np.minimum(fa, fb), np.maximum(fa, fb)
+    lo, hi = np.minimum(fa, fb) - F32(ext), np.maximum(fa, fb) + F32(ext)
     return (lo >= b[..., 1]) | (hi < b[..., 0] - max(float(thickness), float(BEHIND_EPS)))

@@ -131,21 +131,6 @@ inline int run_end_hit(const occluder *o, int test, int cont, int pcont, float p
     return (!pcont && edge_hit(pd, df, -1.0f, o->thickness)) || (!cont && edge_hit(pd, df, 1.0f, o->thickness));
 }
 
-/* ph_span_skippable with the ray's foot range widened by ext (px) each side: no
- * sample of the span, nor the half steps at the edges of its runs (edge_hit), can
- * occlude. */
-inline int span_skippable_edges(const occluder *o, const ph_march *m, int k, int e, float ext)
-{
-    int ti = ph_floordiv((int)floor(ph_sample_v(m, k)), o->tile);
-    int tj = ph_floordiv((int)floor(ph_sample_u(m, k)), o->tile);
-    ti = clamp(ti, 0, o->TH - 1);
-    tj = clamp(tj, 0, o->TW - 1);
-    float2 b = o->tiles[ti * o->TW + tj];
-    float fa = ph_ray_foot(m, k), fb = ph_ray_foot(m, e);
-    float lo = fmin(fa, fb) - ext, hi = fmax(fa, fb) + ext;
-    return lo >= b.y || hi < b.x - fmax(o->thickness, PH_BEHIND_EPS);
-}
-
 /* The sample loop of shadow_trace over m's (clipped) range k_lo .. k_hi: the
  * occlusion test of ph_occludes at each sample (side flips only within one
  * continuous surface), and the edges of each run of samples on the cutout
@@ -199,7 +184,7 @@ inline int march_loop(const occluder *o, ph_march *m, int *hit_k, float *hit_s)
         ps = s;
         if (k == next_test) {
             int e = min(m->k_hi, ph_span_end(m, k, o->tile));
-            if (e > k + 1 && span_skippable_edges(o, m, k, e, ext)) {
+            if (e > k + 1 && ph_span_skippable(o->tiles, o->TW, o->TH, o->tile, m, k, e, o->thickness, ext)) {
                 k = e;        /* evaluate e next, as the first of a new run */
                 prev = 0;
                 pon = 0;
