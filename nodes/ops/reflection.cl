@@ -403,35 +403,8 @@ inline int rt_behind_at_origin(float3 p0, float3 e, float bg0)
     return ph_side(h_edge, bg0) == 1;
 }
 
-/* Background colour seen along the (u, v, h) ray p0 + s e: the first background
- * pixel where the ray goes behind the background surface (solid: ground, walls).
- * The origin's own pixel counts when the ray is already behind the surface at
- * the pixel's edge (a ray nearly along the view ray hits at its own pixel: with
- * eta = 1 nothing moves). A ray that leaves the image without a hit takes the
- * colour of the last background pixel it crossed (screen-space fallback). */
-inline float4 rt_background_along(float3 p0, float3 e, float s_max, int W, int H,
-                                   __global const float *bgs, __global const float *pyr,
-                                   __global const int *lvl, int nlev,
-                                   __global const float4 *bg_rgb, int *steps, int *hitflag)
-{
-    int origin = (int)floor(p0.y) * W + (int)floor(p0.x);
-    int behind = rt_behind_at_origin(p0, e, bgs[origin]);
-    *hitflag = 1;
-    if (behind) return bg_rgb[origin];
-    ph_march m;
-    int lst = origin;
-    if (ph_march_setup(p0.x, p0.y, p0.z, e.x, e.y, e.z, s_max, &m)
-        && ph_march_clip_box(&m, (float4)(0.0f, 0.0f, (float)W, (float)H), -RT_SOLID, RT_SOLID)) {
-        int hit = rt_trace(&m, bgs, pyr, lvl, nlev, W, H, RT_SOLID, &lst, steps);
-        if (hit >= 0) return bg_rgb[hit];
-    }
-    *hitflag = 0;
-    return bg_rgb[lst];
-}
-
 /* Where the ray p0 + s e meets the background, as a continuous image position
- * (u, v) [px] (the work of rt_background_along, which returns the hit pixel's
- * colour): at a hit, the crossing interpolated between the last sample in front
+ * (u, v) [px]: at a hit, the crossing interpolated between the last sample in front
  * of the surface and the first behind it (linear in the height difference); a
  * ray already behind at its origin's pixel edge: p0 itself; a ray that leaves
  * the image: its last in-image sample. *pix: the pixel rt_background_along
@@ -468,6 +441,22 @@ inline float2 rt_background_pos(float3 p0, float3 e, float s_max, int W, int H,
     if (k < 0) return p0.xy;
     return (float2)(clamp(ph_sample_u(&m, k), 0.0f, (float)W - 1e-3f),
                     clamp(ph_sample_v(&m, k), 0.0f, (float)H - 1e-3f));
+}
+
+/* Background colour seen along the (u, v, h) ray p0 + s e: the first background
+ * pixel where the ray goes behind the background surface (solid: ground, walls).
+ * The origin's own pixel counts when the ray is already behind the surface at
+ * the pixel's edge (a ray nearly along the view ray hits at its own pixel: with
+ * eta = 1 nothing moves). A ray that leaves the image without a hit takes the
+ * colour of the last background pixel it crossed (screen-space fallback). */
+inline float4 rt_background_along(float3 p0, float3 e, float s_max, int W, int H,
+                                   __global const float *bgs, __global const float *pyr,
+                                   __global const int *lvl, int nlev,
+                                   __global const float4 *bg_rgb, int *steps, int *hitflag)
+{
+    int pix;
+    rt_background_pos(p0, e, s_max, W, H, bgs, pyr, lvl, nlev, steps, hitflag, &pix);
+    return bg_rgb[pix];
 }
 
 /* The rays of one glass pixel (shared by rt_refract and rt_refract_hits): the
