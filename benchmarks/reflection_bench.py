@@ -128,7 +128,6 @@ def proxy_errors(args) -> int:
     import photo_bench as PB
     from _machine import cpu_model
     from pixgraph.session import Session
-    PB.SIZES.setdefault("1280", (1280, 960))
     repeat = args.repeat or 3
     print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f}; python {sys.version.split()[0]}")
     rows = []
@@ -187,7 +186,7 @@ def proxy_errors(args) -> int:
             for side in args.proxies:
                 ts = []
                 for _ in range(repeat):
-                    s.memory.clear() if hasattr(s.memory, "clear") else None
+                    s.memory.clear()
                     t0 = time.perf_counter()
                     out = np.asarray(s.run(g, outputs=[port], params={f"{node}.proxy": side})[port], np.float32)
                     ts.append(s.last_run.timings.get(node, time.perf_counter() - t0))

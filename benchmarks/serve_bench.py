@@ -52,6 +52,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _machine import cpu_model  # noqa: E402
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(REPO, "tests"))
+from serve_helpers import CHROMIUM_ARGS  # noqa: E402 (how the browser tests start chromium)
+
 METHODS = {"hard": "pixgraph.HardShadow", "classical soft": "pixgraph.SoftShadow",
            "SSN++": "pixgraph.SoftShadowSSN"}
 
@@ -154,11 +157,6 @@ def drag(url: str, steps: int, method: str, offset: float) -> tuple[list[float],
         t0 = time.perf_counter()
         c.post("/api/render", json={"light_tip": last, "mode": "final", "client": f"bench-{offset}", "seq": seq}).raise_for_status()
         return times, server, time.perf_counter() - t0
-
-
-#: Debian's chromium without background connections (as tests/serve_helpers.py starts it)
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 
 def browser_drag(url: str, steps: int) -> tuple[list[float], list[float]]:

@@ -150,7 +150,6 @@ def _direct(mod: str, path: str, top: str, package_dir, by_name) -> tuple[list, 
     return imported, data
 
 
-_scans: dict[tuple[str, int, int], tuple[list, list]] = {}
 _digests: dict[tuple[str, int, int], bytes] = {}
 
 
@@ -170,12 +169,7 @@ def _file_digest(path: str) -> bytes:
 
 def _scan(path: str) -> tuple[list, list]:
     """The imports ``(level, module, names or None)`` and string literals of a
-    source file, parsed once per process per file version."""
-    st = os.stat(path)
-    sig = (path, st.st_mtime_ns, st.st_size)
-    hit = _scans.get(sig)
-    if hit is not None:
-        return hit
+    source file (``_direct`` remembers what they give per file version)."""
     imports, strings = [], []
     try:
         with open(path, "rb") as f:
@@ -189,7 +183,6 @@ def _scan(path: str) -> tuple[list, list]:
             imports.append((node.level, node.module, [alias.name for alias in node.names]))
         elif isinstance(node, ast.Constant) and isinstance(node.value, str):
             strings.append(node.value)
-    _scans[sig] = (imports, strings)
     return imports, strings
 
 

@@ -227,9 +227,7 @@ def run_group(session, graph: Graph, items: Sequence[Item], force: bool = False,
             report(pending.result())
             pending = None
     finally:
-        if writer is not None:
-            if pending is not None:  # interrupted: the write in flight finishes or removes its temporary
-                concurrent.futures.wait([pending])
+        if writer is not None:  # waits for a write in flight (interrupted: it finishes or removes its temporary)
             writer.shutdown(wait=True)
         pins.clear()
     return out

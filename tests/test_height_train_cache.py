@@ -45,5 +45,8 @@ def test_cache_grows_with_the_snapshot(tmp_path, monkeypatch):
     fresh = train.load_split(str(fresh_dir), "train", 16)
     np.testing.assert_array_equal(grown["x"], fresh["x"])      # same as cropping all from scratch
     np.testing.assert_array_equal(grown["bh"], fresh["bh"])
+    calls.clear()
+    monkeypatch.setattr(lh, "prepare", lambda *a, **k: calls.append(1) or real(*a, **k))
     again = train.load_split(str(tmp_path), "train", 16)        # unchanged: read from the cache
     np.testing.assert_array_equal(again["x"], grown["x"])
+    assert calls == []                                          # nothing cropped again

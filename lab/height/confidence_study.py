@@ -22,17 +22,7 @@ from __future__ import annotations
 import os
 
 import numpy as np
-
-
-def ranks(x):
-    x = np.asarray(x, np.float64)
-    order = np.argsort(x, kind="stable")
-    r = np.empty(len(x))
-    r[order] = np.arange(len(x))
-    # ties share their mean rank
-    _, inv, cnt = np.unique(x, return_inverse=True, return_counts=True)
-    sums = np.bincount(inv, r)
-    return sums[inv] / cnt[inv]
+from scipy.stats import rankdata
 
 
 def spearman(a, b) -> float:
@@ -40,7 +30,7 @@ def spearman(a, b) -> float:
     ok = np.isfinite(a) & np.isfinite(b)
     if ok.sum() < 3 or np.ptp(a[ok]) == 0:
         return 0.0
-    return float(np.corrcoef(ranks(a[ok]), ranks(b[ok]))[0, 1])
+    return float(np.corrcoef(rankdata(a[ok]), rankdata(b[ok]))[0, 1])  # ties share their mean rank
 
 
 def fit_linear(F, y):
