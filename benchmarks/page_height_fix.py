@@ -19,11 +19,13 @@ graph is the own-photo template's chain: ``CutoutHeight`` (``method: learned``) 
 falls on the floor and the wall behind, as in the own-photo template).
 
 The simulated user (rules written before any measurement, like real_photos.py's):
-it knows where the object really touches the ground and how tall its top really
-is, and tries each plan of at most 3 page actions in ``PLANS`` (contact points
-dragged from the foot's hollow handle onto the lowest visible pixel with true height
-< 1 px in each of k column bins; the tilt handle dragged until the top's height is
-its true one; the upright and lying toggles), keeping the plan whose shadow is
+it knows where the object really touches the ground and how tall its top and its
+body really are (``known_heights``), and tries each plan of at most 3 page actions
+in ``PLANS`` (contact points dragged from the foot's hollow handle onto the lowest
+visible pixel with true height < 1 px in each of k column bins; the tilt handle
+dragged until the top's height is its true one, lying down the same square for the
+thickness; the body's ring (foot depth) dragged until the body point's height is
+its true one; the upright and lying toggles; the other height method), keeping the plan whose shadow is
 closest to the true heights' shadow (the user sees the shadow). That plan is then
 done in the page, in headless Chromium, each action a pointer drag (or a toggle)
 through the page's own handles, waiting for the previews and the final; the
@@ -117,7 +119,23 @@ def build_scene(sample: str, dest: str, method: str = "learned") -> dict:
     # the coverage as the graph reads it back (8-bit alpha > 0.5): the user's pixels and the edit's
     seen = cut[..., 3].astype(np.float32) / 255.0 > 0.5
     return {"graph": os.path.join(dest, "scene.yaml"), "object": meta["scene"]["object"],
-            "true_h": np.where(seen, true_h, 0.0), "mask": seen, "method": method}
+            "true_h": np.where(seen, true_h, 0.0), "known_h": known_heights(true_h, mask.astype(bool), seen),
+            "mask": seen, "method": method}
+
+
+def known_heights(true_h: np.ndarray, rendered: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """What the simulated user knows of the true heights over the pixels it sees
+    (``seen``): the render's where it covered the pixel (``rendered``), else the nearest
+    rendered pixel's. The 8-bit alpha covers a few outline pixels the render's mask does
+    not (its antialiased edge); their stored true height is 0, which is no height the
+    user believes: the top row of a mug, a duck, the teddy is such a pixel, so "the
+    top's true height" was 0 there and the top drag was skipped."""
+    from scipy import ndimage
+    good = rendered & seen
+    if not good.any():
+        return np.where(seen, true_h, 0.0)
+    iy, ix = ndimage.distance_transform_edt(~good, return_distances=False, return_indices=True)
+    return np.where(seen, np.where(good, true_h, true_h[iy, ix]), 0.0)
 
 
 def true_contacts(true_h: np.ndarray, mask: np.ndarray, k: int) -> list:
@@ -151,7 +169,20 @@ PLANS = {
     "other method + 2 contacts": ["switch", "contact:2"],
     "other method + 1 contact + top": ["switch", "contact:1", "top"],
     "other method + top": ["switch", "top"],
+    # lying down, the top square dragged until the top's height is its true one (the thickness)
+    "lying + thickness": ["lying", "thickness"],
+    # the body's ring (foot depth) dragged until the body's ground point is its true one
+    "depth": ["depth"],
+    "depth + top": ["depth", "top"],
+    "top + depth": ["top", "depth"],
+    "1 contact + depth + top": ["contact:1", "depth", "top"],
+    "other method + depth": ["switch", "depth"],
+    "other method + depth + top": ["switch", "depth", "top"],
+    "other method + top + depth": ["switch", "top", "depth"],
 }
+#: the plans added with the foot-depth ring and the lying thickness drag (fourth session)
+NEW_PLANS = ("lying + thickness", "depth", "depth + top", "top + depth", "1 contact + depth + top",
+             "other method + depth", "other method + depth + top", "other method + top + depth")
 OTHER = {"learned": "contact_line", "contact_line": "learned"}
 
 
@@ -160,23 +191,36 @@ def plan_method(plan: list, method: str) -> str:
     return OTHER[method] if "switch" in plan else method
 
 
-def plan_params(plan: list, true_h: np.ndarray, mask: np.ndarray, edited_without_tilt) -> dict:
-    """The edit's params after the plan's actions; ``top`` drags the tilt handle until the top's
-    height is its true one (``edited_without_tilt(params)``: the edited map before it)."""
-    from pixgraph_nodes.ops.height_edit import tilt_for_height, top_point
+def plan_params(plan: list, known_h: np.ndarray, mask: np.ndarray, edited) -> dict:
+    """The edit's params after the plan's actions, in order (``known_h``: the heights the
+    user knows, ``edited(params)``: the edited map with those params). ``top`` drags the
+    tilt handle until the top's height is its true one, ``thickness`` (lying) the same
+    square, ``depth`` the body's ring until the body point's height is its true one."""
+    from pixgraph_nodes.ops.height_edit import (body_point, depth_for_height, thickness_for_height, tilt_for_height,
+                                                tilt_gain, top_point)
     p = {}
     for act in plan:
         if act.startswith("contact:"):
-            p["contact_points"] = [c for pt in true_contacts(true_h, mask, int(act[8:])) for c in pt]
+            p["contact_points"] = [c for pt in true_contacts(known_h, mask, int(act[8:])) for c in pt]
         elif act == "upright":
             p["contact_mode"] = "upright"
         elif act == "lying":
             p["lying"] = True
         elif act == "top":
-            top = top_point(mask, edited_without_tilt(p))
-            true_top = top_point(mask, true_h)
+            top = top_point(mask, edited({k: v for k, v in p.items() if k != "tilt"}))
+            true_top = top_point(mask, known_h)
             if top is not None and true_top is not None:
                 p["tilt"] = round(tilt_for_height(top[3], true_top[2], 0.0, 20.0), 2)
+        elif act == "thickness":
+            true_top = top_point(mask, known_h)
+            if true_top is not None:
+                p["thickness"] = round(thickness_for_height(true_top[2], tilt_gain(p.get("tilt", 0.0), 20.0)), 2)
+        elif act == "depth":
+            g = tilt_gain(p.get("tilt", 0.0), 20.0)
+            body = body_point(mask, edited({k: v for k, v in p.items() if k != "foot_depth"}), p.get("tilt", 0.0))
+            true_body = body_point(mask, known_h)
+            if body is not None and true_body is not None:
+                p["foot_depth"] = round(depth_for_height(body[3], true_body[2], g), 2)
     return p
 
 
@@ -239,15 +283,15 @@ def choose_plan(sc: dict, method: str) -> tuple[str, dict, dict]:
     g = ses.load(sc["graph"])
     m = sc["mask"]
 
-    def before_tilt(p, meth):
-        q = {f"edit.{k}": v for k, v in p.items() if k != "tilt"}
+    def edited(p, meth):
+        q = {f"edit.{k}": v for k, v in p.items()}
         q["fg_h.method"] = meth
         return ses.run(g, outputs=["edit.height"], params=q)["edit.height"]
 
     every = {"none": ({}, measure(sc["graph"], {}, method))}
     for name, plan in PLANS.items():
         meth = plan_method(plan, method)
-        p = plan_params(plan, sc["true_h"], m, lambda q: before_tilt(q, meth))
+        p = plan_params(plan, sc["known_h"], m, lambda q: edited(q, meth))
         every[name] = (p, measure(sc["graph"], p, meth))
     best = min(every, key=lambda k: every[k][1]["rmse"])
     return best, every[best][0], every
@@ -261,7 +305,7 @@ def in_page(url: str, plan: list, sc: dict, page_shot: str | None) -> tuple:
     import httpx
     from PIL import Image
 
-    from pixgraph_nodes.ops.height_edit import top_point
+    from pixgraph_nodes.ops.height_edit import body_point, top_point
     sys.path.insert(0, os.path.join(REPO, "tests"))
     from serve_helpers import chromium_browser  # noqa: E402
     from test_page_photo import centre, drag, last_seq, open_page, screen, wait_final  # noqa: E402
@@ -285,14 +329,17 @@ def in_page(url: str, plan: list, sc: dict, page_shot: str | None) -> tuple:
         m = sc["mask"]
         for act in plan:
             if act.startswith("contact:"):
-                for (cu, cv) in true_contacts(sc["true_h"], m, int(act[8:])):
+                for (cu, cv) in true_contacts(sc["known_h"], m, int(act[8:])):
                     drag(page, centre(page, "#contact-new"), screen(page, sx * cu + tx, sy * cv + ty))
                     actions += 1
-            elif act == "top":
+            elif act in ("top", "thickness", "depth"):
+                # the top's square (tilt; lying: thickness) or the body's ring (foot depth), dragged
+                # up or down until the point's height is the true one
                 e = httpx.get(url + "/api/scene", timeout=120).json()["height_edit"]
-                want = top_point(m, sc["true_h"])[2]
-                x, y = centre(page, "#tilt-handle")
-                drag(page, (x, y), (x, y - (want - e["top"][2]) * sy * k))
+                point, have, sel = ((body_point(m, sc["known_h"]), e["body"], "#depth-handle") if act == "depth"
+                                    else (top_point(m, sc["known_h"]), e["top"], "#tilt-handle"))
+                x, y = centre(page, sel)
+                drag(page, (x, y), (x, y - (point[2] - have[2]) * sy * k))
                 actions += 1
             elif act == "switch":
                 seq = last_seq(page)
@@ -328,7 +375,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f}")
     if a.explore:
-        gains, rows = [], []
+        gains, old_gains, rows = [], [], []
         for idx in (int(x) for x in a.explore.split(",")):
             with tempfile.TemporaryDirectory(prefix="pixgraph-hfix-") as d:
                 sc = build_scene(os.path.join(a.shadows, f"{idx:05d}.npz"), d)
@@ -336,6 +383,8 @@ def main(argv=None) -> int:
                     best, _, every = choose_plan(sc, method)
                     before, after = every["none"][1], every[best][1]
                     gains.append(1 - after["rmse"] / before["rmse"])
+                    old = min((v[1]["rmse"] for k, v in every.items() if k not in NEW_PLANS))
+                    old_gains.append(1 - old / before["rmse"])
                     rows.append(f"| {idx} {sc['object'].removeprefix('named:')} | {method.replace('_', ' ')} | {best} | "
                                 f"{before['rmse']:.3f} -> {after['rmse']:.3f} ({gains[-1]:.0%}) | "
                                 f"{before['iou']:.2f} -> {after['iou']:.2f} |")
@@ -350,6 +399,9 @@ def main(argv=None) -> int:
         print(f"best plan of <= 3 actions over {len(g)} cases: median {np.median(g):.0%} of the shadow's RMSE "
               f"removed (min {g.min():.0%}, max {g.max():.0%}); >= 30 % in {int((g >= 0.3).sum())}; "
               f"load average {os.getloadavg()[0]:.2f}")
+        o = np.array(old_gains)
+        print(f"without the plans of NEW_PLANS (foot depth, lying thickness): median {np.median(o):.0%} "
+              f"(min {o.min():.0%}, max {o.max():.0%}); >= 30 % in {int((o >= 0.3).sum())}")
         return 0
     sys.path.insert(0, os.path.join(REPO, "tests"))
     from serve_helpers import running_server  # noqa: E402
@@ -365,7 +417,8 @@ def main(argv=None) -> int:
             with running_server(sc["graph"]) as (url, _):
                 vals, actions, shots, painted = in_page(url, PLANS.get(best, []), sc, a.shots if n == 0 else None)
                 previews += painted
-            params = {k: vals[k] for k in ("contact_points", "contact_mode", "tilt", "lying")}
+            params = {k: vals[k] for k in ("contact_points", "contact_mode", "tilt", "lying", "thickness",
+                                           "foot_depth")}
             before, after = every["none"][1], measure(sc["graph"], params, vals["method"])
             print(f"| {idx} {sc['object']} | {method} | {best} ({actions}) | {before['rmse']:.4f} -> "
                   f"**{after['rmse']:.4f}** ({every[best][1]['rmse']:.4f}) | {before['iou']:.2f} -> "

@@ -1,4 +1,5 @@
-"""pixgraph.PixelHeightEdit: fix a cutout's pixel height by hand (contact points, tilt, lying down, lift)."""
+"""pixgraph.PixelHeightEdit: fix a cutout's pixel height by hand (contact points, foot depth, tilt, lying
+down, lift)."""
 from __future__ import annotations
 
 import numpy as np
@@ -22,16 +23,22 @@ class PixelHeightEdit(Node):
     offset, linear in u, that puts the contact points at height 0; ``upright``
     replaces it by the height above the ground line through the points. ``lying``: the object lies on the ground (each column's
     lowest pixel on it, nowhere higher than ``thickness`` px; 0 = half the silhouette's
-    median column extent). ``tilt`` leans it away from (> 0) or toward (< 0) the camera
+    median column extent). ``foot_depth`` moves the ground under the object's body that
+many rows in front of (> 0, toward the camera) or behind (< 0) its contact: a body
+point's height grows by it, ramped in over the lowest ``|foot_depth|`` px of height so
+the contact stays at 0 (a sitting figure's body behind its legs, a round belly or ball
+bulging past its visible bottom edge). ``tilt`` leans it away from (> 0) or toward (< 0) the camera
     about its contact, for a camera looking down by ``elevation``; a sideways lean needs
     no edit. ``lift`` raises it off the ground. At its defaults (no contact points, no
-    tilt, lift or lying) the height passes through unchanged.
+    foot depth, tilt, lift or lying) the height passes through unchanged.
 
     The page (``pixgraph serve``) draws each contact point as a handle on the placed
     cutout (an empty list: one hollow handle at the cutout's foot; "+ contact" adds
     points, "- contact" removes the last), the top's ground point as the tilt handle
-    (drag it down: taller, up: shorter, by leaning the object), and "lying down" as a
-    toggle.
+    (drag it up: taller, down: shorter, by leaning the object; lying down, the same
+    handle sets the thickness), the body's ground point as the foot-depth handle (a
+    circle on the pixel nearest the mask's centroid: drag it up, the body is taller),
+    and "lying down" as a toggle.
     """
 
     class Inputs:
@@ -54,22 +61,28 @@ class PixelHeightEdit(Node):
                                  doc="lying: the object's height above the ground (0: half the median "
                                      "column extent)")
         lift: float = param(0.0, min=0.0, unit="px", doc="raise the object this far off the ground")
+        foot_depth: float = param(0.0, unit="px",
+                                  doc="the ground under the body lies this many rows in front of (> 0) or "
+                                      "behind (< 0) the contact; its heights grow by it (not when lying)")
 
     class Outputs:
         height: T.PixelHeight = port(doc="edited pixel height [px], 0 outside the mask")
 
-    impl_version = "4"   # 2: defaults pass through; 3: shift is a per-column offset; 4: close points: their mean
+    # 2: defaults pass through; 3: shift is a per-column offset; 4: close points: their mean; 5: foot_depth
+    impl_version = "5"
 
     #: what a shell's page draws (read by pixgraph_serve): contact points, the tilt handle,
     #: the lying toggle, by these params; ``mask`` names the input with the coverage in
     #: the edit's pixels; ``placed_by`` the params of the downstream node of kind "place"
     #: that puts those pixels on the canvas (``frame`` maps them)
     handles = {"kind": "height_edit", "points": "contact_points", "mode": "contact_mode", "tilt": "tilt",
-               "elevation": "elevation", "lying": "lying", "lift": "lift", "mask": "mask", "output": "height",
+               "elevation": "elevation", "lying": "lying", "lift": "lift", "depth": "foot_depth",
+               "thickness": "thickness", "mask": "mask", "output": "height",
                "placed_by": ("foot", "scale", "flip")}
     #: the geometry of those handles (ops/height_edit.py), for shells that do not import nodes
     frame = staticmethod(height_edit.placed_frame)
     top_point = staticmethod(height_edit.top_point)
+    body_point = staticmethod(height_edit.body_point)
     foot_point = staticmethod(foot_of_mask)
 
     def compute(self, ctx, inputs, params):
@@ -88,6 +101,7 @@ class PixelHeightEdit(Node):
             raise InputError(f"param 'contact_points': point(s) {out.tolist()} outside the {W}x{H} cutout")
         try:
             return {"height": edit_pixel_height(h, m > 0.5, P, params.contact_mode, params.tilt,
-                                                params.elevation, params.lying, params.thickness, params.lift)}
+                                                params.elevation, params.lying, params.thickness, params.lift,
+                                                params.foot_depth)}
         except ValueError as e:
-            raise InputError(f"param 'tilt': {e}") from None
+            raise InputError(f"param '{'foot_depth' if 'foot_depth' in str(e) else 'tilt'}': {e}") from None

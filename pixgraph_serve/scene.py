@@ -20,6 +20,8 @@ attribute, a dict with a ``kind``):
   canvas (``[sx, tx, sy, ty]``: ``X = sx x + tx``, ``Y = sy y + ty``); ``top_point(mask,
   edited, tilt, elevation, lift)`` is the object's top ``(u, v, h, h0)`` for the tilt
   handle, ``foot_point(mask)`` the cutout's foot (where new contact points start);
+  optional: ``depth`` and ``thickness`` name params of a body handle and of the top
+  handle when lying, ``body_point(mask, edited, tilt, elevation, lift, depth)`` its point;
 - any other kind (``shadow``): a node the page may switch between the types of
   that kind (``ServeState.alternatives``).
 
@@ -250,12 +252,17 @@ def _height_edit(state: ServeState, nid: str) -> dict:
     else:
         foot = [(box[0] + box[2]) / 2, box[3]] if box else [cols / 2, rows]
     names = {k: h.get(k, k) for k in ("points", "mode", "tilt", "elevation", "lying", "lift")}
+    names.update({k: h[k] for k in ("depth", "thickness") if k in h})     # optional handles
     top = spec.cls.top_point(mask, edited, v[names["tilt"]], v[names["elevation"]], v[names["lift"]])
+    body = None
+    if "depth" in names and getattr(spec.cls, "body_point", None) is not None:
+        body = spec.cls.body_point(mask, edited, v[names["tilt"]], v[names["elevation"]], v[names["lift"]],
+                                   v[names["depth"]])
     # the nodes whose output the edit edits (not its coverage): the page opens their params
     sources = sorted({ref.node for port, ref in inst.inputs.items() if port != h.get("mask", "mask")})
     return {"id": nid, "params": names, "values": {k: v[p] for k, p in names.items()},
             "frame": [sx, tx, sy, ty], "size": [cols, rows], "foot": foot, "place": place,
-            "top": list(top) if top else None, "sources": sources}
+            "top": list(top) if top else None, "body": list(body) if body else None, "sources": sources}
 
 
 # -- what a drag means -------------------------------------------------------------------

@@ -139,7 +139,8 @@ def test_scene_describes_the_edit_in_the_cutouts_pixels(photo_state):
     assert s["roles"]["height_edit"] == "edit" and e["place"] == "place"
     assert e["size"] == [159, 285]
     assert e["values"] == {"points": [], "mode": "shift", "tilt": 0.0, "elevation": 20.0, "lying": False,
-                           "lift": 0.0}
+                           "lift": 0.0, "depth": 0.0, "thickness": 0.0}
+    assert e["params"]["depth"] == "foot_depth" and e["params"]["thickness"] == "thickness"
     sx, tx, sy, ty = e["frame"]
     foot = s["place"]["foot"]
     assert sx == sy == pytest.approx(s["place"]["scale"])
@@ -151,6 +152,14 @@ def test_scene_describes_the_edit_in_the_cutouts_pixels(photo_state):
     assert h == pytest.approx(float(out[int(v), int(u)])) and h == pytest.approx(h0) and h > 100
     # the placed box's top matches the frame's top row
     assert sy * (v - 0.5) + ty == pytest.approx(s["place"]["bbox"][1], abs=1.5 * sy + 1)
+    # the body's ring: the covered pixel nearest the coverage's centroid, its edited height
+    bu, bv, bh, bh0 = e["body"]
+    cov = photo_state.run(["cutout.alpha"])["cutout.alpha"]
+    cov = (cov[..., 0] if cov.ndim == 3 else cov) > 0.5
+    ys, xs = np.nonzero(cov)
+    d2 = (ys - ys.mean()) ** 2 + (xs - xs.mean()) ** 2
+    assert cov[int(bv), int(bu)] and (int(bv) - ys.mean()) ** 2 + (int(bu) - xs.mean()) ** 2 == pytest.approx(d2.min())
+    assert bh == pytest.approx(float(out[int(bv), int(bu)])) and bh == pytest.approx(bh0) and bh > 10
 
 
 def test_contact_points_move_the_shadow_and_save_and_load_back(photo_state):

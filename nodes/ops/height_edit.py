@@ -1,4 +1,4 @@
-"""Editing a cutout's pixel height by hand: contact points, tilt, lying down, lift.
+"""Editing a cutout's pixel height by hand: contact points, foot depth, tilt, lying down, lift.
 
 Plain numpy; the node is ``pixgraph.PixelHeightEdit`` (nodes/pixel_height_edit.py).
 Pixel coordinates: ``u`` to the right, ``v`` down, pixel (row r, column c) has its
@@ -37,6 +37,27 @@ image distance from an object point down to its foot on the ground).
    column extent of the silhouette. Replaces steps 1's result (contact points
    are ignored: every column touches the ground).
 
+2b. **Foot depth** ``foot_depth`` [px] (not when lying): where the ground under
+   the object's body lies, relative to its contact. A map from the contact
+   line (or a learned one) puts the foot of every point of a column on the
+   contact's row; but a sitting teddy's body stands behind its legs, a duck's
+   round belly bulges toward the camera past its visible bottom edge, a ball's
+   lowest visible pixels are its front, not its contact. With the body's
+   ground ``D`` rows lower in the image than the contact (in front of it,
+   toward the camera; ``D < 0``: behind it, higher in the image) a body point's
+   foot moves ``D`` rows down, so its height grows by ``D``. The heights near
+   the contact keep it at 0, so the change is ramped in over the lowest ``|D|``
+   px of height:
+
+   ``h' = h + D * clip(h / |D|, 0, 1)``
+
+   (for ``D > 0``: ``2 h`` below ``D``, ``h + D`` above; for ``D < 0``:
+   ``max(h - |D|, 0)``: the lowest ``|D|`` px of height lie on the ground, the
+   rest sinks by ``|D|``). Monotone in ``h`` and continuous; the contact stays
+   at 0. The page's body handle is the covered pixel nearest the mask's
+   centroid (``body_point``), with a guide down to the ground under it;
+   dragging it sets ``D`` (``depth_for_height``, the inverse at that point).
+
 3. **Tilt** ``tilt_deg`` (leaning away from the camera > 0, toward it < 0) about
    the contact, for a camera looking down by ``elevation_deg``: a point of an
    upright object that leans back by phi is farther away the higher it is, so the
@@ -52,7 +73,7 @@ image distance from an object point down to its foot on the ground).
    contact is ``lift`` px above the ground).
 
 Finally heights are clipped to >= 0 and set to 0 outside ``mask``. With nothing
-to edit (no contact points, not lying, no tilt, no lift) the input passes through
+to edit (no contact points, no foot depth, not lying, no tilt, no lift) the input passes through
 unchanged (``is_identity``): a graph with the node at its defaults renders exactly
 as one without it.
 
@@ -61,7 +82,12 @@ maps the edit's pixels (the cutout's) to the canvas the cutout is placed on (the
 similarity of ``placement``: ``X = foot_u +- s (x - ax)``, ``Y = foot_v + s (y -
 ay)``, anchor ``(ax, ay)`` the mask's foot); ``top_point`` is the object's top and
 its height before the tilt, from which ``tilt_for_height`` gives the tilt that
-puts the top's ground point at a dragged height (the inverse of step 3).
+puts the top's ground point at a dragged height (the inverse of step 3); lying,
+the same handle sets the thickness (``thickness_for_height``: the top's height
+is ``g min(extent, thickness) + lift``). ``body_point`` is the body handle's
+pixel and its height before the foot depth, tilt and lift, from which
+``depth_for_height`` gives the foot depth that puts its ground point at a
+dragged height (step 2b inverted).
 """
 from __future__ import annotations
 
@@ -137,6 +163,61 @@ def lying_height(mask: np.ndarray, thickness: float = 0.0) -> np.ndarray:
     return np.where(m, np.minimum(np.maximum(bottom[None, :] - v, 0.0), thickness), 0.0)
 
 
+def foot_depth_height(height: np.ndarray, depth: float) -> np.ndarray:
+    """``h + D clip(h / |D|, 0, 1)`` [px] (module doc, step 2b); ``D = depth`` [px], 0: unchanged."""
+    h = np.asarray(height, np.float64)
+    d = float(depth)
+    if d == 0.0:
+        return h
+    return h + d * np.clip(h / abs(d), 0.0, 1.0)
+
+
+def foot_depth_inverse(edited: float, depth: float) -> float:
+    """The height before step 2b of a point whose height after it is ``edited`` [px]
+    (for ``D < 0`` an edited 0 could be anything up to ``|D|``: ``|D|``)."""
+    d, e = float(depth), float(edited)
+    if d > 0:
+        return e / 2.0 if e < 2.0 * d else e - d
+    if d < 0:
+        return e - d if e > 0 else -d
+    return e
+
+
+def body_point(mask: np.ndarray, edited: np.ndarray, tilt_deg: float = 0.0, elevation_deg: float = 20.0,
+               lift: float = 0.0, depth: float = 0.0) -> tuple[float, float, float, float] | None:
+    """(u, v, h, h0) [px] of the body handle: the centre of the covered pixel (coverage
+    > 0.5) nearest the mask's centroid, its edited height ``h`` and ``h0``, its height
+    before the foot depth, tilt and lift (``h = g f_D(h0) + lift``, steps 2b-4); None
+    for an empty mask."""
+    m = np.asarray(mask)
+    m = (m[..., 0] if m.ndim == 3 else m) > 0.5
+    ys, xs = np.nonzero(m)
+    if len(ys) == 0:
+        return None
+    k = int(np.argmin((ys - ys.mean()) ** 2 + (xs - xs.mean()) ** 2))
+    r, c = int(ys[k]), int(xs[k])
+    e = np.asarray(edited)
+    h = float((e[..., 0] if e.ndim == 3 else e)[r, c])
+    h0 = foot_depth_inverse((h - float(lift)) / tilt_gain(tilt_deg, elevation_deg), depth)
+    return c + 0.5, r + 0.5, h, h0
+
+
+def depth_for_height(h0: float, target: float, gain: float = 1.0, lift: float = 0.0) -> float:
+    """The foot depth [px] that gives a point of height ``h0`` before it the height
+    ``target`` [px] (``target = gain f_D(h0) + lift``, step 2b inverted: ``D = (target -
+    lift) / gain - h0``), within ``[-h0, h0]`` (the range where ``f_D(h0) = h0 + D``: a
+    point can go down to the ground or up to twice its height)."""
+    if h0 <= 0 or gain <= 0:
+        return 0.0
+    return float(np.clip((float(target) - float(lift)) / float(gain) - h0, -h0, h0))
+
+
+def thickness_for_height(target: float, gain: float = 1.0, lift: float = 0.0) -> float:
+    """Lying: the thickness [px] that gives the top the height ``target`` [px] (``target
+    = gain thickness + lift`` where the top's column is at least that tall); >= 0."""
+    return max(0.0, (float(target) - float(lift)) / float(gain)) if gain > 0 else 0.0
+
+
 def tilt_gain(tilt_deg: float, elevation_deg: float) -> float:
     """``1 / (1 + tan(tilt) tan(elevation))`` (module doc, step 3)."""
     d = 1.0 + math.tan(math.radians(tilt_deg)) * math.tan(math.radians(elevation_deg))
@@ -146,9 +227,11 @@ def tilt_gain(tilt_deg: float, elevation_deg: float) -> float:
     return 1.0 / d
 
 
-def is_identity(points=(), tilt_deg: float = 0.0, lying: bool = False, lift: float = 0.0) -> bool:
+def is_identity(points=(), tilt_deg: float = 0.0, lying: bool = False, lift: float = 0.0,
+                foot_depth: float = 0.0) -> bool:
     """True when ``edit_pixel_height`` has nothing to do: the input passes through (module doc)."""
-    return len(points) == 0 and not lying and float(tilt_deg) == 0.0 and float(lift) == 0.0
+    return (len(points) == 0 and not lying and float(tilt_deg) == 0.0 and float(lift) == 0.0
+            and float(foot_depth) == 0.0)
 
 
 def placed_frame(mask: np.ndarray, foot, scale: float, flip: bool = False) -> tuple[float, float, float, float]:
@@ -201,9 +284,11 @@ def tilt_for_height(h0: float, target: float, lift: float = 0.0, elevation_deg: 
 
 def edit_pixel_height(height: np.ndarray, mask: np.ndarray, points=(), contact_mode: str = "shift",
                       tilt_deg: float = 0.0, elevation_deg: float = 20.0, lying: bool = False,
-                      thickness: float = 0.0, lift: float = 0.0) -> np.ndarray:
+                      thickness: float = 0.0, lift: float = 0.0, foot_depth: float = 0.0) -> np.ndarray:
     """The edited pixel height (H, W) float32 [px] (module doc)."""
-    if is_identity(points, tilt_deg, lying, lift):
+    if not math.isfinite(float(foot_depth)):
+        raise ValueError(f"foot_depth must be finite, got {foot_depth}")
+    if is_identity(points, tilt_deg, lying, lift, foot_depth):
         if np.shape(height) != np.shape(mask):
             raise ValueError(f"height {np.shape(height)} and mask {np.shape(mask)} differ in size")
         return np.asarray(height, np.float32)
@@ -224,5 +309,7 @@ def edit_pixel_height(height: np.ndarray, mask: np.ndarray, points=(), contact_m
     elif len(P):
         cols = np.flatnonzero(m.any(axis=0))
         h = h - contact_correction(h, P, float(cols[-1] - cols[0] + 1) if len(cols) else None)
+    if not lying:
+        h = foot_depth_height(np.where(m, h, 0.0), foot_depth)
     h = tilt_gain(tilt_deg, elevation_deg) * h + float(lift)
     return np.where(m, np.maximum(h, 0.0), 0.0).astype(np.float32)

@@ -6,7 +6,11 @@
 //     image), "- contact" removes the last; each point is dragged on its own;
 //   tilt (orange square): on the object's top, a guide down to the ground under it;
 //     pulled up the object stands taller, pushed down it leans back (tilt, about the
-//     contact);
+//     contact); lying down, the same square sets the thickness (how tall it lies);
+//   foot depth (orange ring, when the node declares `depth`): on the body (the pixel
+//     nearest the cutout's centroid), a guide down to the ground under it; pulled up
+//     the body's ground moves toward the camera (the body is taller), pushed down
+//     behind the contact (shorter);
 //   "lying down" and "upright" (contact_mode) toggles in the toolbar.
 // The shadow follows every drag through the page's preview renders.
 "use strict";
@@ -47,6 +51,34 @@ function tiltFor(h0, target, lift, elevation) {
   return round(Math.min(80, Math.max(lowest, Math.atan((h0 / want - 1) / ta) * deg)), 2);
 }
 
+// The tilt's height gain 1 / (1 + tan(tilt) tan(elevation)) (ops.height_edit.tilt_gain)
+function gain(vals) {
+  const deg = Math.PI / 180;
+  return 1 / (1 + Math.tan((vals.tilt || 0) * deg) * Math.tan((vals.elevation || 0) * deg));
+}
+
+// The foot depth [px] that gives the body point (height h0 before it) the height
+// `target`: (target - lift) / gain - h0 within [-h0, h0] (ops.height_edit.depth_for_height).
+function depthFor(h0, target, vals) {
+  const g = gain(vals);
+  if (h0 <= 0 || g <= 0) return 0;
+  return round(Math.min(h0, Math.max(-h0, (target - (vals.lift || 0)) / g - h0)), 2);
+}
+
+// a vertical drag of a point at (u, v) whose ground point is `h` below it [cutout px]:
+// the guide follows, `value(target)` gives the param edit for the new height
+function heightHandle(e, cls, id, [u, v, h], shape, value) {
+  const at = toCanvas(e, [u, v]);
+  const foot = (hh) => toScreen(...toCanvas(e, [u, v + hh]));
+  const [x1, y1] = toScreen(...at), [x2, y2] = foot(h);
+  const guide = svgEl("line", {class: `guide ${cls}`, x1, y1, x2, y2});
+  return handle(cls, id, at, ([, y], start) => {
+    const target = h + (start[1] - y) / e.frame[2];    // the point's new height [cutout px]
+    guide.setAttribute("y2", foot(target)[1]);
+    return {edits: value(target), at: [at[0], y]};
+  }, shape);
+}
+
 function drawHeightEdit(s) {
   const e = s.height_edit;
   if (!e) return;
@@ -76,16 +108,24 @@ function drawHeightEdit(s) {
     // the tilt handle on the object's top, a guide down to the ground under it: pulled up
     // the object stands taller (leans toward the camera), pushed down shorter (leans back)
     const [tu, tv, h, h0] = e.top;
-    const top = toCanvas(e, [tu, tv]);
-    const foot = (hh) => toScreen(...toCanvas(e, [tu, tv + hh]));
-    const [x1, y1] = toScreen(...top), [x2, y2] = foot(h);
-    const guide = svgEl("line", {class: "guide tilt", x1, y1, x2, y2});
-    const el = handle("tilt", "tilt-handle", top, ([, v], start) => {
-      const target = h + (start[1] - v) / e.frame[2];    // the top's new height [cutout px]
-      guide.setAttribute("y2", foot(target)[1]);
-      return {edits: param(e, "tilt", tiltFor(h0, target, vals.lift || 0, vals.elevation)), at: [top[0], v]};
-    }, "rect");
+    const el = heightHandle(e, "tilt", "tilt-handle", [tu, tv, h], "rect",
+      (target) => param(e, "tilt", tiltFor(h0, target, vals.lift || 0, vals.elevation)));
     el.setAttribute("title", "the object's top: drag up = taller (leaning forward), down = shorter (leaning back)");
+  } else if (e.top && lying && e.params.thickness) {
+    // lying: the same square sets how tall the object lies (its thickness)
+    const [tu, tv, h] = e.top;
+    const el = heightHandle(e, "tilt", "tilt-handle", [tu, tv, h], "rect", (target) => param(e, "thickness",
+      round(Math.max(0, (target - (vals.lift || 0)) / gain(vals)), 2)));
+    el.setAttribute("title", "lying: the object's top; drag up = thicker, down = flatter");
+  }
+  if (e.body && !lying && e.params.depth) {
+    // the body's ground point: pulled up, the ground under the body lies in front of
+    // the contact (the body is taller), pushed down, behind it
+    const [bu, bv, h, h0] = e.body;
+    const el = heightHandle(e, "depth", "depth-handle", [bu, bv, h], "circle",
+      (target) => param(e, "depth", depthFor(h0, target, vals)));
+    el.setAttribute("title", "the body: drag up = its ground lies in front of the contact (taller), "
+      + "down = behind it (shorter)");
   }
 }
 
