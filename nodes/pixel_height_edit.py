@@ -21,13 +21,14 @@ class PixelHeightEdit(Node):
     ground — one point, two for a line, three or more for several feet. ``contact_mode``
     ``shift`` keeps the input's shape up each column and subtracts a per-column
     offset, linear in u, that puts the contact points at height 0; ``upright``
-    replaces it by the height above the ground line through the points. ``lying``: the object lies on the ground (each column's
-    lowest pixel on it, nowhere higher than ``thickness`` px; 0 = half the silhouette's
-    median column extent). ``foot_depth`` moves the ground under the object's body that
-many rows in front of (> 0, toward the camera) or behind (< 0) its contact: a body
-point's height grows by it, ramped in over the lowest ``|foot_depth|`` px of height so
-the contact stays at 0 (a sitting figure's body behind its legs, a round belly or ball
-bulging past its visible bottom edge). ``tilt`` leans it away from (> 0) or toward (< 0) the camera
+    replaces it by the height above the ground line through the points. ``lying``: the
+    object lies on the ground (each column's lowest pixel on it, nowhere higher than
+    ``thickness`` px; 0 = half the silhouette's median column extent). ``foot_depth``
+    moves the ground under the object's body that many rows in front of (> 0, toward
+    the camera) or behind (< 0) its contact: a body point's height grows by it, ramped
+    in over the lowest ``2 |foot_depth|`` px of height so the contact stays at 0 (a
+    sitting figure's body behind its legs, a round belly or ball bulging past its
+    visible bottom edge). ``tilt`` leans it away from (> 0) or toward (< 0) the camera
     about its contact, for a camera looking down by ``elevation``; a sideways lean needs
     no edit. ``lift`` raises it off the ground. At its defaults (no contact points, no
     foot depth, tilt, lift or lying) the height passes through unchanged.

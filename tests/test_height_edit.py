@@ -175,3 +175,111 @@ def test_shift_with_two_feet_a_pixel_apart_does_not_tilt_the_map():
     shift = (he.sample_height(h, 29.5, 178.0) + he.sample_height(h, 30.0, 178.0)) / 2
     np.testing.assert_allclose(out, np.where(m, np.maximum(h - shift, 0), 0), atol=1e-4)
     assert out.max() < truth.max() and (out[m] > 0).mean() > 0.9
+
+
+# -- foot depth (step 2b), the body ring and the lying thickness ------------------------------
+
+def test_foot_depth_moves_the_bodys_ground_line_and_keeps_the_contact():
+    """Above 2|D| px of height, the height above a ground line D rows lower (D > 0: in
+    front of the contact) or higher (D < 0: behind it); below, a straight ramp from the
+    contact (0) to 2|D| + D."""
+    H, W = 120, 40
+    _, v = grid(H, W)
+    m = np.zeros((H, W), bool)
+    m[10:100, 5:35] = True
+    h = np.where(m, 100.0 - v, 0.0)                   # upright, contact line at row 100
+    for D in (12.0, 30.0, -10.0, -20.0):
+        out = he.edit_pixel_height(h, m, foot_depth=D)
+        body = m & (h >= 2 * abs(D))
+        np.testing.assert_allclose(out[body], ((100.0 + D) - v)[body], atol=1e-4)
+        low = m & (h < 2 * abs(D))
+        slope = (2 * abs(D) + D) / (2 * abs(D))      # 3/2 in front, 1/2 behind
+        np.testing.assert_allclose(out[low], slope * h[low], atol=1e-4)
+        assert out[99, 20] == pytest.approx(0.5 * slope, abs=1e-4)     # the contact row stays ~0
+    # continuous and strictly increasing up each column (no step at 2|D|)
+    for D in (25.0, -25.0):
+        col = he.edit_pixel_height(h, m, foot_depth=D)[10:100, 20]
+        assert (np.diff(col) < 0).all() and np.abs(np.diff(col)).max() <= 1.5 + 1e-6
+    # lying ignores it; outside the mask stays 0; 0 is the identity
+    lying = he.edit_pixel_height(h, m, lying=True, thickness=30.0)
+    np.testing.assert_array_equal(he.edit_pixel_height(h, m, lying=True, thickness=30.0, foot_depth=15.0), lying)
+    assert (he.edit_pixel_height(h, m, foot_depth=15.0)[~m] == 0).all()
+    assert he.is_identity(foot_depth=0.0) and not he.is_identity(foot_depth=0.5)
+
+
+@pytest.mark.parametrize("depth", [-30.0, -5.0, 0.0, 8.0, 40.0])
+@pytest.mark.parametrize("tilt,lift", [(0.0, 0.0), (25.0, 0.0), (-15.0, 6.0)])
+def test_body_point_and_depth_for_height_invert_the_edit(depth, tilt, lift):
+    H, W = 90, 70
+    mask = np.zeros((H, W), bool)
+    mask[20:80, 10:60] = True
+    mask[20:50, 30:40] = False                       # a notch: the centroid's pixel is not covered
+    _, v = grid(H, W)
+    height = np.where(mask, 80.0 - v, 0.0)
+    edited = he.edit_pixel_height(height, mask, tilt_deg=tilt, elevation_deg=25.0, lift=lift, foot_depth=depth)
+    u, vv, h, h0 = he.body_point(mask, edited, tilt, 25.0, lift, depth)
+    r, c = int(vv), int(u)
+    assert mask[r, c] and (u, vv) == (c + 0.5, r + 0.5)
+    ys, xs = np.nonzero(mask)
+    assert (r - ys.mean()) ** 2 + (c - xs.mean()) ** 2 == pytest.approx(
+        ((ys - ys.mean()) ** 2 + (xs - xs.mean()) ** 2).min())
+    assert h == pytest.approx(float(edited[r, c]), abs=1e-4)
+    assert h0 == pytest.approx(height[r, c], abs=1e-3)    # its height before depth, tilt and lift
+    g = he.tilt_gain(tilt, 25.0)
+    D0 = he.depth_for_height(h0, h, g, lift)
+    if abs(depth) <= h0 / 2:
+        assert D0 == pytest.approx(depth, abs=1e-3)
+    else:           # on the ramp at this point: a depth within +-h0 / 2 that gives it the same height
+        assert abs(D0) == pytest.approx(h0 / 2) and np.sign(D0) == np.sign(depth)
+        same = he.edit_pixel_height(height, mask, tilt_deg=tilt, elevation_deg=25.0, lift=lift, foot_depth=D0)
+        assert float(same[r, c]) == pytest.approx(h, abs=1e-3)
+    # a dragged height: the depth that gives it, within [-h0, h0]
+    for target in (h0 * g + lift + 7.0, 0.6 * h0 * g + lift, 1.4 * h0 * g + lift):
+        D = he.depth_for_height(h0, target, g, lift)
+        again = he.edit_pixel_height(height, mask, tilt_deg=tilt, elevation_deg=25.0, lift=lift, foot_depth=D)
+        assert float(again[r, c]) == pytest.approx(target, abs=1e-3)
+    assert he.depth_for_height(h0, 10 * h0 + lift, g, lift) == pytest.approx(h0 / 2)   # at most 1.5 x as tall
+    assert he.depth_for_height(h0, lift - 5.0, g, lift) == pytest.approx(-h0 / 2)     # at least half as tall
+
+
+@pytest.mark.parametrize("tilt,lift", [(0.0, 0.0), (20.0, 3.0)])
+def test_thickness_for_height_sets_the_lying_tops_height(tilt, lift):
+    H, W = 60, 80
+    m = np.zeros((H, W), bool)
+    m[10:50, 10:70] = True                           # every column 40 px tall
+    for target in (12.0, 30.0):
+        T = he.thickness_for_height(target, he.tilt_gain(tilt, 20.0), lift)
+        out = he.edit_pixel_height(np.zeros((H, W)), m, lying=True, thickness=T, tilt_deg=tilt, lift=lift)
+        top = he.top_point(m, out, tilt, 20.0, lift)
+        assert top[2] == pytest.approx(target, abs=1e-4)
+    assert he.thickness_for_height(1.0, 1.0, 5.0) == 0.0
+
+
+def test_node_foot_depth_param_and_preview_scale(tmp_path):
+    H, W = 60, 30
+    _, v = grid(H, W)
+    m = np.ones((H, W), np.float32)
+    h = np.maximum(60.0 - v, 0).astype(np.float32)
+    out = run(h, m, foot_depth=10.0)
+    np.testing.assert_allclose(out[h >= 20], (h + 10.0)[h >= 20], atol=1e-4)
+    from pixgraph.node import ParamError
+    with pytest.raises(ParamError, match="foot_depth"):          # the engine's check, naming the param
+        run(h, m, foot_depth=float("inf"))
+    with pytest.raises(ValueError, match="foot_depth"):          # the function's own
+        he.edit_pixel_height(h, m > 0, foot_depth=float("nan"))
+    from pixgraph.session import Session
+    g = tmp_path / "g.yaml"
+    g.write_text("""pixgraph: 1
+nodes:
+  m: {type: pixgraph.InputMask}
+  h: {type: pixgraph.InputPixelHeight}
+  e: {type: pixgraph.PixelHeightEdit, inputs: {height: h.height, mask: m.mask}, params: {foot_depth: 12}}
+outputs: {out: e.height}
+""")
+    s = Session()
+    full = s.run(g, bind={"m": m, "h": h})["out"]
+    np.testing.assert_allclose(full[h >= 24], (h + 12.0)[h >= 24], atol=1e-4)
+    # a half-size preview: the depth (px) scales with the image
+    h2 = np.maximum(30.0 - grid(30, 15)[1], 0).astype(np.float32)
+    half = s.run(g, bind={"m": m[::2, ::2].copy(), "h": h2}, scale=0.5)["out"]
+    np.testing.assert_allclose(half[h2 >= 12], (h2 + 6.0)[h2 >= 12], atol=1e-4)

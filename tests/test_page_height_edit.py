@@ -3,7 +3,8 @@ handles), in headless Chromium: the own-photo template (which has the edit) on t
 repo's own photo and cutout; the handles are drawn where the scene maps them, a
 contact point dragged changes the param and the shadow's pixels while dragging
 (previews) and after, the tilt handle gives the tilt of ops.height_edit's inverse,
-points are added and removed, "lying down" toggles, and the page's save writes the
+points are added and removed, the body's ring sets the foot depth, "lying down"
+toggles and the top's square then sets the thickness, and the page's save writes the
 params that load back."""
 import os
 
@@ -150,11 +151,37 @@ def test_drag_the_cutouts_contact_and_tilt_in_the_page(browser, tmp_path):
         e3 = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
         assert e3["top"][2] == pytest.approx(want_h, rel=0.02)
 
-        # lying down: a toggle; the saved graph keeps every edit
+        # the body's ring (foot depth): pulled 12 px up, the body point is 12 / k image px taller
+        b = e3["body"]
+        assert b is not None and page.locator("#depth-handle").is_visible()
+        x, y = centre(page, "#depth-handle")
+        assert (x, y) == pytest.approx(screen(page, *to_canvas(e3, b[0], b[1])), abs=1.5)
+        g = he.tilt_gain(tilt, 20.0)
+        drag(page, (x, y), (x, y - 12))
+        want_b = b[2] + 12 / k / e3["frame"][2]
+        depth = graph_params(url)["edit"]["foot_depth"]
+        assert depth == pytest.approx(he.depth_for_height(b[3], want_b, g, 0.0), abs=0.6 / g)
+        assert 3 < depth < b[3] / 2                               # within the ring's range: not clipped
+        e4 = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        assert e4["body"][:2] == b[:2] and e4["body"][2] == pytest.approx(want_b, abs=0.6)
+        keep(page, "height_edit_depth.png")
+
+        # lying down: a toggle; the ring goes, the top's square sets the thickness: pulled 20 px
+        # up, the top is 20 / k image px taller (thickness = height / the tilt's gain)
         seq = last_seq(page)
         page.check("#lying")
         wait_final(page, seq)
         assert graph_params(url)["edit"]["lying"] is True
+        assert page.locator("#depth-handle").count() == 0
+        e5 = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        x, y = centre(page, "#tilt-handle")
+        drag(page, (x, y), (x, y - 20))
+        want_t = e5["top"][2] + 20 / k / e5["frame"][2]
+        thick = graph_params(url)["edit"]["thickness"]
+        assert thick == pytest.approx(he.thickness_for_height(want_t, g), abs=0.6 / g)
+        assert graph_params(url)["edit"]["tilt"] == tilt          # the tilt is kept, not dragged
+        e6 = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        assert e6["top"][2] == pytest.approx(want_t, abs=0.6)
         page.fill("#save-name", "edited.yaml")
         page.click("#save")
         page.wait_for_function("document.getElementById('status').textContent.startsWith('saved')", timeout=60000)
@@ -162,5 +189,6 @@ def test_drag_the_cutouts_contact_and_tilt_in_the_page(browser, tmp_path):
         saved = ServeState(str(tmp_path / "edited.yaml"))
         vals = {n["id"]: n["values"] for n in saved.info()["nodes"]}["edit"]
         assert vals["contact_points"] == pts and vals["tilt"] == tilt and vals["lying"] is True
+        assert vals["foot_depth"] == depth and vals["thickness"] == thick
         assert not errors, errors
         page.close()

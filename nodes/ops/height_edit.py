@@ -46,17 +46,17 @@ image distance from an object point down to its foot on the ground).
    ground ``D`` rows lower in the image than the contact (in front of it,
    toward the camera; ``D < 0``: behind it, higher in the image) a body point's
    foot moves ``D`` rows down, so its height grows by ``D``. The heights near
-   the contact keep it at 0, so the change is ramped in over the lowest ``|D|``
+   the contact keep it at 0, so the change is ramped in over the lowest ``2|D|``
    px of height:
 
-   ``h' = h + D * clip(h / |D|, 0, 1)``
+   ``h' = h + D * clip(h / (2 |D|), 0, 1)``
 
-   (for ``D > 0``: ``2 h`` below ``D``, ``h + D`` above; for ``D < 0``:
-   ``max(h - |D|, 0)``: the lowest ``|D|`` px of height lie on the ground, the
-   rest sinks by ``|D|``). Monotone in ``h`` and continuous; the contact stays
-   at 0. The page's body handle is the covered pixel nearest the mask's
-   centroid (``body_point``), with a guide down to the ground under it;
-   dragging it sets ``D`` (``depth_for_height``, the inverse at that point).
+   (slope 3/2 (``D > 0``) or 1/2 (``D < 0``) below ``2|D|``, ``h + D`` above).
+   Strictly increasing and continuous, so the page can invert it at any
+   point; the contact stays at 0. A point of height ``h0`` goes up to ``1.5 h0``
+   or down to ``h0 / 2``. The page's body handle is the covered pixel nearest
+   the mask's centroid (``body_point``), with a guide down to the ground under
+   it; dragging it sets ``D`` (``depth_for_height``, the inverse at that point).
 
 3. **Tilt** ``tilt_deg`` (leaning away from the camera > 0, toward it < 0) about
    the contact, for a camera looking down by ``elevation_deg``: a point of an
@@ -164,23 +164,22 @@ def lying_height(mask: np.ndarray, thickness: float = 0.0) -> np.ndarray:
 
 
 def foot_depth_height(height: np.ndarray, depth: float) -> np.ndarray:
-    """``h + D clip(h / |D|, 0, 1)`` [px] (module doc, step 2b); ``D = depth`` [px], 0: unchanged."""
+    """``h + D clip(h / (2 |D|), 0, 1)`` [px] (module doc, step 2b); ``D = depth`` [px], 0: unchanged."""
     h = np.asarray(height, np.float64)
     d = float(depth)
     if d == 0.0:
         return h
-    return h + d * np.clip(h / abs(d), 0.0, 1.0)
+    return h + d * np.clip(h / (2.0 * abs(d)), 0.0, 1.0)
 
 
 def foot_depth_inverse(edited: float, depth: float) -> float:
-    """The height before step 2b of a point whose height after it is ``edited`` [px]
-    (for ``D < 0`` an edited 0 could be anything up to ``|D|``: ``|D|``)."""
+    """The height [px] before step 2b of a point whose height after it is ``edited`` >= 0
+    (the ramp's end ``2|D|`` maps to ``2|D| + D``)."""
     d, e = float(depth), float(edited)
-    if d > 0:
-        return e / 2.0 if e < 2.0 * d else e - d
-    if d < 0:
-        return e - d if e > 0 else -d
-    return e
+    if d == 0.0:
+        return e
+    end = 2.0 * abs(d)
+    return e - d if e >= end + d else e * end / (end + d)
 
 
 def body_point(mask: np.ndarray, edited: np.ndarray, tilt_deg: float = 0.0, elevation_deg: float = 20.0,
@@ -205,11 +204,11 @@ def body_point(mask: np.ndarray, edited: np.ndarray, tilt_deg: float = 0.0, elev
 def depth_for_height(h0: float, target: float, gain: float = 1.0, lift: float = 0.0) -> float:
     """The foot depth [px] that gives a point of height ``h0`` before it the height
     ``target`` [px] (``target = gain f_D(h0) + lift``, step 2b inverted: ``D = (target -
-    lift) / gain - h0``), within ``[-h0, h0]`` (the range where ``f_D(h0) = h0 + D``: a
-    point can go down to the ground or up to twice its height)."""
+    lift) / gain - h0`` while ``|D| <= h0 / 2``, where ``f_D(h0) = h0 + D``), within
+    ``[-h0 / 2, h0 / 2]``: a point can go down to half or up to 1.5 times its height."""
     if h0 <= 0 or gain <= 0:
         return 0.0
-    return float(np.clip((float(target) - float(lift)) / float(gain) - h0, -h0, h0))
+    return float(np.clip((float(target) - float(lift)) / float(gain) - h0, -h0 / 2.0, h0 / 2.0))
 
 
 def thickness_for_height(target: float, gain: float = 1.0, lift: float = 0.0) -> float:

@@ -58,11 +58,11 @@ function gain(vals) {
 }
 
 // The foot depth [px] that gives the body point (height h0 before it) the height
-// `target`: (target - lift) / gain - h0 within [-h0, h0] (ops.height_edit.depth_for_height).
+// `target`: (target - lift) / gain - h0 within [-h0 / 2, h0 / 2] (ops.height_edit.depth_for_height).
 function depthFor(h0, target, vals) {
   const g = gain(vals);
   if (h0 <= 0 || g <= 0) return 0;
-  return round(Math.min(h0, Math.max(-h0, (target - (vals.lift || 0)) / g - h0)), 2);
+  return round(Math.min(h0 / 2, Math.max(-h0 / 2, (target - (vals.lift || 0)) / g - h0)), 2);
 }
 
 // a vertical drag of a point at (u, v) whose ground point is `h` below it [cutout px]:
