@@ -72,10 +72,11 @@ class PixelHeightEdit(Node):
     # 2: defaults pass through; 3: shift is a per-column offset; 4: close points: their mean; 5: foot_depth
     impl_version = "5"
 
-    #: what a shell's page draws (read by pixgraph_serve): contact points, the tilt handle,
-    #: the lying toggle, by these params; ``mask`` names the input with the coverage in
-    #: the edit's pixels; ``placed_by`` the params of the downstream node of kind "place"
-    #: that puts those pixels on the canvas (``frame`` maps them)
+    #: what a shell's page draws (read by pixgraph_serve): contact points, the tilt handle
+    #: (lying: the thickness), the body's foot-depth ring, the lying toggle, by these
+    #: params; ``mask`` names the input with the coverage in the edit's pixels;
+    #: ``placed_by`` the params of the downstream node of kind "place" that puts those
+    #: pixels on the canvas (``frame`` maps them)
     handles = {"kind": "height_edit", "points": "contact_points", "mode": "contact_mode", "tilt": "tilt",
                "elevation": "elevation", "lying": "lying", "lift": "lift", "depth": "foot_depth",
                "thickness": "thickness", "mask": "mask", "output": "height",
