@@ -8,7 +8,7 @@
    per map (``learned``: ``--weights`` through ``LearnedHeightPredictor.predict``
    with ``contact="ground"``; ``learned_free``: the same network without the
    contact pin; ``baseline``: ``--baseline`` pinned the same way; ``heuristic``:
-   the contact line; ``auto``: the ``CutoutHeight`` auto rule, ``use_learned`` of
+   the contact line; ``auto``: the ``CutoutHeight`` auto rule, ``auto_height`` of
    ``predict_full``) the mean |predicted - true| over the object's pixels
    (the centre-ray mask); the share of samples where ``learned`` beats the
    heuristic; the foot error: how high above the ground the map puts the
@@ -54,7 +54,7 @@ def eval_heights(data_dir, predictor, baseline=None, limit=0, shard=(0, 1)):
         free = predictor.predict(rgba, contact="free")
         conf = r["confidence"]
         maps = {"learned": r["height"], "learned_free": free, "heuristic": r["heuristic"]}
-        maps["auto"] = r["height"] if r.get("use_learned", True) else r["heuristic"]
+        maps["auto"] = r["auto_height"]
         if baseline is not None:
             maps["baseline"] = baseline.predict(rgba)
         row = {"index": meta["index"], "category": meta.get("category", "?"), "object": meta["object"],
@@ -104,7 +104,7 @@ def eval_shadows(data_dir, predictor, n_samples=64, limit=0, thickness=1.0, ssn=
         r = predictor.predict_full(rgba)
         conf = r["confidence"]
         heights = {"true": s["fg_height"].astype(np.float32), "learned": r["height"], "heuristic": r["heuristic"]}
-        heights["auto"] = r["height"] if r.get("use_learned", True) else r["heuristic"]
+        heights["auto"] = r["auto_height"]
         row = {"index": s["meta"]["index"], "object": s["meta"]["scene"]["object"],
                "confidence": float("nan") if conf is None else conf}
         for k, h in heights.items():

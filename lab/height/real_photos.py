@@ -94,7 +94,7 @@ def main(argv=None) -> int:
         pts = simulated_contacts(true, mask)
         maps = {"true": true, "heuristic": r["heuristic"], "learned": r["height"]}
         conf = r["confidence"]
-        maps["auto"] = r["height"] if r.get("use_learned", True) else r["heuristic"]
+        maps["auto"] = r["auto_height"]
 
         def shadow(h):
             return np.clip(soft.predict(dict(s, fg_height=np.where(mask, h, 0).astype(np.float32))), 0, 1)

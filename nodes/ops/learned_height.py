@@ -32,6 +32,7 @@ import pathlib
 import numpy as np
 
 from .heightmaps import contact_line_height
+from .resample import nonzero_box
 
 MARGIN = 0.1          # crop margin on each side, fraction of the box's longer side
 IN_CHANNELS = 6
@@ -61,10 +62,10 @@ def crop_box(mask: np.ndarray):
     Returns ``(r0, r1, c0, c1, top, left, side)`` in pixels (rows r0..r1-1 and
     columns c0..c1-1 hold the mask; the crop is rows top..top+side-1) or None
     for an empty mask."""
-    rows, cols = np.nonzero(mask)
-    if len(rows) == 0:
+    box = nonzero_box(np.asarray(mask, bool))
+    if box is None:
         return None
-    r0, r1, c0, c1 = int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1
+    r0, r1, c0, c1 = box
     side = int(math.ceil(max(r1 - r0, c1 - c0) * (1 + 2 * MARGIN))) + 2
     top = int(round((r0 + r1) / 2 - side / 2))
     left = int(round((c0 + c1) / 2 - side / 2))
@@ -111,18 +112,23 @@ def prepare(colour: np.ndarray, alpha: np.ndarray, size: int, threshold: float =
         return (x, None, 0.0) if height is None else (x, None, 0.0, z, z)
     r0, r1, c0, c1, top, left, side = box
     bh = float(r1 - r0)
-    heur = (contact_line_height(mask) if contact_line is None else contact_line) / bh
-    v = (np.arange(alpha.shape[0], dtype=np.float32) + 0.5)[:, None]
-    row = np.broadcast_to((r1 - v) / bh, alpha.shape)
-    col = np.asarray(colour, np.float32) * alpha[..., None]
-    stack = [col[..., 0], col[..., 1], col[..., 2], alpha, heur, row]
-    if height is not None:
-        m = mask.astype(np.float32)
-        stack += [np.asarray(height, np.float32) * m / bh, m]
-    full = np.stack([_crop(np.asarray(s, np.float32), top, left, side) for s in stack])
-    # outside the image the row channel keeps its ramp (not zero)
+    heur = contact_line_height(mask) if contact_line is None else contact_line
+
+    def win(a):       # the square crop of a full-size array (zeros outside the image)
+        return _crop(np.asarray(a, np.float32), top, left, side)
+    # channels built on the crop only (a large cutout's full-size stack cost seconds)
+    full = np.empty((IN_CHANNELS + (2 if height is not None else 0), side, side), np.float32)
+    a_w = win(alpha)
+    full[:3] = np.moveaxis(win(colour) * a_w[..., None], 2, 0)
+    full[3] = a_w
+    full[4] = win(heur) / bh
+    # the row channel: a ramp, also outside the image (not zero)
     vv = (np.arange(top, top + side, dtype=np.float32) + 0.5)[:, None]
     full[5] = np.broadcast_to((r1 - vv) / bh, (side, side))
+    if height is not None:
+        m_w = win(mask)
+        full[6] = win(height) * m_w / bh
+        full[7] = m_w
     small = _resize(full, size)
     x = small[:IN_CHANNELS]
     if height is None:
@@ -144,15 +150,16 @@ def paste(pred: np.ndarray, box, bh: float, mask: np.ndarray, clip: bool = True)
     r0, r1, c0, c1, top, left, side = box
     import torch
     import torch.nn.functional as F
-    m_small = _resize(_crop(mask.astype(np.float32), top, left, side)[None], pred.shape[0])[0]
+    m_small = _resize(_crop(mask, top, left, side).astype(np.float32)[None], pred.shape[0])[0]
     t = torch.from_numpy(np.stack([pred * m_small, m_small]).astype(np.float32))[None]
     big = F.interpolate(t, size=(side, side), mode="bilinear", align_corners=False)[0].numpy()
-    val = big[0] / np.maximum(big[1], 1e-6)
-    val = np.where(big[1] > 1e-6, val, 0.0)
     y0, x0 = max(top, 0), max(left, 0)
     y1, x1 = min(top + side, H), min(left + side, W)
-    out[y0:y1, x0:x1] = val[y0 - top:y1 - top, x0 - left:x1 - left]
-    return np.where(mask, (np.maximum(out, 0.0) if clip else out) * bh, 0.0).astype(np.float32)
+    num, den = (b[y0 - top:y1 - top, x0 - left:x1 - left] for b in big)
+    val = np.where(den > 1e-6, num / np.maximum(den, 1e-6), 0.0)
+    # the map is 0 outside the crop (and the mask): only the crop's part is computed
+    out[y0:y1, x0:x1] = np.where(mask[y0:y1, x0:x1], (np.maximum(val, 0.0) if clip else val) * bh, 0.0)
+    return out
 
 
 def contact_band(mask: np.ndarray, band: float = 1.5) -> np.ndarray:
@@ -293,13 +300,22 @@ def convex_hull_area(mask: np.ndarray) -> float:
     return float(0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
+#: the largest crop side [px] of the cutouts the confidence rule was chosen on (the
+#: validation renders are 256 x 256). ``LearnedHeightPredictor.signal_side =
+#: SIGNAL_SIDE`` measures a larger cutout's signal lengths in pixels of a crop this
+#: size; not the default: on validation enlarged 4x / 8x it brought the mean
+#: confidence to within 0.02 of the actual win rate (0.07-0.09 off in the cutout's
+#: own pixels) but auto's MAE rose by 0.001-0.002 px, and its rule asked for no rise
+#: (docs/height.md, "Measured: large cutouts")
+SIGNAL_SIDE = 256
+
 SIGNALS = ("disagreement_px", "disagreement_rel", "flip_px", "head_gain_px", "overhang_share", "solidity")
 
 
 def confidence_signals(height: np.ndarray, heuristic: np.ndarray, mask: np.ndarray,
                        flip_height: np.ndarray | None = None, est_mae_learned: float | None = None,
                        est_mae_heuristic: float | None = None, which=SIGNALS,
-                       contact_line: np.ndarray | None = None) -> dict:
+                       contact_line: np.ndarray | None = None, px_scale: float = 1.0) -> dict:
     """Per-cutout signals of how far to trust the learned map (docs/height.md,
     "Confidence rule"), each a float (NaN when its inputs are missing):
 
@@ -312,6 +328,10 @@ def confidence_signals(height: np.ndarray, heuristic: np.ndarray, mask: np.ndarr
       more than 2 px above the contact line (where the heuristic is wrong by design);
     * ``solidity``: mask area / its convex hull's area.
 
+    ``px_scale``: the lengths (``disagreement_px``, ``flip_px``, ``head_gain_px``)
+    are multiplied by it (``predict_full`` with ``signal_side``: ``min(1,
+    signal_side / crop side)``, so a large cutout's are in pixels of the crop size
+    the rule was chosen at; not shipped, see ``SIGNAL_SIDE``).
     ``which``: compute only these (the others are left out of the dict).
     ``contact_line``: ``contact_line_height(mask)`` when the caller already has it.
     """
@@ -324,11 +344,12 @@ def confidence_signals(height: np.ndarray, heuristic: np.ndarray, mask: np.ndarr
         rows = np.nonzero(m.any(1))[0]
         bh = float(rows.max() - rows.min() + 1)
         dis = float(np.abs(height[m] - heuristic[m]).mean())
-        out.update(disagreement_px=dis, disagreement_rel=dis / bh)
+        out.update(disagreement_px=dis * px_scale, disagreement_rel=dis / bh)
     if "flip_px" in which:
-        out["flip_px"] = nan if flip_height is None else float(np.abs(height[m] - flip_height[m]).mean())
+        out["flip_px"] = nan if flip_height is None else float(np.abs(height[m] - flip_height[m]).mean()) * px_scale
     if "head_gain_px" in which:
-        out["head_gain_px"] = nan if est_mae_learned is None else float(est_mae_learned - est_mae_heuristic)
+        out["head_gain_px"] = (nan if est_mae_learned is None
+                               else float(est_mae_learned - est_mae_heuristic) * px_scale)
     if "overhang_share" in which:
         cols = np.nonzero(m.any(0))[0]
         low = m.shape[0] - 1 - np.argmax(m[::-1], axis=0)
@@ -489,6 +510,10 @@ class LearnedHeightPredictor:
         self.foot_snap = dict(fs) if fs else None
         # auto's rule (lab/height/confidence_study.py): which signal, its threshold and calibration
         self.confidence_rule = inf.get("confidence")
+        # the confidence signals' lengths in pixels of a crop at most this large (SIGNAL_SIDE), or
+        # None: in the cutout's own pixels. None is shipped: SIGNAL_SIDE missed its rule (docs/height.md,
+        # "Measured: large cutouts"), though it calibrates a large cutout's confidence far better
+        self.signal_side = None
 
     def predict_normalised(self, x: np.ndarray, aux: bool = False):
         """(N, 6, S, S) inputs -> (N, S, S) height / bh; with ``aux`` also the
@@ -539,7 +564,9 @@ class LearnedHeightPredictor:
         ``confidence_signals``; larger = the learned map more likely worse),
         ``use_learned`` is ``signal <= rule["threshold"]`` and ``confidence`` the
         validation win rate of the learned map at that signal
-        (``calibrated_confidence``). ``signals=True`` also returns every candidate
+        (``calibrated_confidence``). ``auto_height``: what ``method: auto``
+        returns (``height`` where ``use_learned``, else ``heuristic``).
+        ``signals=True`` also returns every candidate
         signal (``signals``; runs the mirrored crop for ``flip_px``).
 
         ``flip_average``: the network also reads the mirrored crop and the two
@@ -588,14 +615,16 @@ class LearnedHeightPredictor:
             out["use_learned"] = out["confidence"] >= 0.5
         if rule or signals:
             which = SIGNALS if signals else tuple(rule.get("features", [rule["signal"]]))
+            px_scale = min(1.0, self.signal_side / box[6]) if self.signal_side else 1.0
             sig = confidence_signals(h, out["heuristic"], mask, h_flip, out["est_mae_learned"],
-                                     out["est_mae_heuristic"], which, contact_line=heur)
+                                     out["est_mae_heuristic"], which, contact_line=heur, px_scale=px_scale)
             if signals:
                 out["signals"] = sig
             if rule:
                 val = confidence_value(sig, rule)
                 out.update(signal=val, use_learned=bool(val <= rule["threshold"]),
                            confidence=calibrated_confidence(val, rule))
+        out["auto_height"] = h if out.get("use_learned", True) else out["heuristic"]
         return out
 
     def _finish(self, pred, x, box, bh, mask, heur, contact, lv):

@@ -1,0 +1,127 @@
+"""Large cutouts: the learned height at the work size vs at the cutout's own size
+(docs/height.md, "Rules fixed before measuring: large cutouts").
+
+    python -m pixgraph_lab.height.scale_study --weights nodes/weights/cutout_height.pt \\
+        --heights data/hreal/val data/hreal/val_organic --scales 4 8 --out runs/scale_study
+
+Each sample (256^2) is enlarged k times: the linear premultiplied RGBA and the
+true pixel height (x k) bilinearly, the object's mask by nearest neighbour.
+Paths (``--paths``, ``contact="ground"``): ``work`` (the candidate that did
+not ship, ``work_size``: a crop larger than ``work_size.WORK_SIDE`` predicted at
+that size), ``own`` (``LearnedHeightPredictor.predict_full`` as shipped: the
+whole path at the enlarged size) and ``own_scaled`` (the same with the
+confidence signals' lengths in pixels of a crop of at most ``SIGNAL_SIDE``,
+which did not ship). Reported per scale and path:
+the mean MAE over the object's pixels divided by k (256^2 px units, comparable
+with k = 1) of the learned map, auto's map and the contact line; the share of
+samples auto sends to the contact line; the mean reported confidence, the
+learned map's actual share of samples better than the contact line and the gap
+between the two; the median time.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+from pixgraph_nodes.ops.learned_height import SIGNAL_SIDE
+
+
+def enlarge(rgba, true, mask, k: int):
+    """The sample k times larger (module doc)."""
+    import torch
+    import torch.nn.functional as F
+    t = torch.from_numpy(np.concatenate([rgba, true[..., None]], -1)).permute(2, 0, 1)[None]
+    big = F.interpolate(t, scale_factor=k, mode="bilinear", align_corners=False)[0].permute(1, 2, 0).numpy()
+    return (np.ascontiguousarray(big[..., :4]), big[..., 4] * k,
+            np.repeat(np.repeat(mask, k, 0), k, 1))
+
+
+def _own(pred, rgba, signal_side):
+    """The shipped path, its confidence signals' lengths in pixels of a crop of at most
+    ``signal_side`` px (None: of the cutout's own size, as shipped)."""
+    keep = pred.signal_side
+    pred.signal_side = signal_side
+    try:
+        return pred.predict_full(rgba)
+    finally:
+        pred.signal_side = keep
+
+
+def _work(pred, rgba):
+    from .work_size import predict_at_work_size
+    return predict_at_work_size(pred, rgba)
+
+
+PATHS = {
+    "work": _work,
+    "own": lambda pred, rgba: _own(pred, rgba, None),
+    "own_scaled": lambda pred, rgba: _own(pred, rgba, SIGNAL_SIDE),
+}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m pixgraph_lab.height.scale_study", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--weights", default=None)
+    ap.add_argument("--heights", required=True, nargs="+")
+    ap.add_argument("--scales", type=int, nargs="+", default=[4, 8])
+    ap.add_argument("--paths", default="work,own", help=f"two or more of {', '.join(PATHS)}; the first is "
+                                                        "compared with the second by the ship rule")
+    ap.add_argument("--limit", type=int, default=0)
+    ap.add_argument("--out", required=True)
+    a = ap.parse_args(argv)
+    import torch
+    torch.set_num_threads(1)
+    from pixgraph_nodes.ops.learned_height import WEIGHTS, LearnedHeightPredictor
+
+    from .evaluate import _write, height_files, read_height_sample, write_report
+    paths = a.paths.split(",")
+    pred = LearnedHeightPredictor(a.weights or WEIGHTS)
+    rows = []
+    for d in a.heights:
+        for f in height_files(d, a.limit):
+            meta, rgba, true, mask = read_height_sample(f)
+            for k in a.scales:
+                big, tb, mb = enlarge(rgba, true, mask, k)
+                row = {"folder": d, "index": meta["index"], "category": meta.get("category", "?"), "k": k}
+                for path in paths:
+                    t0 = time.perf_counter()
+                    r = PATHS[path](pred, big)
+                    row[f"ms_{path}"] = 1e3 * (time.perf_counter() - t0)
+                    for name, h in (("mae", r["height"]), ("mae_auto", r["auto_height"]),
+                                    ("mae_heuristic", r["heuristic"])):
+                        row[f"{name}_{path}"] = float(np.abs(h[mb] - tb[mb]).mean()) / k
+                    row[f"fallback_{path}"] = int(not r.get("use_learned", True))
+                    row[f"confidence_{path}"] = float(r["confidence"])
+                rows.append(row)
+    os.makedirs(a.out, exist_ok=True)
+    _write(os.path.join(a.out, "scale.csv"), rows)
+    lines = [f"weights {a.weights or WEIGHTS}; {len(rows) // len(a.scales)} samples of {', '.join(a.heights)}; "
+             f"MAE in 256-px units", "",
+             "| scale | path | MAE learned | MAE auto | MAE contact line | auto falls back | mean confidence | "
+             "learned < contact line | confidence gap | median ms |", "|---|---|---|---|---|---|---|---|---|---|"]
+    verdict = []
+    for k in a.scales:
+        rs = [r for r in rows if r["k"] == k]
+        res = {}
+        for path in paths:
+            mean = lambda c: float(np.mean([r[f"{c}_{path}"] for r in rs]))  # noqa: E731
+            win = float(np.mean([r[f"mae_{path}"] < r[f"mae_heuristic_{path}"] for r in rs]))
+            gap = abs(mean("confidence") - win)
+            res[path] = (mean("mae"), mean("mae_auto"), gap)
+            lines.append(f"| {k}x | {path} | {mean('mae'):.3f} | {mean('mae_auto'):.3f} | {mean('mae_heuristic'):.3f} | "
+                         f"{mean('fallback'):.0%} | {mean('confidence'):.3f} | {win:.0%} | {gap:.3f} | "
+                         f"{np.median([r[f'ms_{path}'] for r in rs]):.0f} |")
+        new, old = res[paths[0]], res[paths[1]]
+        verdict.append((k, new[0] <= old[0], new[1] <= old[1], new[2] <= old[2]))
+    lines += ["", f"{paths[0]} vs {paths[1]}, per scale: (learned MAE no worse, auto MAE no worse, confidence gap "
+              f"no larger): " + "; ".join(f"{k}x {a_} {b_} {c_}" for k, a_, b_, c_ in verdict)]
+    write_report(a.out, "scale_study.md", lines)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
