@@ -283,3 +283,43 @@ outputs: {out: e.height}
     h2 = np.maximum(30.0 - grid(30, 15)[1], 0).astype(np.float32)
     half = s.run(g, bind={"m": m[::2, ::2].copy(), "h": h2}, scale=0.5)["out"]
     np.testing.assert_allclose(half[h2 >= 12], (h2 + 6.0)[h2 >= 12], atol=1e-4)
+
+
+def test_the_page_benchmarks_user_puts_the_body_and_top_at_their_known_heights():
+    """benchmarks/page_height_fix.py's simulated user: the ring and the top's square dragged
+    until the body point and the top have the heights the user knows; lying, the square
+    sets the thickness; outline pixels the render missed (stored height 0) are known by
+    the nearest rendered pixel's height."""
+    import importlib.util
+    import pathlib
+    path = pathlib.Path(__file__).parents[1] / "benchmarks" / "page_height_fix.py"
+    spec = importlib.util.spec_from_file_location("page_height_fix", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    H, W = 100, 60
+    _, v = grid(H, W)
+    seen = np.zeros((H, W), bool)
+    seen[20:90, 10:50] = True
+    rendered = seen.copy()
+    rendered[20, :] = False                          # the top row: covered by the alpha, not the render
+    true_h = np.where(rendered, 1.2 * (90.0 - v), 0.0)
+    known = bench.known_heights(true_h, rendered, seen)
+    assert known[20, 30] == pytest.approx(true_h[21, 30]) and (known[~seen] == 0).all()
+    pred = np.where(seen, 90.0 - v, 0.0)             # the contact line: right contact, 1.2x too short
+
+    def edited(p):
+        return he.edit_pixel_height(pred, seen, p.get("contact_points", []), tilt_deg=p.get("tilt", 0.0),
+                                    lying=p.get("lying", False), thickness=p.get("thickness", 0.0),
+                                    foot_depth=p.get("foot_depth", 0.0))
+    p = bench.plan_params(["lying", "thickness"], known, seen, edited)
+    top = he.top_point(seen, known)
+    assert p["thickness"] == pytest.approx(top[2], abs=0.01)     # taller than the column: capped there
+    assert edited(p)[int(top[1]), int(top[0])] == pytest.approx(min(top[2], 90.0 - top[1]), abs=0.01)
+    for plan in (["depth"], ["top"], ["depth", "top"]):
+        p = bench.plan_params(plan, known, seen, edited)
+        out = edited(p)
+        last = plan[-1]
+        point = he.body_point(seen, known) if last == "depth" else he.top_point(seen, known)
+        r, c = int(point[1]), int(point[0])
+        assert out[r, c] == pytest.approx(known[r, c], abs=0.02), plan
+    assert bench.plan_params(["depth"], known, seen, edited)["foot_depth"] > 0
