@@ -192,3 +192,34 @@ def test_drag_the_cutouts_contact_and_tilt_in_the_page(browser, tmp_path):
         assert vals["foot_depth"] == depth and vals["thickness"] == thick
         assert not errors, errors
         page.close()
+
+
+def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_path):
+    # the page opens CutoutHeight's params beside the handles; the own-photo templates
+    # connect the cutout's colour, so learned and auto run (they read it) instead of
+    # showing "connect input 'image'"
+    graph = edit_graph(str(tmp_path))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        photo = _png(httpx.get(url + "/api/outputs/photo.image.png", timeout=60).content)
+        alpha = _png(httpx.get(url + "/api/outputs/place.alpha.png", timeout=60).content)[:, :, 0]
+
+        def shadow(img):
+            return ((photo - img).mean(axis=2) > 0.05) & (alpha < 0.02)
+
+        before = shadow(shown(page))
+        heights = {}
+        for method in ("learned", "auto", "contact_line"):
+            seq = last_seq(page)
+            page.locator('[data-param="fg_h.method"]').select_option(method)
+            # a final, or the error box (the graph could not run)
+            page.wait_for_function(f"!document.getElementById('error').hidden || "
+                                   f"window.pixgraphShown.at(-1).seq > {seq}", timeout=180000)
+            assert page.locator("#error").is_hidden(), page.inner_text("#error")
+            wait_final(page, seq)
+            assert graph_params(url)["fg_h"]["method"] == method
+            heights[method] = shadow(shown(page))
+        assert np.logical_xor(heights["learned"], before).sum() > 100, "the learned height changed nothing"
+        assert np.array_equal(heights["contact_line"], before)
+        assert not errors, errors
+        page.close()
