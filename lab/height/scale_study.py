@@ -11,7 +11,8 @@ not ship, ``work_size``: a crop larger than ``work_size.WORK_SIDE`` predicted at
 that size), ``own`` (``LearnedHeightPredictor.predict_full`` as shipped: the
 whole path at the enlarged size) and ``own_scaled`` (the same with the
 confidence signals' lengths in pixels of a crop of at most ``SIGNAL_SIDE``,
-which did not ship). Reported per scale and path:
+which did not ship) and ``work512`` (the work-size path at 512 px with the
+signal in 256-px units). Reported per scale and path:
 the mean MAE over the object's pixels divided by k (256^2 px units, comparable
 with k = 1) of the learned map, auto's map and the contact line; the share of
 samples auto sends to the contact line; the mean reported confidence, the
@@ -55,8 +56,20 @@ def _work(pred, rgba):
     return predict_at_work_size(pred, rgba)
 
 
+def _work512(pred, rgba):
+    """The third candidate: work size 512 px, the signal's lengths in 256-px crop units."""
+    from .work_size import predict_at_work_size
+    keep = pred.signal_side
+    pred.signal_side = SIGNAL_SIDE
+    try:
+        return predict_at_work_size(pred, rgba, work_side=512)
+    finally:
+        pred.signal_side = keep
+
+
 PATHS = {
     "work": _work,
+    "work512": _work512,
     "own": lambda pred, rgba: _own(pred, rgba, None),
     "own_scaled": lambda pred, rgba: _own(pred, rgba, SIGNAL_SIDE),
 }
