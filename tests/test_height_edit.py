@@ -252,7 +252,13 @@ def test_thickness_for_height_sets_the_lying_tops_height(tilt, lift):
         out = he.edit_pixel_height(np.zeros((H, W)), m, lying=True, thickness=T, tilt_deg=tilt, lift=lift)
         top = he.top_point(m, out, tilt, 20.0, lift)
         assert top[2] == pytest.approx(target, abs=1e-4)
-    assert he.thickness_for_height(1.0, 1.0, 5.0) == 0.0
+    # dragged to the ground (or below): the flattest lying map, not thickness 0 (which
+    # means the default, half the median column extent: here 20 px, a jump up)
+    for target in (lift, lift - 10.0):
+        T = he.thickness_for_height(target, he.tilt_gain(tilt, 20.0), lift)
+        assert 0 < T <= 0.01
+        out = he.edit_pixel_height(np.zeros((H, W)), m, lying=True, thickness=T, tilt_deg=tilt, lift=lift)
+        assert out[m].max() <= lift + 0.01 * he.tilt_gain(tilt, 20.0) + 1e-6
 
 
 def test_node_foot_depth_param_and_preview_scale(tmp_path):

@@ -211,10 +211,16 @@ def depth_for_height(h0: float, target: float, gain: float = 1.0, lift: float = 
     return float(np.clip((float(target) - float(lift)) / float(gain) - h0, -h0 / 2.0, h0 / 2.0))
 
 
+#: the flattest lying thickness [px] a drag gives (thickness 0 is the default, half the
+#: median column extent: a drag to the ground must not jump to it)
+MIN_THICKNESS = 0.01
+
+
 def thickness_for_height(target: float, gain: float = 1.0, lift: float = 0.0) -> float:
     """Lying: the thickness [px] that gives the top the height ``target`` [px] (``target
-    = gain thickness + lift`` where the top's column is at least that tall); >= 0."""
-    return max(0.0, (float(target) - float(lift)) / float(gain)) if gain > 0 else 0.0
+    = gain thickness + lift`` where the top's column is at least that tall); at least
+    ``MIN_THICKNESS``."""
+    return max(MIN_THICKNESS, (float(target) - float(lift)) / float(gain)) if gain > 0 else MIN_THICKNESS
 
 
 def tilt_gain(tilt_deg: float, elevation_deg: float) -> float:
