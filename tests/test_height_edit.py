@@ -329,3 +329,21 @@ def test_the_page_benchmarks_user_puts_the_body_and_top_at_their_known_heights()
         r, c = int(point[1]), int(point[0])
         assert out[r, c] == pytest.approx(known[r, c], abs=0.02), plan
     assert bench.plan_params(["depth"], known, seen, edited)["foot_depth"] > 0
+
+
+def test_no_body_ring_where_the_body_point_is_on_the_ground():
+    """A body point at height 0 before the foot depth (here a contact point set above it
+    clips it to 0) has no foot depth that moves it (``depth_for_height`` gives 0 for
+    any drag, wiping a saved depth): like ``top_point``, ``body_point`` is then None
+    and the page draws no ring."""
+    H, W = 80, 40
+    _, v = grid(H, W)
+    m = np.zeros((H, W), bool)
+    m[10:70, 5:35] = True
+    h = np.where(m, 70.0 - v, 0.0)
+    edited = he.edit_pixel_height(h, m, [20.0, 20.0], foot_depth=6.0)   # contact on row 20: the middle is at 0
+    assert edited[40, 20] == 0 and edited[15, 20] > 0
+    assert he.body_point(m, edited, depth=6.0) is None
+    ok = he.body_point(m, he.edit_pixel_height(h, m, foot_depth=6.0), depth=6.0)
+    assert ok is not None and ok[3] == pytest.approx(70.0 - ok[1], abs=1e-4)
+    assert he.body_point(np.zeros((H, W), bool), np.zeros((H, W))) is None

@@ -187,7 +187,7 @@ def body_point(mask: np.ndarray, edited: np.ndarray, tilt_deg: float = 0.0, elev
     """(u, v, h, h0) [px] of the body handle: the centre of the covered pixel (coverage
     > 0.5) nearest the mask's centroid, its edited height ``h`` and ``h0``, its height
     before the foot depth, tilt and lift (``h = g f_D(h0) + lift``, steps 2b-4); None
-    for an empty mask."""
+    for an empty mask or a body point at height 0 (no foot depth moves it)."""
     m = np.asarray(mask)
     m = (m[..., 0] if m.ndim == 3 else m) > 0.5
     ys, xs = np.nonzero(m)
@@ -198,6 +198,8 @@ def body_point(mask: np.ndarray, edited: np.ndarray, tilt_deg: float = 0.0, elev
     e = np.asarray(edited)
     h = float((e[..., 0] if e.ndim == 3 else e)[r, c])
     h0 = foot_depth_inverse((h - float(lift)) / tilt_gain(tilt_deg, elevation_deg), depth)
+    if not h0 > 0:
+        return None
     return c + 0.5, r + 0.5, h, h0
 
 
