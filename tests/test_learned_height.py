@@ -314,3 +314,19 @@ def test_prepare_and_paste_on_the_crop_equal_the_full_size_reference(centre, pas
     pred = rng.normal(0.5, 0.6, (64, 64)).astype(np.float32)
     out, out_ref = lh.paste(pred, box, bh, mask), _paste_full_size(pred, box, bh, mask)
     assert out.dtype == out_ref.dtype and np.array_equal(out, out_ref)
+
+
+def test_auto_height_is_autos_choice_also_for_an_empty_cutout():
+    # predict_full's auto_height (read by the lab's evaluations for auto): the learned map
+    # where use_learned, else the (pinned) contact line; present for an empty cutout too
+    p = lh.LearnedHeightPredictor()
+    rgba = [np.concatenate([s["image"], s["alpha"][..., None]], -1) for s in heldout(REAL)[:2]]
+    for thr, learned in ((np.inf, True), (-np.inf, False)):
+        p.confidence_rule = dict(p.confidence_rule, threshold=thr)
+        for x in rgba:
+            r = p.predict_full(x)
+            assert r["use_learned"] is learned
+            assert np.array_equal(r["auto_height"], r["height"] if learned else r["heuristic"])
+            assert not np.array_equal(r["height"], r["heuristic"])
+    empty = p.predict_full(np.zeros((30, 20, 4), np.float32))
+    assert empty["auto_height"].shape == (30, 20) and not empty["auto_height"].any()

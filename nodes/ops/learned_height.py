@@ -566,8 +566,10 @@ class LearnedHeightPredictor:
         ``confidence_signals``; larger = the learned map more likely worse),
         ``use_learned`` is ``signal <= rule["threshold"]`` and ``confidence`` the
         validation win rate of the learned map at that signal
-        (``calibrated_confidence``). ``auto_height``: what ``method: auto``
-        returns (``height`` where ``use_learned``, else ``heuristic``).
+        (``calibrated_confidence``). ``auto_height``: auto's choice, ``height``
+        where ``use_learned``, else ``heuristic`` (pinned like ``height``; where
+        ``CutoutHeight``'s ``method: auto`` falls back it returns its own,
+        unpinned contact line, which can differ by about a pixel).
         ``signals=True`` also returns every candidate
         signal (``signals``; runs the mirrored crop for ``flip_px``).
 
@@ -586,7 +588,8 @@ class LearnedHeightPredictor:
         colour, alpha = straight_srgb(rgba)
         mask = alpha > threshold
         heur = contact_line_height(mask)
-        out = {"height": np.zeros(alpha.shape, np.float32), "heuristic": heur.astype(np.float32),
+        zero = np.zeros(alpha.shape, np.float32)
+        out = {"height": zero, "heuristic": heur.astype(np.float32), "auto_height": zero,
                "confidence": None, "est_mae_learned": None, "est_mae_heuristic": None}
         rule = self.confidence_rule
         need_flip = signals or bool(rule and (rule["signal"] == "flip_px" or "flip_px" in rule.get("features", ())))
