@@ -347,3 +347,19 @@ def test_no_body_ring_where_the_body_point_is_on_the_ground():
     ok = he.body_point(m, he.edit_pixel_height(h, m, foot_depth=6.0), depth=6.0)
     assert ok is not None and ok[3] == pytest.approx(70.0 - ok[1], abs=1e-4)
     assert he.body_point(np.zeros((H, W), bool), np.zeros((H, W))) is None
+
+
+def test_foot_depth_keeps_a_contact_at_0_not_a_lifted_inputs():
+    """The ramp is measured from height 0: an input already lifted off the ground
+    (CutoutHeight's ``contact: lifted``) has its contact moved by the whole D; the
+    node's own ``lift`` (applied after the foot depth) keeps it (module doc, step 2b)."""
+    H, W = 100, 20
+    _, v = grid(H, W)
+    m = np.zeros((H, W), bool)
+    m[10:90] = True
+    grounded = np.where(m, 90.0 - v, 0.0)
+    moved = he.edit_pixel_height(grounded + 30.0 * m, m, foot_depth=10.0)
+    assert moved[89, 5] == pytest.approx(30.5 + 10.0)
+    kept = he.edit_pixel_height(grounded, m, foot_depth=10.0, lift=30.0)
+    assert kept[89, 5] == pytest.approx(30.0 + 1.5 * 0.5)
+    np.testing.assert_allclose(kept[m & (grounded >= 20)], moved[m & (grounded >= 20)], atol=1e-4)

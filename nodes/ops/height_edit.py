@@ -53,7 +53,10 @@ image distance from an object point down to its foot on the ground).
 
    (slope 3/2 (``D > 0``) or 1/2 (``D < 0``) below ``2|D|``, ``h + D`` above).
    Strictly increasing and continuous, so the page can invert it at any
-   point; the contact stays at 0. A point of height ``h0`` goes up to ``1.5 h0``
+   point; the contact stays at 0. The ramp is measured from height 0: an input
+   whose contact is already above the ground (``CutoutHeight``'s ``contact:
+   lifted``) moves by the whole ``D``, contact included; lift the object with
+   this node's ``lift`` (step 4, after the foot depth) instead. A point of height ``h0`` goes up to ``1.5 h0``
    or down to ``h0 / 2``. The page's body handle is the covered pixel nearest
    the mask's centroid (``body_point``), with a guide down to the ground under
    it; dragging it sets ``D`` (``depth_for_height``, the inverse at that point).
