@@ -301,6 +301,8 @@ async def render(request: Request):
             extra = scene.piggyback(state, graph, [name]) if working == 1 else []   # anchors are full-size px
             res = state.run([name, *extra], mode, cancel=token, scale=float(working))
             scene.note(state, graph, extra, res)
+            if mode == "final":
+                state.keep_logs(res)
             return res, encode(res[name], name, scale)
 
         try:

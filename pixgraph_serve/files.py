@@ -215,7 +215,8 @@ def save_with_files(state: ServeState, path: str | None) -> dict:
 
 def routes(locked, json_body):
     """Starlette routes of this module: ``POST /api/open``, ``POST /api/save_files``
-    and ``GET /api/notes`` (the check's warnings). ``locked(request, fn, *args)``
+    and ``GET /api/notes`` (the check's warnings, and what the nodes of the last final
+    logged: ``logs``). ``locked(request, fn, *args)``
     and ``json_body(request)`` are app.py's; the state is ``request.app.state.serve``."""
     from starlette.responses import JSONResponse
     from starlette.routing import Route
@@ -235,7 +236,9 @@ def routes(locked, json_body):
         return JSONResponse(await locked(request, save_with_files, serve(request), p))
 
     async def notes_route(request):
-        return JSONResponse({"notes": await locked(request, notes, serve(request))})
+        def both(state):
+            return {"notes": notes(state), "logs": state.log_lines()}
+        return JSONResponse(await locked(request, both, serve(request)))
 
     return [Route("/api/open", open_route, methods=["POST"]),
             Route("/api/save_files", save_route, methods=["POST"]),

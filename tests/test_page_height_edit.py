@@ -220,7 +220,8 @@ def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_pa
 
         before = shadow(shown(page))
         heights = {}
-        for method in ("learned", "auto", "contact_line"):
+        # the last two come from the cache: what the node said when it ran with those params
+        for method in ("learned", "auto", "contact_line", "learned"):
             seq = last_seq(page)
             page.locator('[data-param="fg_h.method"]').select_option(method)
             # a final, or the error box (the graph could not run)
@@ -229,7 +230,15 @@ def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_pa
             assert page.locator("#error").is_hidden(), page.inner_text("#error")
             wait_final(page, seq)
             assert graph_params(url)["fg_h"]["method"] == method
-            heights[method] = shadow(shown(page))
+            heights.setdefault(method, shadow(shown(page)))
+            # what the node said (its confidence, auto's choice) under the image; the
+            # contact line says nothing
+            logs = page.inner_text("#logs") if page.locator("#logs").is_visible() else ""
+            said = [x for x in logs.splitlines() if x.startswith("fg_h: ")]
+            if method == "contact_line":
+                assert said == [], logs
+            else:
+                assert len(said) == 1 and said[0].startswith(f"fg_h: {method}: ") and "confidence 0." in said[0], logs
         assert np.logical_xor(heights["learned"], before).sum() > 100, "the learned height changed nothing"
         assert np.array_equal(heights["contact_line"], before)
         assert not errors, errors

@@ -115,16 +115,21 @@ export async function refresh() {
   [ui.info, ui.scene, notes] = await Promise.all([api("GET", "/api/graph"), api("GET", "/api/scene"),
                                                   api("GET", "/api/notes").catch(() => ({notes: []}))]);
   showNotes(notes.notes);
+  showLines("logs", notes.logs);
   for (const f of ui.onScene) f();
   document.body.dataset.synced = ui.shownSeq;
 }
 
-// The graph check's warnings (e.g. a horizon above the cutout's foot), under the image.
-export function showNotes(notes) {
-  const el = $("notes");
-  el.replaceChildren(...(notes || []).map((n) => Object.assign(document.createElement("div"), {textContent: n})));
-  el.hidden = !(notes && notes.length);
+// Lines of text under the image: the graph check's warnings (#notes, e.g. a horizon
+// above the cutout's foot) and what the nodes said in the last final (#logs, ctx.log:
+// e.g. a height predictor's confidence, or that it fell back to another method).
+function showLines(id, lines) {
+  const el = $(id);
+  el.replaceChildren(...(lines || []).map((n) => Object.assign(document.createElement("div"), {textContent: n})));
+  el.hidden = !(lines && lines.length);
 }
+
+export function showNotes(notes) { showLines("notes", notes); }
 
 export function markBad(data) {
   for (const el of document.querySelectorAll(".param .bad")) el.classList.remove("bad");
