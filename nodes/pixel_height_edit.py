@@ -28,7 +28,8 @@ class PixelHeightEdit(Node):
     the camera) or behind (< 0) its contact: a body point's height grows by it, ramped
     in over the lowest ``2 |foot_depth|`` px of height so the contact stays at 0 (a
     sitting figure's body behind its legs, a round belly or ball bulging past its
-    visible bottom edge). ``tilt`` leans it away from (> 0) or toward (< 0) the camera
+    visible bottom edge; an input lifted off the ground moves by the whole depth:
+    lift it with ``lift`` here instead). ``tilt`` leans it away from (> 0) or toward (< 0) the camera
     about its contact, for a camera looking down by ``elevation``; a sideways lean needs
     no edit. ``lift`` raises it off the ground. At its defaults (no contact points, no
     foot depth, tilt, lift or lying) the height passes through unchanged.

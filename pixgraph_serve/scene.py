@@ -21,7 +21,8 @@ attribute, a dict with a ``kind``):
   edited, tilt, elevation, lift)`` is the object's top ``(u, v, h, h0)`` for the tilt
   handle, ``foot_point(mask)`` the cutout's foot (where new contact points start);
   optional: ``depth`` and ``thickness`` name params of a body handle and of the top
-  handle when lying, ``body_point(mask, edited, tilt, elevation, lift, depth)`` its point;
+  handle when lying, ``body_point(mask, edited, tilt, elevation, lift, depth)`` its point
+  (asked for only while not lying; None: no body handle);
 - any other kind (``shadow``): a node the page may switch between the types of
   that kind (``ServeState.alternatives``).
 
@@ -254,8 +255,8 @@ def _height_edit(state: ServeState, nid: str) -> dict:
     names = {k: h.get(k, k) for k in ("points", "mode", "tilt", "elevation", "lying", "lift")}
     names.update({k: h[k] for k in ("depth", "thickness") if k in h})     # optional handles
     top = spec.cls.top_point(mask, edited, v[names["tilt"]], v[names["elevation"]], v[names["lift"]])
-    body = None
-    if "depth" in names and getattr(spec.cls, "body_point", None) is not None:
+    body = None     # the body handle; none while lying (the foot depth does not apply then)
+    if "depth" in names and not v[names["lying"]] and getattr(spec.cls, "body_point", None) is not None:
         body = spec.cls.body_point(mask, edited, v[names["tilt"]], v[names["elevation"]], v[names["lift"]],
                                    v[names["depth"]])
     # the nodes whose output the edit edits (not its coverage): the page opens their params

@@ -252,7 +252,13 @@ def test_thickness_for_height_sets_the_lying_tops_height(tilt, lift):
         out = he.edit_pixel_height(np.zeros((H, W)), m, lying=True, thickness=T, tilt_deg=tilt, lift=lift)
         top = he.top_point(m, out, tilt, 20.0, lift)
         assert top[2] == pytest.approx(target, abs=1e-4)
-    assert he.thickness_for_height(1.0, 1.0, 5.0) == 0.0
+    # dragged to the ground (or below): the flattest lying map, not thickness 0 (which
+    # means the default, half the median column extent: here 20 px, a jump up)
+    for target in (lift, lift - 10.0):
+        T = he.thickness_for_height(target, he.tilt_gain(tilt, 20.0), lift)
+        assert 0 < T <= 0.01
+        out = he.edit_pixel_height(np.zeros((H, W)), m, lying=True, thickness=T, tilt_deg=tilt, lift=lift)
+        assert out[m].max() <= lift + 0.01 * he.tilt_gain(tilt, 20.0) + 1e-6
 
 
 def test_node_foot_depth_param_and_preview_scale(tmp_path):
@@ -323,3 +329,37 @@ def test_the_page_benchmarks_user_puts_the_body_and_top_at_their_known_heights()
         r, c = int(point[1]), int(point[0])
         assert out[r, c] == pytest.approx(known[r, c], abs=0.02), plan
     assert bench.plan_params(["depth"], known, seen, edited)["foot_depth"] > 0
+
+
+def test_no_body_ring_where_the_body_point_is_on_the_ground():
+    """A body point at height 0 before the foot depth (here a contact point set above it
+    clips it to 0) has no foot depth that moves it (``depth_for_height`` gives 0 for
+    any drag, wiping a saved depth): like ``top_point``, ``body_point`` is then None
+    and the page draws no ring."""
+    H, W = 80, 40
+    _, v = grid(H, W)
+    m = np.zeros((H, W), bool)
+    m[10:70, 5:35] = True
+    h = np.where(m, 70.0 - v, 0.0)
+    edited = he.edit_pixel_height(h, m, [20.0, 20.0], foot_depth=6.0)   # contact on row 20: the middle is at 0
+    assert edited[40, 20] == 0 and edited[15, 20] > 0
+    assert he.body_point(m, edited, depth=6.0) is None
+    ok = he.body_point(m, he.edit_pixel_height(h, m, foot_depth=6.0), depth=6.0)
+    assert ok is not None and ok[3] == pytest.approx(70.0 - ok[1], abs=1e-4)
+    assert he.body_point(np.zeros((H, W), bool), np.zeros((H, W))) is None
+
+
+def test_foot_depth_keeps_a_contact_at_0_not_a_lifted_inputs():
+    """The ramp is measured from height 0: an input already lifted off the ground
+    (CutoutHeight's ``contact: lifted``) has its contact moved by the whole D; the
+    node's own ``lift`` (applied after the foot depth) keeps it (module doc, step 2b)."""
+    H, W = 100, 20
+    _, v = grid(H, W)
+    m = np.zeros((H, W), bool)
+    m[10:90] = True
+    grounded = np.where(m, 90.0 - v, 0.0)
+    moved = he.edit_pixel_height(grounded + 30.0 * m, m, foot_depth=10.0)
+    assert moved[89, 5] == pytest.approx(30.5 + 10.0)
+    kept = he.edit_pixel_height(grounded, m, foot_depth=10.0, lift=30.0)
+    assert kept[89, 5] == pytest.approx(30.0 + 1.5 * 0.5)
+    np.testing.assert_allclose(kept[m & (grounded >= 20)], moved[m & (grounded >= 20)], atol=1e-4)

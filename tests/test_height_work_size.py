@@ -49,7 +49,7 @@ def test_a_large_cutouts_signal_grows_with_its_size_unless_measured_at_signal_si
     # the shipped path runs at the cutout's own size and measures the confidence signal's
     # lengths in its pixels: from 8x to 16x the signal doubled on three of these four
     # (-19 -> -40, -14 -> -31, -73 -> -147). With signal_side = SIGNAL_SIDE (not shipped:
-    # docs/height.md, "Measured: large cutouts") it stays put
+    # docs/height.md, "Measured: auto's blend and large cutouts") it stays put
     edges = predictor.confidence_rule["bins"]
     tol = 0.15 * (edges[-1] - edges[0])
     assert predictor.signal_side is None

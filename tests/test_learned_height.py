@@ -249,3 +249,84 @@ def test_inference_options_come_from_the_checkpoint(tmp_path):
     p = lh.LearnedHeightPredictor(tmp_path / "w.pt")
     assert p.flip_average and not p.heuristic_detail
     assert not lh.LearnedHeightPredictor(tmp_path / "w.pt", flip_average=False).flip_average
+
+
+def _prepare_full_size(colour, alpha, size, height=None):
+    """The network input as ``prepare`` built it before it worked on the crop only: the
+    six (eight) channels at full size, then each cropped (the reference it must equal)."""
+    alpha = np.clip(np.asarray(alpha, np.float32), 0, 1)
+    mask = alpha > 0.5
+    r0, r1, c0, c1, top, left, side = box = lh.crop_box(mask)
+    bh = float(r1 - r0)
+    v = (np.arange(alpha.shape[0], dtype=np.float32) + 0.5)[:, None]
+    stack = [*np.moveaxis(np.asarray(colour, np.float32) * alpha[..., None], 2, 0), alpha,
+             contact_line_height(mask) / bh, np.broadcast_to((r1 - v) / bh, alpha.shape)]
+    if height is not None:
+        m = mask.astype(np.float32)
+        stack += [np.asarray(height, np.float32) * m / bh, m]
+    full = np.stack([lh._crop(np.asarray(s, np.float32), top, left, side) for s in stack])
+    vv = (np.arange(top, top + side, dtype=np.float32) + 0.5)[:, None]
+    full[5] = np.broadcast_to((r1 - vv) / bh, (side, side))    # the row ramp, also outside the image
+    small = lh._resize(full, size)
+    if height is None:
+        return small[:6], box, bh
+    w = small[7]
+    return small[:6], box, bh, np.where(w > 1e-3, small[6] / np.maximum(w, 1e-6), 0.0).astype(np.float32), w
+
+
+def _paste_full_size(pred, box, bh, mask):
+    """``paste`` as it was: the whole (H, W) map computed, then masked (the reference)."""
+    import torch.nn.functional as F
+    r0, r1, c0, c1, top, left, side = box
+    H, W = mask.shape
+    m_small = lh._resize(lh._crop(mask.astype(np.float32), top, left, side)[None], pred.shape[0])[0]
+    t = torch.from_numpy(np.stack([pred * m_small, m_small]).astype(np.float32))[None]
+    big = F.interpolate(t, size=(side, side), mode="bilinear", align_corners=False)[0].numpy()
+    val = np.where(big[1] > 1e-6, big[0] / np.maximum(big[1], 1e-6), 0.0)
+    out = np.zeros((H, W), np.float32)
+    y0, x0, y1, x1 = max(top, 0), max(left, 0), min(top + side, H), min(left + side, W)
+    out[y0:y1, x0:x1] = val[y0 - top:y1 - top, x0 - left:x1 - left]
+    return np.where(mask, np.maximum(out, 0.0) * bh, 0.0).astype(np.float32)
+
+
+@pytest.mark.parametrize("centre,past_edge", [((60, 50, 30, 20), False), ((5, 6, 20, 15), True),
+                                              ((115, 95, 25, 30), True), ((60, 1, 50, 4), True)])
+def test_prepare_and_paste_on_the_crop_equal_the_full_size_reference(centre, past_edge):
+    # bit-identical to stacking full-size channels first, also for crops reaching past the
+    # image's edges and for a training call (height=)
+    rng = np.random.default_rng(1)
+    cy, cx, ry, rx = centre
+    yy, xx = np.mgrid[0:120, 0:100]
+    alpha = np.clip(1.3 - np.hypot((yy - cy) / ry, (xx - cx) / rx), 0, 1).astype(np.float32)
+    colour = rng.uniform(0, 1, (120, 100, 3)).astype(np.float32)
+    height = rng.uniform(0, 60, (120, 100)).astype(np.float32)
+    mask = alpha > 0.5
+    box = lh.crop_box(mask)
+    top, left, side = box[4:]
+    assert (top < 0 or left < 0 or top + side > 120 or left + side > 100) == past_edge
+    x, got_box, bh = lh.prepare(colour, alpha, 64)
+    x_ref, ref_box, bh_ref = _prepare_full_size(colour, alpha, 64)
+    assert (got_box, bh) == (ref_box, bh_ref) and x.dtype == x_ref.dtype and np.array_equal(x, x_ref)
+    got = lh.prepare(colour, alpha, 64, height=height)
+    ref = _prepare_full_size(colour, alpha, 64, height=height)
+    for k in (0, 3, 4):                                   # the input, the target, its weight
+        assert got[k].dtype == ref[k].dtype and np.array_equal(got[k], ref[k]), k
+    pred = rng.normal(0.5, 0.6, (64, 64)).astype(np.float32)
+    out, out_ref = lh.paste(pred, box, bh, mask), _paste_full_size(pred, box, bh, mask)
+    assert out.dtype == out_ref.dtype and np.array_equal(out, out_ref)
+
+
+def test_auto_height_is_autos_choice_also_for_an_empty_cutout():
+    # predict_full's auto_height (read by the lab's evaluations for auto): the learned map
+    # where use_learned, else the (pinned) contact line; present for an empty cutout too
+    p = lh.LearnedHeightPredictor()
+    rgba = [np.concatenate([s["image"], s["alpha"][..., None]], -1) for s in heldout(REAL)[:2]]
+    for thr, learned in ((np.inf, True), (-np.inf, False)):
+        p.confidence_rule = dict(p.confidence_rule, threshold=thr)
+        for x in rgba:
+            r = p.predict_full(x)
+            assert r["use_learned"] is learned
+            assert np.array_equal(r["auto_height"], r["height"] if learned else r["heuristic"])
+            assert not np.array_equal(r["height"], r["heuristic"])
+    empty = p.predict_full(np.zeros((30, 20, 4), np.float32))
+    assert empty["auto_height"].shape == (30, 20) and not empty["auto_height"].any()

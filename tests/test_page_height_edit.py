@@ -182,6 +182,17 @@ def test_drag_the_cutouts_contact_and_tilt_in_the_page(browser, tmp_path):
         assert graph_params(url)["edit"]["tilt"] == tilt          # the tilt is kept, not dragged
         e6 = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
         assert e6["top"][2] == pytest.approx(want_t, abs=0.6)
+        # pushed down past the ground: the flattest it lies, not thickness 0 (the default,
+        # half the median column extent, which would make it jump up)
+        x, y = centre(page, "#tilt-handle")
+        drag(page, (x, y), (x, y + (e6["top"][2] * e6["frame"][2] * k + 10)))
+        assert 0 < graph_params(url)["edit"]["thickness"] <= 0.01
+        flat = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        assert flat["top"] is not None and flat["top"][2] <= 0.01 * g + 1e-4
+        x, y = centre(page, "#tilt-handle")                     # and back up to the thickness above
+        drag(page, (x, y), (x, y - (want_t - flat["top"][2]) * e6["frame"][2] * k))
+        thick = graph_params(url)["edit"]["thickness"]
+        assert thick == pytest.approx(he.thickness_for_height(want_t, g), abs=0.6 / g)
         page.fill("#save-name", "edited.yaml")
         page.click("#save")
         page.wait_for_function("document.getElementById('status').textContent.startsWith('saved')", timeout=60000)

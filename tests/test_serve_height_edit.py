@@ -162,6 +162,19 @@ def test_scene_describes_the_edit_in_the_cutouts_pixels(photo_state):
     assert bh == pytest.approx(float(out[int(bv), int(bu)])) and bh == pytest.approx(bh0) and bh > 10
 
 
+
+def test_no_body_point_in_the_scene_while_lying(photo_state):
+    # lying ignores the foot depth, so the body point's "height before it" would be wrong
+    # (the page hides the ring; /api/scene says None)
+    serve_app.apply_edits(photo_state, {"params": {"edit.lying": True, "edit.foot_depth": 10.0}})
+    try:
+        e = scene.describe(photo_state)["height_edit"]
+        assert e["values"]["lying"] is True and e["body"] is None and e["top"] is not None
+    finally:
+        serve_app.apply_edits(photo_state, {"params": {"edit.lying": False, "edit.foot_depth": 0.0}})
+    assert scene.describe(photo_state)["height_edit"]["body"] is not None
+
+
 def test_contact_points_move_the_shadow_and_save_and_load_back(photo_state):
     before = photo_state.run(["shadow.darkness"])["shadow.darkness"]
     e = scene.describe(photo_state)["height_edit"]

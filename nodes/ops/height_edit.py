@@ -53,7 +53,10 @@ image distance from an object point down to its foot on the ground).
 
    (slope 3/2 (``D > 0``) or 1/2 (``D < 0``) below ``2|D|``, ``h + D`` above).
    Strictly increasing and continuous, so the page can invert it at any
-   point; the contact stays at 0. A point of height ``h0`` goes up to ``1.5 h0``
+   point; the contact stays at 0. The ramp is measured from height 0: an input
+   whose contact is already above the ground (``CutoutHeight``'s ``contact:
+   lifted``) moves by the whole ``D``, contact included; lift the object with
+   this node's ``lift`` (step 4, after the foot depth) instead. A point of height ``h0`` goes up to ``1.5 h0``
    or down to ``h0 / 2``. The page's body handle is the covered pixel nearest
    the mask's centroid (``body_point``), with a guide down to the ground under
    it; dragging it sets ``D`` (``depth_for_height``, the inverse at that point).
@@ -187,7 +190,7 @@ def body_point(mask: np.ndarray, edited: np.ndarray, tilt_deg: float = 0.0, elev
     """(u, v, h, h0) [px] of the body handle: the centre of the covered pixel (coverage
     > 0.5) nearest the mask's centroid, its edited height ``h`` and ``h0``, its height
     before the foot depth, tilt and lift (``h = g f_D(h0) + lift``, steps 2b-4); None
-    for an empty mask."""
+    for an empty mask or a body point at height 0 (no foot depth moves it)."""
     m = np.asarray(mask)
     m = (m[..., 0] if m.ndim == 3 else m) > 0.5
     ys, xs = np.nonzero(m)
@@ -198,6 +201,8 @@ def body_point(mask: np.ndarray, edited: np.ndarray, tilt_deg: float = 0.0, elev
     e = np.asarray(edited)
     h = float((e[..., 0] if e.ndim == 3 else e)[r, c])
     h0 = foot_depth_inverse((h - float(lift)) / tilt_gain(tilt_deg, elevation_deg), depth)
+    if not h0 > 0:
+        return None
     return c + 0.5, r + 0.5, h, h0
 
 
@@ -211,10 +216,16 @@ def depth_for_height(h0: float, target: float, gain: float = 1.0, lift: float = 
     return float(np.clip((float(target) - float(lift)) / float(gain) - h0, -h0 / 2.0, h0 / 2.0))
 
 
+#: the flattest lying thickness [px] a drag gives (thickness 0 is the default, half the
+#: median column extent: a drag to the ground must not jump to it)
+MIN_THICKNESS = 0.01
+
+
 def thickness_for_height(target: float, gain: float = 1.0, lift: float = 0.0) -> float:
     """Lying: the thickness [px] that gives the top the height ``target`` [px] (``target
-    = gain thickness + lift`` where the top's column is at least that tall); >= 0."""
-    return max(0.0, (float(target) - float(lift)) / float(gain)) if gain > 0 else 0.0
+    = gain thickness + lift`` where the top's column is at least that tall); at least
+    ``MIN_THICKNESS``."""
+    return max(MIN_THICKNESS, (float(target) - float(lift)) / float(gain)) if gain > 0 else MIN_THICKNESS
 
 
 def tilt_gain(tilt_deg: float, elevation_deg: float) -> float:

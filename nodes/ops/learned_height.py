@@ -304,9 +304,10 @@ def convex_hull_area(mask: np.ndarray) -> float:
 #: validation renders are 256 x 256). ``LearnedHeightPredictor.signal_side =
 #: SIGNAL_SIDE`` measures a larger cutout's signal lengths in pixels of a crop this
 #: size; not the default: on validation enlarged 4x / 8x it brought the mean
-#: confidence to within 0.02 of the actual win rate (0.07-0.09 off in the cutout's
-#: own pixels) but auto's MAE rose by 0.001-0.002 px, and its rule asked for no rise
-#: (docs/height.md, "Measured: large cutouts")
+#: confidence to within 0.024 / 0.014 of the actual win rate (0.073 / 0.093 off in the
+#: cutout's own pixels) but auto's MAE rose by 0.001-0.002 px, and its rule asked for
+#: no rise
+#: (docs/height.md, "Measured: auto's blend and large cutouts")
 SIGNAL_SIDE = 256
 
 SIGNALS = ("disagreement_px", "disagreement_rel", "flip_px", "head_gain_px", "overhang_share", "solidity")
@@ -512,7 +513,8 @@ class LearnedHeightPredictor:
         self.confidence_rule = inf.get("confidence")
         # the confidence signals' lengths in pixels of a crop at most this large (SIGNAL_SIDE), or
         # None: in the cutout's own pixels. None is shipped: SIGNAL_SIDE missed its rule (docs/height.md,
-        # "Measured: large cutouts"), though it calibrates a large cutout's confidence far better
+        # "Measured: auto's blend and large cutouts"), though it calibrates a large cutout's confidence
+        # far better
         self.signal_side = None
 
     def predict_normalised(self, x: np.ndarray, aux: bool = False):
@@ -564,8 +566,10 @@ class LearnedHeightPredictor:
         ``confidence_signals``; larger = the learned map more likely worse),
         ``use_learned`` is ``signal <= rule["threshold"]`` and ``confidence`` the
         validation win rate of the learned map at that signal
-        (``calibrated_confidence``). ``auto_height``: what ``method: auto``
-        returns (``height`` where ``use_learned``, else ``heuristic``).
+        (``calibrated_confidence``). ``auto_height``: auto's choice, ``height``
+        where ``use_learned``, else ``heuristic`` (pinned like ``height``; where
+        ``CutoutHeight``'s ``method: auto`` falls back it returns its own,
+        unpinned contact line, which can differ by about a pixel).
         ``signals=True`` also returns every candidate
         signal (``signals``; runs the mirrored crop for ``flip_px``).
 
@@ -584,7 +588,8 @@ class LearnedHeightPredictor:
         colour, alpha = straight_srgb(rgba)
         mask = alpha > threshold
         heur = contact_line_height(mask)
-        out = {"height": np.zeros(alpha.shape, np.float32), "heuristic": heur.astype(np.float32),
+        zero = np.zeros(alpha.shape, np.float32)
+        out = {"height": zero, "heuristic": heur.astype(np.float32), "auto_height": zero,
                "confidence": None, "est_mae_learned": None, "est_mae_heuristic": None}
         rule = self.confidence_rule
         need_flip = signals or bool(rule and (rule["signal"] == "flip_px" or "flip_px" in rule.get("features", ())))

@@ -112,10 +112,11 @@ function drawHeightEdit(s) {
       (target) => param(e, "tilt", tiltFor(h0, target, vals.lift || 0, vals.elevation)));
     el.setAttribute("title", "the object's top: drag up = taller (leaning forward), down = shorter (leaning back)");
   } else if (e.top && lying && e.params.thickness) {
-    // lying: the same square sets how tall the object lies (its thickness)
+    // lying: the same square sets how tall the object lies (its thickness; at least 0.01 px,
+    // ops.height_edit.MIN_THICKNESS: 0 means the default, half the median column extent)
     const [tu, tv, h] = e.top;
     const el = heightHandle(e, "tilt", "tilt-handle", [tu, tv, h], "rect", (target) => param(e, "thickness",
-      round(Math.max(0, (target - (vals.lift || 0)) / gain(vals)), 2)));
+      Math.max(0.01, round((target - (vals.lift || 0)) / gain(vals), 2))));
     el.setAttribute("title", "lying: the object's top; drag up = thicker, down = flatter");
   }
   if (e.body && !lying && e.params.depth) {
