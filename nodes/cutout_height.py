@@ -109,7 +109,8 @@ class CutoutHeight(Node):
         confidence: T.Scalar = port(doc="learned / auto: the estimated chance (0-1) that the learned height "
                                         "beats the contact line; NaN when the network did not run")
 
-    impl_version = "4+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence; 4: foot snap, confidence rule
+    impl_version = "5+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence; 4: foot snap,
+    # confidence rule; 5: auto's fallback pins the contact line's contact like the learned map's
 
     def compute(self, ctx, inputs, params):
         mask = np.asarray(inputs.mask, dtype=np.float32)
@@ -136,8 +137,11 @@ class CutoutHeight(Node):
                        else f"confidence {conf:.2f} < 0.5")
                 ctx.log(f"auto: contact line ({why}; the learned map beat it on {conf:.0%} of similar "
                         "validation cutouts)" if "signal" in r else f"auto: contact line ({why})")
+                # the contact line under the same contact constraint as the learned map (what
+                # the studies measured as auto): its contact pixels pinned to the ground (or lift)
+                from pixgraph_nodes.ops.learned_height import pin_contact
                 h = self._heuristic(mask, "contact_line", params.tolerance)
-                return {"height": self._lift(h, mask, lift), "confidence": float(conf)}
+                return {"height": pin_contact(h, mask > 0.5, lift), "confidence": float(conf)}
             ctx.log(NO_TORCH)
             h = self._heuristic(mask, "contact_line", params.tolerance)
         else:

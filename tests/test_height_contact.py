@@ -77,10 +77,16 @@ def test_auto_follows_the_confidence(monkeypatch):
     assert out["confidence"] == pytest.approx(0.7)
     monkeypatch.setattr(ch, "learned_predictor", lambda: Fake(0.3))
     out, ctx = run(m, img, method="auto")
-    np.testing.assert_allclose(out["height"], contact_line_height(m))
+    # the contact line under the same constraint as the learned map: its contact pixels'
+    # mean pinned to the ground (or the lift), as the studies measured auto
+    b = contact_band(m > 0.5)
+    np.testing.assert_allclose(out["height"], pin_contact(contact_line_height(m), m > 0.5))
+    # (the contact line's own band sits above the ground: the pin lowers it; clipped at 0)
+    assert out["height"][b].mean() < contact_line_height(m)[b].mean() - 0.2
     assert "contact line" in ctx.logs[-1] and out["confidence"] == pytest.approx(0.3)
     out, _ = run(m, img, method="auto", contact="lifted", lift=5.0)
-    np.testing.assert_allclose(out["height"], np.where(m > 0.5, contact_line_height(m) + 5.0, 0.0))
+    np.testing.assert_allclose(out["height"], pin_contact(contact_line_height(m), m > 0.5, 5.0))
+    assert out["height"][b].mean() == pytest.approx(5.0, abs=1e-5)
     # method learned ignores the confidence
     out, _ = run(m, img, method="learned")
     np.testing.assert_array_equal(out["height"], learned)

@@ -568,8 +568,9 @@ class LearnedHeightPredictor:
         validation win rate of the learned map at that signal
         (``calibrated_confidence``). ``auto_height``: auto's choice, ``height``
         where ``use_learned``, else ``heuristic`` (pinned like ``height``; where
-        ``CutoutHeight``'s ``method: auto`` falls back it returns its own,
-        unpinned contact line, which can differ by about a pixel).
+        ``CutoutHeight``'s ``method: auto`` falls back it returns its own contact
+        line, with its ``tolerance``, pinned the same way: the same map at the
+        default tolerance).
         ``signals=True`` also returns every candidate
         signal (``signals``; runs the mirrored crop for ``flip_px``).
 
