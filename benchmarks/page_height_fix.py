@@ -18,7 +18,8 @@ graph is the own-photo template's chain: ``CutoutHeight`` (``method: learned``) 
 ``Composite``, with one light for all (azimuth -35, elevation 40 deg: the shadow
 falls on the floor and the wall behind, as in the own-photo template).
 
-The simulated user (rules written before any measurement, like real_photos.py's):
+The simulated user (rules written before any measurement, like real_photos.py's; its
+plans and their params are ``pixgraph_lab.height.edit_plans``, shared with real_photos.py):
 it knows where the object really touches the ground and how tall its top and its
 body really are (``known_heights``), and tries each plan of at most 3 page actions
 in ``PLANS`` (contact points dragged from the foot's hollow handle onto the lowest
@@ -52,6 +53,10 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _machine import cpu_model  # noqa: E402
+
+# the simulated user (its plans and their params), shared with docs/height.md's real-photo check
+from pixgraph_lab.height.edit_plans import (NEW_PLANS, OTHER, PLANS, known_heights, plan_method,  # noqa: E402,F401
+                                            plan_params, true_contacts)
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 S = 2   # the scene's size / the sample's
@@ -121,107 +126,6 @@ def build_scene(sample: str, dest: str, method: str = "learned") -> dict:
     return {"graph": os.path.join(dest, "scene.yaml"), "object": meta["scene"]["object"],
             "true_h": np.where(seen, true_h, 0.0), "known_h": known_heights(true_h, mask.astype(bool), seen),
             "mask": seen, "method": method}
-
-
-def known_heights(true_h: np.ndarray, rendered: np.ndarray, seen: np.ndarray) -> np.ndarray:
-    """What the simulated user knows of the true heights over the pixels it sees
-    (``seen``): the render's where it covered the pixel (``rendered``), else the nearest
-    rendered pixel's. The 8-bit alpha covers a few outline pixels the render's mask does
-    not (its antialiased edge); their stored true height is 0, which is no height the
-    user believes: the top row of a mug, a duck, the teddy is such a pixel, so "the
-    top's true height" was 0 there and the top drag was skipped."""
-    from scipy import ndimage
-    good = rendered & seen
-    if not good.any():
-        return np.where(seen, true_h, 0.0)
-    iy, ix = ndimage.distance_transform_edt(~good, return_distances=False, return_indices=True)
-    return np.where(seen, np.where(good, true_h, true_h[iy, ix]), 0.0)
-
-
-def true_contacts(true_h: np.ndarray, mask: np.ndarray, k: int) -> list:
-    """Up to ``k`` contact points (u, v) [px]: the lowest visible pixel whose true height is
-    < 1 px in each of ``k`` equal column bins of those pixels (one bin: the lowest of all)."""
-    ys, xs = np.nonzero(mask & (true_h < 1.0))
-    if len(xs) == 0:
-        ys, xs = np.nonzero(mask)
-    edges = np.linspace(xs.min(), xs.max() + 1, k + 1)
-    pts = []
-    for a, b in zip(edges[:-1], edges[1:]):
-        sel = (xs >= a) & (xs < b)
-        if sel.any():
-            i = np.argmax(np.where(sel, ys, -1))
-            pts.append((float(xs[i] + 0.5), float(ys[i] + 0.5)))    # the pixel's centre: inside the mask
-    return pts
-
-
-#: the simulated user's plans: each a list of page actions (at most 3: drags, or a toggle)
-PLANS = {
-    "1 contact": ["contact:1"],
-    "2 contacts": ["contact:2"],
-    "3 contacts": ["contact:3"],
-    "2 contacts, upright": ["contact:2", "upright"],
-    "1 contact + top": ["contact:1", "top"],
-    "2 contacts + top": ["contact:2", "top"],
-    "top": ["top"],
-    "lying": ["lying"],
-    # the other height method (the CutoutHeight node's `method` select in the page's panel: one click)
-    "other method": ["switch"],
-    "other method + 2 contacts": ["switch", "contact:2"],
-    "other method + 1 contact + top": ["switch", "contact:1", "top"],
-    "other method + top": ["switch", "top"],
-    # lying down, the top square dragged until the top's height is its true one (the thickness)
-    "lying + thickness": ["lying", "thickness"],
-    # the body's ring (foot depth) dragged until the body's ground point is its true one
-    "depth": ["depth"],
-    "depth + top": ["depth", "top"],
-    "top + depth": ["top", "depth"],
-    "1 contact + depth + top": ["contact:1", "depth", "top"],
-    "other method + depth": ["switch", "depth"],
-    "other method + depth + top": ["switch", "depth", "top"],
-    "other method + top + depth": ["switch", "top", "depth"],
-}
-#: the plans added with the foot-depth ring and the lying thickness drag (fourth session)
-NEW_PLANS = ("lying + thickness", "depth", "depth + top", "top + depth", "1 contact + depth + top",
-             "other method + depth", "other method + depth + top", "other method + top + depth")
-OTHER = {"learned": "contact_line", "contact_line": "learned"}
-
-
-def plan_method(plan: list, method: str) -> str:
-    """The height method after the plan: the other one if it switches (``switch``)."""
-    return OTHER[method] if "switch" in plan else method
-
-
-def plan_params(plan: list, known_h: np.ndarray, mask: np.ndarray, edited) -> dict:
-    """The edit's params after the plan's actions, in order (``known_h``: the heights the
-    user knows, ``edited(params)``: the edited map with those params). ``top`` drags the
-    tilt handle until the top's height is its true one, ``thickness`` (lying) the same
-    square, ``depth`` the body's ring until the body point's height is its true one."""
-    from pixgraph_nodes.ops.height_edit import (body_point, depth_for_height, thickness_for_height, tilt_for_height,
-                                                tilt_gain, top_point)
-    p = {}
-    for act in plan:
-        if act.startswith("contact:"):
-            p["contact_points"] = [c for pt in true_contacts(known_h, mask, int(act[8:])) for c in pt]
-        elif act == "upright":
-            p["contact_mode"] = "upright"
-        elif act == "lying":
-            p["lying"] = True
-        elif act == "top":
-            top = top_point(mask, edited({k: v for k, v in p.items() if k != "tilt"}))
-            true_top = top_point(mask, known_h)
-            if top is not None and true_top is not None:
-                p["tilt"] = round(tilt_for_height(top[3], true_top[2], 0.0, 20.0), 2)
-        elif act == "thickness":
-            true_top = top_point(mask, known_h)
-            if true_top is not None:
-                p["thickness"] = round(thickness_for_height(true_top[2], tilt_gain(p.get("tilt", 0.0), 20.0)), 2)
-        elif act == "depth":
-            g = tilt_gain(p.get("tilt", 0.0), 20.0)
-            body = body_point(mask, edited({k: v for k, v in p.items() if k != "foot_depth"}), p.get("tilt", 0.0))
-            true_body = body_point(mask, known_h)
-            if body is not None and true_body is not None:
-                p["foot_depth"] = round(depth_for_height(body[3], true_body[2], g), 2)
-    return p
 
 
 def shadow_rmse(graph: str, edit_params: dict, height: str, ground_region: np.ndarray | None = None) -> tuple:

@@ -292,16 +292,12 @@ outputs: {out: e.height}
 
 
 def test_the_page_benchmarks_user_puts_the_body_and_top_at_their_known_heights():
-    """benchmarks/page_height_fix.py's simulated user: the ring and the top's square dragged
+    """The page benchmark's simulated user (pixgraph_lab.height.edit_plans, used by
+    benchmarks/page_height_fix.py and real_photos.py): the ring and the top's square dragged
     until the body point and the top have the heights the user knows; lying, the square
     sets the thickness; outline pixels the render missed (stored height 0) are known by
     the nearest rendered pixel's height."""
-    import importlib.util
-    import pathlib
-    path = pathlib.Path(__file__).parents[1] / "benchmarks" / "page_height_fix.py"
-    spec = importlib.util.spec_from_file_location("page_height_fix", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    from pixgraph_lab.height import edit_plans as bench
     H, W = 100, 60
     _, v = grid(H, W)
     seen = np.zeros((H, W), bool)
@@ -363,3 +359,44 @@ def test_foot_depth_keeps_a_contact_at_0_not_a_lifted_inputs():
     kept = he.edit_pixel_height(grounded, m, foot_depth=10.0, lift=30.0)
     assert kept[89, 5] == pytest.approx(30.0 + 1.5 * 0.5)
     np.testing.assert_allclose(kept[m & (grounded >= 20)], moved[m & (grounded >= 20)], atol=1e-4)
+
+
+def _page_height_fix():
+    import importlib.util
+    import pathlib
+    path = pathlib.Path(__file__).parents[1] / "benchmarks" / "page_height_fix.py"
+    spec = importlib.util.spec_from_file_location("page_height_fix", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    return bench
+
+
+def test_the_simulated_users_plans_moved_to_the_lab_unchanged():
+    """benchmarks/page_height_fix.py uses the lab's simulated user (the same objects), and
+    its params on a small synthetic cutout are the ones the benchmark's own copy gave
+    before the move (numbers pinned from that code, commit 5d4b0ae): the contact points
+    of 1 and 3 column bins, the lying thickness, the foot depth, the plan set's size."""
+    from pixgraph_lab.height import edit_plans as ep
+    bench = _page_height_fix()
+    for name in ("PLANS", "NEW_PLANS", "OTHER", "plan_method", "plan_params", "true_contacts", "known_heights"):
+        assert getattr(bench, name) is getattr(ep, name), name
+    assert len(ep.PLANS) == 20 and set(ep.NEW_PLANS) <= set(ep.PLANS)
+    assert ep.plan_method(ep.PLANS["other method + depth"], "learned") == "contact_line"
+    H, W = 100, 60
+    u, v = grid(H, W)
+    seen = np.zeros((H, W), bool)
+    seen[20:90, 10:50] = True
+    seen[85:90, 10:20] = False                       # a notch: the lowest row starts at column 20
+    rendered = seen.copy()
+    rendered[20, :] = False
+    true_h = np.where(rendered, 1.2 * (90.0 - v) + 0.1 * (u - 0.5), 0.0)
+    pred = np.where(seen, 90.0 - v, 0.0)
+    known = ep.known_heights(true_h, rendered, seen)
+    out = {n: ep.plan_params(pl, known, seen, lambda p: ep.edit_with(pred, seen, p)) for n, pl in ep.PLANS.items()}
+    assert out["1 contact"] == {"contact_points": [20.5, 89.5]}
+    assert out["3 contacts"] == {"contact_points": [20.5, 89.5, 24.5, 89.5, 37.5, 89.5]}
+    assert out["2 contacts, upright"] == {"contact_points": [20.5, 89.5, 30.5, 89.5], "contact_mode": "upright"}
+    assert out["lying + thickness"] == {"lying": True, "thickness": pytest.approx(85.2)}
+    assert out["depth"] == {"foot_depth": pytest.approx(10.1)}
+    assert out["1 contact + depth + top"]["foot_depth"] == pytest.approx(10.6)
+    assert out["other method"] == {}
