@@ -12,9 +12,10 @@ shadows), the first sample in index order of each of ``--objects``.
 Per sample four height maps: the contact line, the learned predictor (shipped
 weights, ``contact="ground"``), ``auto``, and *edited*: what a user makes of the
 learned map with ``pixgraph.PixelHeightEdit`` in at most three page actions,
-computed here with ``edit_pixel_height`` (no browser). The plans (rule fixed
-before looking at any of these samples' numbers, the same set the page benchmark
-``benchmarks/page_height_fix.py`` tries): no edit, every plan of
+computed here with ``edit_pixel_height`` (no browser). The plans (the set the page
+benchmark ``benchmarks/page_height_fix.py`` tries, fixed before this check was run
+with it; not blind to these samples: the page benchmark's explored samples include
+all six, in its own scene and light): no edit, every plan of
 ``pixgraph_lab.height.edit_plans.PLANS`` on the learned map (contact points on the
 true contact, the tilt handle to the top's true height, the body's ring -- foot
 depth -- to the body point's true height, lying with its thickness, the upright
