@@ -29,6 +29,9 @@ a mask file, the own-photo graph built from the template (POST /api/open), then:
                            resolution 1/s (--scales, default 2 and 5), PNG
   drag -> preview (the page) the same as the page asks while the pointer moves:
                            at most 0.5 MP of work, JPEG
+  first step               each working resolution's first step, alone: the photo
+                           is read and shrunk to that resolution then (the page's
+                           first drag after opening); the drag rows are the rest
   --browser                the same drag in headless Chromium on the page: from the
                            pointer event (the preview is sent in its handler) to
                            the next frame painted after the image was drawn
@@ -258,7 +261,10 @@ def photo_drags(url: str, files: dict, width: int, height: int, steps: int, scal
                 times.append(time.perf_counter() - t0)
                 cpu.append(cpu_seconds(pid) - c0)
                 inside.append(float(r.headers["x-pixgraph-seconds"]))
-            rows.append((f"{width}x{height}: drag -> preview ({label})", times, f"{steps} steps"))
+            # the first step is the first render at this working resolution: the photo is read
+            # and shrunk to it then (the page's first drag after opening)
+            rows.append((f"{width}x{height}: first step ({label}; the photo read at it)", times[:1], "1 step"))
+            rows.append((f"{width}x{height}: drag -> preview ({label})", times[1:], f"{steps - 1} steps"))
             rows.append(("  of which inside the server's handler", inside, f"{steps} steps"))
             rows.append(("  server CPU (user+sys) per step", cpu, f"{steps} steps"))
     return rows

@@ -154,3 +154,25 @@ def test_a_bad_thread_count_is_the_nodes_error_naming_the_variable(monkeypatch, 
     with pytest.raises(Exception, match=r"(?s)'s'.*PIXGRAPH_THREADS.*" + value):
         s.run(s.load(str(g)), ["png"])
     assert not (tmp_path / "out.png").exists()
+
+
+@pytest.mark.parametrize("shape_in,shape_out", [((301, 257, 3), (47, 40)), ((300, 200), (75, 200)),
+                                                 ((90, 120, 4), (90, 31)), ((64, 64), (80, 50))])
+def test_shrink_rows_first_is_resize(monkeypatch, shape_in, shape_out):
+    # resample.shrink (rows first, banded; at_scale's path when shrinking) against the
+    # column-first resize per channel, the reference it replaced: float rounding only,
+    # and the same numbers on one thread and on three
+    from pixgraph_nodes.ops import resample
+    a = np.random.default_rng(3).random(shape_in, dtype=np.float32)
+    chans = a[..., None] if a.ndim == 2 else a
+    ref = np.stack([resample.resize(np.ascontiguousarray(chans[..., c]), shape_out)
+                    for c in range(chans.shape[2])], -1).reshape(shape_out + a.shape[2:])
+    outs = []
+    for n in ("1", "3"):
+        monkeypatch.setenv("PIXGRAPH_THREADS", n)
+        outs.append(resample.shrink(a, shape_out, band=8))
+    np.testing.assert_allclose(outs[0], ref, atol=2e-6)
+    np.testing.assert_array_equal(outs[0], outs[1])
+    if shape_out[0] <= shape_in[0] and shape_out[1] <= shape_in[1]:
+        np.testing.assert_array_equal(resample.at_scale(a, shape_out[0] / shape_in[0]).shape[:2],
+                                      resample.scaled_size(*shape_in[:2], shape_out[0] / shape_in[0]))
