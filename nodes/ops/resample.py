@@ -167,8 +167,9 @@ def shrink(a: np.ndarray, shape: tuple[int, int], band: int = 64) -> np.ndarray:
     """``resize`` of an (H, W) or (H, W, C) array to a ``shape`` no larger on either
     axis (the same antialiased bilinear weights), made rows first: each tap reads whole
     rows (all channels at once), then the columns of the few output rows, in bands of
-    output rows on the shared pool (ops/bands.py). 2.5x faster than column-first on a
-    20 MP photo (one thread); the sums differ only in float rounding (their order)."""
+    output rows on the shared pool (ops/bands.py): the page's first preview of a 20 MP
+    photo is about 3x faster for it (docs/server.md, "At photo size"); the sums differ
+    from ``resize``'s only in float rounding (their order)."""
     from .bands import for_bands
     a = np.asarray(a, np.float32)
     h, w = (int(x) for x in shape)
