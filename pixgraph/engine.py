@@ -429,8 +429,9 @@ class Engine:
                     self._logs_by_key.pop(next(iter(self._logs_by_key)))
             else:
                 self._logs_by_key.pop(plan.keys[nid], None)
+        said = {nid: self._logs_by_key[k] for nid, k in plan.keys.items() if k in self._logs_by_key}
         emit(E.RunFinished(time.perf_counter() - t_run, len(ran), len(cached)))
-        return RunResult(values, timings, tuple(ran), tuple(cached), plan, logs)
+        return RunResult(values, timings, tuple(ran), tuple(cached), plan, logs, said)
 
     def _last_run_parts(self, file: str | None) -> dict[str, KeyParts]:
         """Last-run key parts by node id for a graph file; read from the disk

@@ -108,6 +108,10 @@ class RunResult(collections.abc.Mapping):
     plan: Plan
     #: messages each node that ran logged (``ctx.log``), by node id
     logs: dict[str, list[str]] = dataclasses.field(default_factory=dict)
+    #: what each node of the plan said when it made the result this run returns: its
+    #: ``logs`` for a node that ran, and for one served from a cache what it logged when
+    #: it ran with that key (while the engine remembers it); nodes that said nothing are absent
+    said: dict[str, list[str]] = dataclasses.field(default_factory=dict)
 
     @property
     def seconds(self) -> float:

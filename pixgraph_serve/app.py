@@ -302,7 +302,7 @@ async def render(request: Request):
             res = state.run([name, *extra], mode, cancel=token, scale=float(working))
             scene.note(state, graph, extra, res)
             if mode == "final":
-                state.keep_logs(res)
+                state.final_said = res.said
             return res, encode(res[name], name, scale)
 
         try:

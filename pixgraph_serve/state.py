@@ -134,10 +134,8 @@ class ServeState:
         self._deadlines = Deadlines()
         #: scene.py's cache of what the handles are anchored to (see scene.Anchors)
         self.anchors = None
-        #: what each node said (``ctx.log``) when a final ran it, by node and cache key,
-        #: and each node's key in the last final (``keep_logs``)
-        self.node_logs: dict[str, dict[str, list[str]]] = {}
-        self.final_keys: dict[str, str] = {}
+        #: what the nodes of the last final said (``RunResult.said``: cached nodes included)
+        self.final_said: dict[str, list[str]] = {}
         self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
 
     # -- graph ------------------------------------------------------------------
@@ -415,24 +413,12 @@ class ServeState:
             with self._active_lock:
                 self._active.discard(token)
 
-    def keep_logs(self, res) -> None:
-        """Keep what the nodes of a final run logged, by node and cache key (a node that
-        comes from the cache in a later final said what it said when it ran with that
-        key; the last 8 keys a node, 5 lines of 400 characters each)."""
-        keys = res.plan.keys
-        for nid in res.ran:
-            said = self.node_logs.setdefault(nid, {})
-            said.pop(keys[nid], None)
-            said[keys[nid]] = [str(m)[:400] for m in res.logs.get(nid, [])[-5:]]
-            while len(said) > 8:
-                del said[next(iter(said))]
-        self.final_keys = dict(keys)
-
     def log_lines(self) -> list[str]:
-        """``node: message`` of the last final (``keep_logs``), the served graph's nodes in
-        order, paths under the graph's folder shown relative to it."""
-        return [f"{nid}: {m}".replace(self.root + os.sep, "") for nid in self.graph.nodes
-                for m in self.node_logs.get(nid, {}).get(self.final_keys.get(nid), [])]
+        """``node: message`` of the last final (``final_said``), the served graph's nodes in
+        order, at most the last 5 lines of 400 characters a node, paths under the graph's
+        folder shown relative to it."""
+        return [f"{nid}: {str(m)[:400]}".replace(self.root + os.sep, "") for nid in self.graph.nodes
+                for m in self.final_said.get(nid, [])[-5:]]
 
     def session_for(self, scale: float = 1.0) -> Session:
         """The session that runs at working resolution ``scale``: full size in ``session``;

@@ -143,3 +143,18 @@ def test_the_docs_printed_choice_is_what_the_graph_logs(device):
     fresh.run(fresh.graph(GRAPH), outputs=["shadow.darkness"], on_event=events.append)
     logs = [e.message for e in events if type(e).__name__ == "NodeLog"]
     assert shown == "shadow: " + logs[0]
+
+
+def test_a_cached_run_says_what_the_node_logged_when_it_ran(device):
+    # RunResult.said: a node that ran says this run's lines; served from the cache, the lines
+    # it logged when it made that result (the page shows them under the image)
+    session = Session(device=device, disk_cache=None)
+    g = session.graph(GRAPH)
+    first = session.run(g, outputs=["shadow.darkness"])
+    assert "shadow" in first.ran and first.said["shadow"] == first.logs["shadow"]
+    assert first.said["shadow"][0].startswith("auto chose ")
+    other = session.run(g, outputs=["shadow.darkness"], params={"shadow.method": "hard"})
+    assert "shadow" in other.ran and "shadow" not in other.said    # a forced method logs nothing
+    again = session.run(g, outputs=["shadow.darkness"])
+    assert "shadow" in again.cached and "shadow" not in again.logs
+    assert again.said["shadow"] == first.said["shadow"]

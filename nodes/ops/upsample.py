@@ -119,11 +119,6 @@ def support_box(active_lo: np.ndarray, shape, pad: int = 2):
             max(0, int(np.floor(c * W / w))), min(W, int(np.ceil(d * W / w))))
 
 
-def _shrink_rows_first(a: np.ndarray, shape) -> np.ndarray:
-    """``resize(a, shape)`` made rows first (``resample.shrink``)."""
-    return shrink(a, shape)
-
-
 def cutout_scene(win: Window, mask, fg_height):
     """The cutout's half of ``win.scene`` of a whole-image window: (mask, fg_height)
     at (out_h, out_w), the same numbers, resized only over the cutout's box (the
@@ -149,7 +144,7 @@ def cutout_scene(win: Window, mask, fg_height):
 def proxy_scene(win: Window, mask, fg_height, bg_height):
     """``win.scene(mask, fg_height, bg_height)`` of a whole-image window (``Window.whole``):
     the cutout's coverage and height as :func:`cutout_scene` (the same numbers), the
-    background's height rows first (``_shrink_rows_first``), the same up to float
+    background's height rows first (``resample.shrink``), the same up to float
     rounding.
 
     Returns (mask, fg_height, bg_height) at (out_h, out_w), heights in proxy pixels."""
@@ -162,12 +157,12 @@ def proxy_scene(win: Window, mask, fg_height, bg_height):
 
 def proxy_bg_height(win: Window, bg_height) -> np.ndarray:
     """The background's height of ``win.scene`` of a whole-image window, in proxy pixels
-    (non-finite values as 0), shrunk rows first (``_shrink_rows_first``): the same up
+    (non-finite values as 0), shrunk rows first (``resample.shrink``): the same up
     to float rounding."""
     bg = np.asarray(bg_height, np.float32)
     if not np.isfinite(bg.min() + bg.max()):      # one pass each; nan_to_num only when needed
         bg = np.nan_to_num(bg, nan=0.0, posinf=0.0, neginf=0.0)
-    return (_shrink_rows_first(bg, (win.out_h, win.out_w)) * win.ky).astype(np.float32)
+    return (shrink(bg, (win.out_h, win.out_w)) * win.ky).astype(np.float32)
 
 
 def proxy_soft_shadow_parts(device, mask, fg_height, bg_height, light_samples, thickness=1.0,
