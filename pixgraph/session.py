@@ -162,7 +162,7 @@ class Session:
             cancel: CancelToken | None = None, on_event: Callable[[Any], None] | None = None,
             scale: float = 1.0) -> RunResult:
         """Run and return a ``RunResult``: a mapping ``{output name: value}`` that also
-        says what ran (``ran``, ``cached``, ``seconds``, ``timings``, ``logs``).
+        says what ran (``ran``, ``cached``, ``seconds``, ``timings``, ``logs``, ``said``).
 
         outputs: names from the graph's ``outputs`` or ``"node.output"`` refs;
             default all of the graph's outputs.
