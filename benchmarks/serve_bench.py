@@ -265,8 +265,8 @@ def photo_drags(url: str, files: dict, width: int, height: int, steps: int, scal
             # and shrunk to it then (the page's first drag after opening)
             rows.append((f"{width}x{height}: first step ({label}; the photo read at it)", times[:1], "1 step"))
             rows.append((f"{width}x{height}: drag -> preview ({label})", times[1:], f"{steps - 1} steps"))
-            rows.append(("  of which inside the server's handler", inside, f"{steps} steps"))
-            rows.append(("  server CPU (user+sys) per step", cpu, f"{steps} steps"))
+            rows.append(("  of which inside the server's handler", inside[1:], f"{steps - 1} steps"))
+            rows.append(("  server CPU (user+sys) per step", cpu[1:], f"{steps - 1} steps"))
     return rows
 
 
