@@ -255,16 +255,20 @@ class ServeState:
 
     # -- edits (all or nothing) ---------------------------------------------------
 
-    def edit(self, apply) -> Graph:
-        """Call ``apply()`` (any number of ``set_*`` calls); if it raises, the graph and
-        the stashed params are restored and the error propagates: nothing is half-applied."""
+    def edit(self, apply, keep_on: tuple = ()):
+        """Call ``apply()`` (any number of ``set_*`` calls, and a run of the edited graph)
+        and return what it returns; if it raises, the graph and the stashed params are
+        restored and the error propagates: nothing is half-applied. An exception of a class
+        in ``keep_on`` keeps the edits (a render cancelled by a newer one of the page: the
+        newer one carries only its own edits)."""
         graph, stash = self.graph, dict(self._stash)
         try:
-            apply()
+            return apply()
+        except keep_on:
+            raise
         except BaseException:
             self.graph, self._stash = graph, stash
             raise
-        return self.graph
 
     def set_params(self, params: Mapping[str, Any]) -> Graph:
         """Apply ``{"node.param": value}`` (or ``{"node": {"param": value}}``) edits."""

@@ -230,3 +230,32 @@ def test_render_answers_a_jpeg_preview(photo_state):
         assert np.abs(np.asarray(img, np.float32) - ref).mean() < 3.0      # the same picture, lossy
         bad = c.post("/api/render", json={"mode": "preview", "format": "gif"})
         assert bad.status_code == 400 and "format" in bad.json()["error"]
+
+
+def test_a_render_a_node_refuses_leaves_the_graph_as_it_was(tmp_path):
+    """The cutout dragged off the photo: PlaceCutout refuses it (400, naming the node), and the
+    served graph keeps the foot it had, so /api/scene (what the page loads its handles and panel
+    from) still answers and the next render of another edit works. Before, the refused foot
+    stayed in the graph: every later render and /api/scene failed with the same error, and a
+    reload of the page showed nothing but that error (no image, no panel to fix it in)."""
+    from starlette.testclient import TestClient
+
+    paths = _assets(str(tmp_path))
+    text = files.fill(files.template_text("own_photo"), paths, {"W": 640, "H": 480, "w": 159, "h": 285})
+    (tmp_path / "g.yaml").write_text(text)
+    state = ServeState(str(tmp_path / "g.yaml"))
+    state.set_type("shadow", "pixgraph.HardShadow")
+    foot = state.info()["nodes"][[n["id"] for n in state.info()["nodes"]].index("place")]["values"]["foot"]
+    with TestClient(serve_app.create_app(state)) as c:
+        for path, body in (("/api/render", {"params": {"place.foot": [5000, 345]}}),
+                           ("/api/run", {"params": {"place.foot": [5000, 345]}, "outputs": ["final"]}),
+                           ("/api/render", {"params": {"place.foot": [5000, 345]}, "mode": "preview",
+                                            "work": 0.5, "client": "a", "seq": 1})):
+            r = c.post(path, json=body)
+            assert r.status_code == 400 and r.json()["node"] == "place", (path, r.text)
+            assert "placed cutout lies outside the" in r.json()["error"]
+            values = {n["id"]: n["values"] for n in c.get("/api/graph").json()["nodes"]}
+            assert values["place"]["foot"] == foot, path
+            assert c.get("/api/scene").status_code == 200, path
+        ok = c.post("/api/render", json={"params": {"light.azimuth": -20}})
+        assert ok.status_code == 200 and ok.headers["content-type"] == "image/png"
