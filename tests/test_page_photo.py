@@ -380,3 +380,39 @@ def test_corner_and_back_wall_templates(browser, tmp_path):
             [0, row - slope * 256, 512, 330], abs=1.0)
         assert not errors, errors
         page.close()
+
+
+def test_a_graph_a_node_refuses_opens_with_its_panel_to_mend_it(browser, tmp_path):
+    """A served graph whose cutout lies off the photo (PlaceCutout refuses it, so /api/scene
+    cannot place the handles): the page still builds the param panel and says which node
+    refused; the foot typed in the panel mends it, and the image and the handles come.
+    Before, the page showed only the error: no image, no panel, nothing to fix it with."""
+    graph = own_photo_copy(str(tmp_path))
+    text = open(graph).read()
+    assert "foot: [270, 345]" in text
+    with open(graph, "w") as f:
+        f.write(text.replace("foot: [270, 345]", "foot: [5000, 345]"))
+    with running_server(graph) as (url, _):
+        page = browser.new_page(viewport=VIEWPORT)
+        errors = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(url + "/")
+        page.wait_for_selector("body[data-ready='1']", state="attached", timeout=120000)
+        assert page.locator("#error").is_visible()
+        assert "node 'place'" in page.inner_text("#error") and "outside" in page.inner_text("#error")
+        assert page.locator("details.node").count() == len(graph_params(url))
+        assert page.locator("#cutout-box").count() == 0            # no handles without a scene
+        page.click("details.node:has([data-param='place.foot']) > summary")
+        field = page.locator('[data-param="place.foot"]')
+        assert field.input_value() == "5000, 345"
+        field.fill("270, 345")
+        field.press("Enter")
+        wait_final(page, 0)
+        page.wait_for_selector("#cutout-box", timeout=60000)
+        assert graph_params(url)["place"]["foot"] == [270, 345]
+        assert page.locator("#error").is_hidden()
+        img = shown(page)
+        assert img.shape == (480, 640, 3) and img.std() > 0.1
+        check_handles_visible(page)
+        assert not errors, errors
+        page.close()

@@ -6,7 +6,7 @@ import {wireFiles} from "./files.js";
 import {cutoutWheel, drawHandles} from "./handles.js";
 import {syncHeightTools, wireHeightTools} from "./heightedit.js";
 import {buildPanel, syncControls, wireToolbar} from "./panel.js";
-import {finalize, refresh, render, ui} from "./render.js";
+import {finalize, markBad, refresh, render, ui} from "./render.js";
 import {setImageSize, view, wireView} from "./view.js";
 
 let reRender = null;
@@ -20,11 +20,17 @@ function onViewChange() {
 }
 
 // The graph, its handles and a first final image: at start and after opening files.
+// A graph a node refuses (its scene cannot be described) still gets its param panel, the
+// node's error and its field marked, so it can be mended in the page.
 async function load() {
+  let failed = null;
   try {
     await refresh();
   } catch (err) {
-    showError(err.message);
+    failed = err;
+  }
+  if (!ui.info) {           // not even the graph: nothing to show but the error
+    showError(failed.message);
     return;
   }
   if (ui.scene.camera) setImageSize(ui.scene.camera.width, ui.scene.camera.height);
@@ -33,7 +39,12 @@ async function load() {
   syncControls();
   syncHeightTools();
   drawHandles();
-  await render({}, "final");
+  if (failed) {
+    showError(failed.message);
+    markBad(failed.data);
+  } else {
+    await render({}, "final");
+  }
   document.body.dataset.synced = ui.shownSeq;
   document.body.dataset.ready = String(Number(document.body.dataset.ready || 0) + 1);
 }
