@@ -136,6 +136,9 @@ class ServeState:
         self.anchors = None
         #: what the nodes of the last final said (``RunResult.said``: cached nodes included)
         self.final_said: dict[str, list[str]] = {}
+        #: the name the page proposes to save under (``info()["save_as"]``): the last file
+        #: saved, or after ``/api/open`` the photo's name; None: the served file
+        self.save_name: str | None = None
         self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
 
     # -- graph ------------------------------------------------------------------
@@ -218,7 +221,8 @@ class ServeState:
     def info(self) -> dict:
         """The graph as the UI and API clients see it: nodes in file order with the
         params set and their effective values, inputs, outputs, and node types (those
-        used, and those a node may be switched to: ``alternatives``)."""
+        used, and those a node may be switched to: ``alternatives``); ``save_as``: the
+        name the page proposes to save under (``save_name``)."""
         from pixgraph.reference import as_dict
 
         g = self.graph
@@ -232,7 +236,7 @@ class ServeState:
         used = {inst.type for inst in g.nodes.values()}
         for t in list(used):
             used.update(self.alternatives(t))
-        return {"file": self.graph_path, "nodes": nodes,
+        return {"file": self.graph_path, "save_as": self.save_name or os.path.basename(self.graph_path), "nodes": nodes,
                 "outputs": {k: str(v) for k, v in g.outputs.items()},
                 "types": {t: as_dict(self.registry.get(t)) for t in sorted(used)},
                 "limits": dataclasses.asdict(self.limits)}
@@ -355,6 +359,8 @@ class ServeState:
             if os.path.exists(tmp):
                 os.unlink(tmp)
             raise ServeError(400, f"save: cannot write {path or target}: {e.strerror or e}", field="path") from None
+        inside = os.path.commonpath([target, self.root]) == self.root
+        self.save_name = os.path.relpath(target, self.root) if inside else target
         return target
 
     # -- run ----------------------------------------------------------------------

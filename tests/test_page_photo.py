@@ -416,3 +416,41 @@ def test_a_graph_a_node_refuses_opens_with_its_panel_to_mend_it(browser, tmp_pat
         check_handles_visible(page)
         assert not errors, errors
         page.close()
+
+
+def test_the_save_name_survives_a_reload(browser, tmp_path):
+    """After "open photo", the box proposes the photo's name; after a save, the name saved.
+    A reload of the page keeps proposing it: before, it went back to the served graph's
+    own file, so the next "save" wrote the user's photo graph over the graph the server
+    was started with (graphs/own_photo.yaml)."""
+    files = photo_files(str(tmp_path / "mine"), 960, 720, mask=False)
+    graph = own_photo_copy(str(tmp_path / "served"))
+    served_text = open(graph).read()
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        assert page.input_value("#save-name") == "own_photo.yaml"      # the served graph: save over it
+        page.click("#open")
+        page.set_input_files("#open-photo", files["photo"])
+        page.set_input_files("#open-cutout", files["cutout"])
+        seq = last_seq(page)
+        page.click("#open-go")
+        page.wait_for_selector("body[data-ready='2']", state="attached", timeout=180000)
+        wait_final(page, seq)
+        assert page.input_value("#save-name") == "photo_960x720.yaml"
+        page.reload()
+        page.wait_for_selector("body[data-ready='1']", state="attached", timeout=180000)
+        wait_final(page, 0)
+        assert page.input_value("#save-name") == "photo_960x720.yaml"
+        page.fill("#save-name", "mine/scene.yaml")
+        page.click("#save")
+        page.wait_for_function("document.getElementById('status').textContent.startsWith('saved')", timeout=60000)
+        page.reload()
+        page.wait_for_selector("body[data-ready='1']", state="attached", timeout=180000)
+        wait_final(page, 0)
+        assert page.input_value("#save-name") == "mine/scene.yaml"
+        page.click("#save")
+        page.wait_for_function("document.getElementById('status').textContent.startsWith('saved')", timeout=60000)
+        assert open(graph).read() == served_text                     # the served graph's file untouched
+        assert "figure_rgba.png" in (tmp_path / "served" / "mine" / "scene.yaml").read_text()
+        assert not errors, errors
+        page.close()

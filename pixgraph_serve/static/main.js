@@ -34,7 +34,9 @@ async function load() {
     return;
   }
   if (ui.scene.camera) setImageSize(ui.scene.camera.width, ui.scene.camera.height);
-  if (!$("save-name").value) $("save-name").value = ui.info.file.split(/[\\/]/).pop();
+  // what the server proposes (the last name saved, the opened photo's, else the served file's):
+  // a reload keeps it, so "save" does not write the user's graph over the served one
+  if (!$("save-name").value) $("save-name").value = ui.info.save_as || ui.info.file.split(/[\\/]/).pop();
   buildPanel();
   syncControls();
   syncHeightTools();
