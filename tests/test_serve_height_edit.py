@@ -259,3 +259,28 @@ def test_a_render_a_node_refuses_leaves_the_graph_as_it_was(tmp_path):
             assert c.get("/api/scene").status_code == 200, path
         ok = c.post("/api/render", json={"params": {"light.azimuth": -20}})
         assert ok.status_code == 200 and ok.headers["content-type"] == "image/png"
+
+
+def test_a_contact_point_on_the_cutouts_bottom_edge_works_in_previews(photo_state):
+    """The page clamps a contact point to the cutout's pixel edges [0, w] x [0, h]; a drag
+    to the foot's bottom edge gives v = h, which the final takes. At a preview's working
+    resolution the cutout is round(h x scale) rows, here less than h x scale, and the edge
+    point was refused ("outside the 80x142 cutout", the working size) on every preview
+    of the drag. It now lies on the scaled cutout's edge: the same edit as the point
+    moved onto that edge by hand."""
+    state = photo_state
+    h = state.run(["cutout.alpha"])["cutout.alpha"].shape[0]
+    assert h == 285 and int(h * 0.5) != h * 0.5               # 142 rows at half size, not 142.5
+    edge, inside = [58.5, float(h)], [58.5, 2.0 * int(h * 0.5)]   # 285 -> 142.5; 284 -> 142.0
+    serve_app.apply_edits(state, {"params": {"edit.contact_points": edge}})
+    at_edge = state.run(["edit.height"], "preview", scale=0.5)["edit.height"]
+    full = state.run(["edit.height"], "final")["edit.height"]
+    serve_app.apply_edits(state, {"params": {"edit.contact_points": inside}})
+    moved = state.run(["edit.height"], "preview", scale=0.5)["edit.height"]
+    assert np.array_equal(at_edge, moved)
+    assert full.shape == (285, 159) and at_edge.shape == (142, 80)
+    # further out than that is still a mistake, named by node and param
+    serve_app.apply_edits(state, {"params": {"edit.contact_points": [58.5, h + 3.0]}})
+    with pytest.raises(Exception, match=r"edit.*contact_points.*outside"):
+        state.run(["edit.height"], "final")
+    serve_app.apply_edits(state, {"params": {"edit.contact_points": []}})
