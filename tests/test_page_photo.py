@@ -454,3 +454,35 @@ def test_the_save_name_survives_a_reload(browser, tmp_path):
         assert "figure_rgba.png" in (tmp_path / "served" / "mine" / "scene.yaml").read_text()
         assert not errors, errors
         page.close()
+
+
+def test_an_error_while_dragging_does_not_move_the_image_under_the_pointer(browser, tmp_path):
+    """The cutout dragged off the photo and back: the previews off the photo fail and the
+    error appears under the image, which shrinks the stage. The view keeps its place while
+    the pointer is down (it re-fits after), so the drag ends where the pointer does.
+    Before, the view re-fitted at once: the image moved under the pointer (half the
+    error's height) and the rest of the drag landed that far off."""
+    graph = own_photo_copy(str(tmp_path))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        foot = graph_params(url)["place"]["foot"]
+        view = {k: page.evaluate(f"window.pixgraphView.state.{k}") for k in ("k", "ox", "oy")}
+        h0 = page.locator("#stage").bounding_box()["height"]
+        bx, by = centre(page, "#cutout-box")
+        seq = last_seq(page)
+        page.mouse.move(bx, by)
+        page.mouse.down()
+        page.mouse.move(bx + 900, by, steps=6)
+        page.wait_for_selector("#error:not([hidden])", timeout=60000)
+        assert "node 'place'" in page.inner_text("#error")
+        assert page.locator("#stage").bounding_box()["height"] < h0 - 20       # the stage did shrink
+        assert {k: page.evaluate(f"window.pixgraphView.state.{k}") for k in ("k", "ox", "oy")} == view
+        page.mouse.move(bx + 20, by + 10, steps=6)
+        page.wait_for_function("(q => !q.inflight && !q.pending)(window.pixgraphQueue())", timeout=60000)
+        page.mouse.up()
+        wait_final(page, seq)
+        k = view["k"]
+        assert graph_params(url)["place"]["foot"] == pytest.approx([foot[0] + 20 / k, foot[1] + 10 / k], abs=1.5)
+        assert page.locator("#error").is_hidden()
+        assert not errors, errors
+        page.close()

@@ -55,6 +55,7 @@ function main() {
   wireView();
   view.listeners.push(onViewChange);
   view.wheelHook = cutoutWheel;
+  view.holdFit = () => !!ui.drag;      // re-fitted after the drag, when the scene comes (setImageSize)
   ui.onScene.push(() => {
     if (ui.scene.camera) setImageSize(ui.scene.camera.width, ui.scene.camera.height);
     syncControls();
