@@ -75,6 +75,50 @@ PATHS = {
 }
 
 
+def upper_bound(diff, n_boot: int = 10000, seed: int = 0, level: float = 0.95) -> float:
+    """The upper end of the two-sided ``level`` percentile bootstrap interval of
+    mean(``diff``) (samples resampled with replacement, ``n_boot`` times)."""
+    d = np.asarray(diff, np.float64)
+    rng = np.random.default_rng(seed)
+    means = d[rng.integers(0, len(d), size=(n_boot, len(d)))].mean(1)
+    return float(np.quantile(means, 0.5 + level / 2))
+
+
+def noninferiority(rows, new: str, old: str, scales, margin: float, time_ratio: float = 0.75):
+    """Report lines and verdict of the non-inferiority rule (docs/height.md, "Rules
+    fixed before measuring: large cutouts, non-inferiority on fresh samples"): at
+    every scale (a) the upper 95 % bootstrap bound of the paired mean difference of
+    the learned MAE (new - old) at most ``margin`` x old's mean MAE, (b) the same
+    for auto's MAE, (c) the confidence gap no larger; (d) at the largest scale the
+    median time at most ``time_ratio`` x old's."""
+    lines = [f"Non-inferiority of {new} against {old} (margin {margin:.1%} of {old}'s MAE; 95 % paired bootstrap, "
+             "10,000 resamples):", "",
+             "| scale | metric | mean new - old [px] | upper 95 % bound [px] | margin [px] | met |",
+             "|---|---|---|---|---|---|"]
+    ok = []
+    for k in scales:
+        rs = [r for r in rows if r["k"] == k]
+        for metric in ("mae", "mae_auto"):
+            d = [r[f"{metric}_{new}"] - r[f"{metric}_{old}"] for r in rs]
+            ub, m = upper_bound(d), margin * float(np.mean([r[f"{metric}_{old}"] for r in rs]))
+            ok.append(ub <= m)
+            lines.append(f"| {k}x | {'learned' if metric == 'mae' else 'auto'} MAE | {np.mean(d):+.3f} | "
+                         f"{ub:+.3f} | {m:.3f} | {'yes' if ub <= m else 'no'} |")
+        gaps = []
+        for p in (new, old):
+            win = float(np.mean([r[f"mae_{p}"] < r[f"mae_heuristic_{p}"] for r in rs]))
+            gaps.append(abs(float(np.mean([r[f"confidence_{p}"] for r in rs])) - win))
+        ok.append(gaps[0] <= gaps[1])
+        lines.append(f"| {k}x | confidence gap | {gaps[0] - gaps[1]:+.3f} | | | {'yes' if gaps[0] <= gaps[1] else 'no'} |")
+    rs = [r for r in rows if r["k"] == max(scales)]
+    tn, to = (float(np.median([r[f"ms_{p}"] for r in rs])) for p in (new, old))
+    ok.append(tn <= time_ratio * to)
+    lines += ["", f"median time at {max(scales)}x: {tn:.0f} vs {to:.0f} ms ({tn / to:.2f}x; at most {time_ratio}x: "
+              f"{'yes' if tn <= time_ratio * to else 'no'})", "",
+              f"**rule {'met' if all(ok) else 'not met'}**"]
+    return lines
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m pixgraph_lab.height.scale_study", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -84,6 +128,9 @@ def main(argv=None) -> int:
     ap.add_argument("--paths", default="work,own", help=f"two or more of {', '.join(PATHS)}; the first is "
                                                         "compared with the second by the ship rule")
     ap.add_argument("--limit", type=int, default=0)
+    ap.add_argument("--margin", type=float, default=None,
+                    help="also judge the first path by the non-inferiority rule (noninferiority) with this "
+                         "margin, a fraction of the second path's MAE (e.g. 0.02)")
     ap.add_argument("--out", required=True)
     a = ap.parse_args(argv)
     import torch
@@ -132,6 +179,8 @@ def main(argv=None) -> int:
         verdict.append((k, new[0] <= old[0], new[1] <= old[1], new[2] <= old[2]))
     lines += ["", f"{paths[0]} vs {paths[1]}, per scale: (learned MAE no worse, auto MAE no worse, confidence gap "
               f"no larger): " + "; ".join(f"{k}x {a_} {b_} {c_}" for k, a_, b_, c_ in verdict)]
+    if a.margin is not None:
+        lines += ["", *noninferiority(rows, paths[0], paths[1], a.scales, a.margin)]
     write_report(a.out, "scale_study.md", lines)
     return 0
 
