@@ -2,6 +2,7 @@
 
     python benchmarks/height_bench.py [--weights nodes/weights/cutout_height.pt] [--threads N] [--runs 31]
     python benchmarks/height_bench.py --size 2048 --runs 9 --own-size     # a large cutout: the work-size path
+    python benchmarks/height_bench.py --size 400 --canvas 5120x3840 --runs 9   # a matte at a 20 MP photo's size
 
 Times, median (and min) wall time and median process CPU time over ``--runs`` after warm-up, on a ``--size``
 square RGBA cutout (default 256; a shaded upright figure-like shape drawn procedurally, filling about
@@ -62,6 +63,8 @@ def main(argv=None) -> int:
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--baseline", default=None,
                     help="a second checkpoint timed in the same run, interleaved (ratios on a busy machine)")
+    ap.add_argument("--canvas", metavar="WxH", default=None,
+                    help="the cutout in the middle of a transparent canvas this size (a matte at a photo's size)")
     ap.add_argument("--own-size", action="store_true",
                     help="also time the path shipped before the fifth session (everything at the cutout's own "
                          "size: work_side = signal_side = None), alternating with the shipped one")
@@ -72,6 +75,12 @@ def main(argv=None) -> int:
     from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, prepare, straight_srgb
     pred = LearnedHeightPredictor(a.weights, threads=a.threads or None)
     rgba = test_cutout(a.size)
+    if a.canvas:
+        cw, ch = (int(v) for v in a.canvas.lower().split("x"))
+        canvas = np.zeros((ch, cw, 4), np.float32)
+        top, left = (ch - a.size) // 2, (cw - a.size) // 2
+        canvas[top:top + a.size, left:left + a.size] = rgba
+        rgba = canvas
     colour, alpha = straight_srgb(rgba)
     x, _, _ = prepare(colour, alpha, pred.size)
     n_params = sum(p.numel() for p in pred.model.parameters())
@@ -82,7 +91,7 @@ def main(argv=None) -> int:
     print(f"machine: {cpu_model()}, torch {torch.__version__}, predictor threads "
           f"{a.threads or torch.get_num_threads()}")
     print(f"model: {a.weights} ({n_params} parameters, runs at {pred.size}^2)")
-    print(f"input {a.size}x{a.size}, median wall ms (min wall) [median CPU ms] of {a.runs} runs; "
+    print(f"input {a.size}x{a.size}{' on a ' + a.canvas + ' canvas' if a.canvas else ''}, median wall ms (min wall) [median CPU ms] of {a.runs} runs; "
           f"load average {load0:.1f} before, {os.getloadavg()[0]:.1f} after:")
     print(f"  learned predict_full     {whole[0]:7.1f} ms ({whole[1]:.1f}) [{whole[2]:.1f}] "
           "(pinned, foot snap and confidence as the checkpoint says)")
