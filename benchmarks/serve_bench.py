@@ -224,9 +224,11 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def photo_drags(url: str, files: dict, width: int, height: int, steps: int, scales, pid: int) -> list:
+def photo_drags(url: str, files: dict, width: int, height: int, steps: int, scales, pid: int,
+                method: str | None = None) -> list:
     """Rows for the opened photo: open -> first final, and drag -> preview per scale;
-    with the server's CPU seconds per step (process ``pid``)."""
+    with the server's CPU seconds per step (process ``pid``). ``method``: the cutout
+    height's (node fg_h of graphs/own_photo.yaml), set with the open."""
     nodelay = httpx.HTTPTransport(socket_options=[(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)])
     rows = []
     with httpx.Client(base_url=url, timeout=900, transport=nodelay) as c:
@@ -238,8 +240,11 @@ def photo_drags(url: str, files: dict, width: int, height: int, steps: int, scal
             paths[role] = r.json()["path"]
         t0 = time.perf_counter()
         c.post("/api/open", json=paths).raise_for_status()
+        if method:
+            c.post("/api/params", json={"params": {"fg_h": {"method": method}}}).raise_for_status()
         c.post("/api/render", json={"mode": "final", "scale": max(scales)}).raise_for_status()
-        rows.append(("open -> first final", [time.perf_counter() - t0], "1 open"))
+        rows.append((f"open -> first final (height: {method or 'as the graph says'})",
+                     [time.perf_counter() - t0], "1 open"))
         foot = c.get("/api/scene").json()["place"]["foot"]
         seq = 0
         # as the page asks while the pointer moves: <= 0.5 MP of work, JPEG (render.js PREVIEW_PIXELS)
@@ -317,6 +322,8 @@ def main() -> None:
     ap.add_argument("--photo", metavar="WxH", help="instead: open a generated photo of this size (e.g. 5120x3840)")
     ap.add_argument("--photo-steps", type=int, default=6, help="drag steps per scale on the photo")
     ap.add_argument("--scales", default="2,5", help="preview downscales to measure on the photo")
+    ap.add_argument("--height", default=None, choices=("contact_line", "column_bottom", "learned", "auto"),
+                    help="the photo's cutout height method (graphs/own_photo.yaml's fg_h; default: its own)")
     args = ap.parse_args()
 
     if args.photo:
@@ -329,7 +336,7 @@ def main() -> None:
             proc, url, files = start_photo(width, height, d)
             try:
                 rows = photo_drags(url, files, width, height, args.photo_steps,
-                                   [int(x) for x in args.scales.split(",")], proc.pid)
+                                   [int(x) for x in args.scales.split(",")], proc.pid, args.height)
                 if args.browser:
                     prev = photo_browser(url, args.photo_steps)
                     rows.append((f"browser: pointer -> preview painted ({width}x{height})", prev,

@@ -70,7 +70,8 @@ class CutoutHeight(Node):
     upright objects; ``column_bottom``: to each column's lowest pixel (see
     pixgraph_nodes.ops.heightmaps.contact_line_height); ``learned``: a small U-Net
     trained on rendered cutouts (people, animals, figurines, furniture, products,
-    vehicles, random shapes) reads the colour (``image``) and alpha, any size
+    vehicles, random shapes) reads the colour (``image``) and alpha, any size (a cutout
+    larger than 512 px is predicted at 512 px and its map enlarged: ops/height_work_size.py)
     (pixgraph_nodes.ops.learned_height; needs torch, else falls back to contact_line with
     a log message); ``auto``: the learned height unless the checkpoint's confidence
     rule (a per-cutout signal and threshold chosen on validation) says the contact
@@ -109,8 +110,9 @@ class CutoutHeight(Node):
         confidence: T.Scalar = port(doc="learned / auto: the estimated chance (0-1) that the learned height "
                                         "beats the contact line; NaN when the network did not run")
 
-    impl_version = "5+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence; 4: foot snap,
-    # confidence rule; 5: auto's fallback pins the contact line's contact like the learned map's
+    impl_version = "6+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence; 4: foot snap,
+    # confidence rule; 5: auto's fallback pins the contact line's contact like the learned map's; 6: a cutout
+    # whose crop is larger than 512 px is predicted at 512 px, the confidence signals in 256-px units
 
     def compute(self, ctx, inputs, params):
         mask = np.asarray(inputs.mask, dtype=np.float32)

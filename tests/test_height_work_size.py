@@ -1,12 +1,13 @@
-"""The large-cutout candidate that did not ship (lab/height/work_size.py: predict at
-the validated size, bring the map back): what its study (scale_study) relies on, and
-the finding that made it a candidate: the shipped path's confidence signal grows with
-the cutout's pixel size."""
+"""A large cutout's learned height predicted at the work size and brought back
+(nodes/ops/height_work_size.py, the predictor's default path since the fifth session):
+what it promises, and the finding that made it a candidate: the path at the cutout's
+own size (shipped before) had a confidence signal that grows with the cutout's pixel
+size."""
 import numpy as np
 import pytest
 
 torch = pytest.importorskip("torch")
-from pixgraph_lab.height import work_size as hw  # noqa: E402
+from pixgraph_nodes.ops import height_work_size as hw  # noqa: E402
 from pixgraph_nodes.ops import learned_height as lh  # noqa: E402
 
 from test_learned_height import REAL, heldout  # noqa: E402
@@ -31,52 +32,72 @@ def samples():
     return [np.concatenate([s["image"], s["alpha"][..., None]], -1) for s in heldout(REAL)[:4]]
 
 
+def test_the_shipped_predictor_takes_the_work_size_path():
+    p = lh.LearnedHeightPredictor()
+    assert (p.work_side, p.signal_side) == (hw.WORK_SIDE, lh.SIGNAL_SIDE) == (512, 256)
+
+
 def test_a_large_cutout_gives_the_same_heights_and_confidence_at_any_size(predictor, samples):
-    # 8x and 16x the same cutout: the candidate predicts both at the work size, so the maps
-    # agree (16x block-averaged down to 8x, heights halved) and so does auto's signal
+    # 16x and 32x the same cutout (crop sides 42-122 px at 1x): the shipped path predicts both
+    # at the work size, so the maps agree (32x block-averaged down to 16x, heights halved) and
+    # so does auto's signal
     edges = predictor.confidence_rule["bins"]
     tol = 0.15 * (edges[-1] - edges[0])   # resampling noise: the two work images differ
     for rgba in samples:
-        r8, r16 = hw.predict_at_work_size(predictor, big(rgba, 8)), hw.predict_at_work_size(predictor, big(rgba, 16))
+        r8, r16 = predictor.predict_full(big(rgba, 16)), predictor.predict_full(big(rgba, 32))
         assert r8["work_scale"] > 1 and r16["work_scale"] == pytest.approx(2 * r8["work_scale"], rel=0.02)
-        m = big(rgba[..., 3], 8) > 0.5
+        m = big(rgba[..., 3], 16) > 0.5
         err = np.abs(shrink(r16["height"], 2)[m] / 2 - r8["height"][m]).mean()
-        assert err < 0.02 * r8["height"].max(), err     # 0.2-1.2 % on these four
+        assert err < 0.02 * r8["height"].max(), err     # 0.07-0.15 % on these four
         assert abs(r16["signal"] - r8["signal"]) <= tol, (r8["signal"], r16["signal"])
 
 
-def test_a_large_cutouts_signal_grows_with_its_size_unless_measured_at_signal_side(predictor, samples):
-    # the shipped path runs at the cutout's own size and measures the confidence signal's
-    # lengths in its pixels: from 8x to 16x the signal doubled on three of these four
-    # (-19 -> -40, -14 -> -31, -73 -> -147). With signal_side = SIGNAL_SIDE (not shipped:
-    # docs/height.md, "Measured: auto's blend and large cutouts") it stays put
+def test_a_large_cutouts_signal_grew_with_its_size_at_its_own_size_unless_measured_at_signal_side(
+        predictor, samples):
+    # the path shipped before the fifth session ran at the cutout's own size and measured the
+    # confidence signal's lengths in its pixels: from 8x to 16x the signal doubled on three
+    # of these four (-19 -> -40, -14 -> -31, -73 -> -147). In pixels of a 256-px crop
+    # (signal_side, shipped) it stays put
     edges = predictor.confidence_rule["bins"]
     tol = 0.15 * (edges[-1] - edges[0])
-    assert predictor.signal_side is None
     grew = []
+    keep = predictor.work_side, predictor.signal_side
     for side in (None, lh.SIGNAL_SIDE):
-        predictor.signal_side = side
+        predictor.work_side, predictor.signal_side = None, side
         try:
             sig = [[predictor.predict_full(big(rgba, k))["signal"] for k in (8, 16)] for rgba in samples]
         finally:
-            predictor.signal_side = None
+            predictor.work_side, predictor.signal_side = keep
         grew.append(sum(abs(b - a) > tol for a, b in sig))
     assert grew[0] >= 3 and grew[1] == 0, grew
 
 
-def test_cutouts_up_to_the_work_size_are_untouched(predictor, samples):
-    side = lh.crop_box(samples[0][..., 3] > 0.5)[6]
-    assert side <= hw.WORK_SIDE
-    a, b = hw.predict_at_work_size(predictor, samples[0]), predictor.predict_full(samples[0])
+def test_cutouts_up_to_the_work_size_are_predicted_at_their_own_size(predictor, samples):
+    rgba = big(samples[0], 4)
+    side = lh.crop_box(rgba[..., 3] > 0.5)[6]
+    assert lh.SIGNAL_SIDE < side <= hw.WORK_SIDE
+    a, b = predictor.predict_full(rgba), predictor.predict_at_own_size(rgba)
     assert "work_scale" not in a
     np.testing.assert_array_equal(a["height"], b["height"])
     assert a["signal"] == b["signal"]
+    # 4x is above SIGNAL_SIDE: the signal is in 256-px units, not the cutout's own
+    keep = predictor.signal_side
+    predictor.signal_side = None
+    try:
+        assert predictor.predict_at_own_size(rgba)["signal"] != a["signal"]
+    finally:
+        predictor.signal_side = keep
+
+
+def test_signals_come_back_from_the_work_size(predictor, samples):
+    r = predictor.predict_full(big(samples[2], 8), signals=True)   # crop 976 px
+    assert r["work_scale"] > 1 and set(lh.SIGNALS) <= set(r["signals"])
 
 
 @pytest.mark.parametrize("contact,lift", [("ground", 0.0), ("lifted", 40.0)])
 def test_the_contact_is_pinned_at_full_size(predictor, samples, contact, lift):
-    rgba = big(samples[1], 12)
-    r = hw.predict_at_work_size(predictor, rgba, contact=contact, lift=lift)
+    rgba = big(samples[1], 24)
+    r = predictor.predict_full(rgba, contact=contact, lift=lift)
     mask = rgba[..., 3] > 0.5
     band = lh.contact_band(mask)
     assert r["work_scale"] > 1
@@ -92,11 +113,30 @@ def test_the_contact_is_pinned_at_full_size(predictor, samples, contact, lift):
 def test_shrink_cutout_reads_only_the_covered_box():
     rgba = np.zeros((600, 900, 4), np.float32)
     rgba[100:400, 300:500] = (0.2, 0.3, 0.4, 1.0)
-    f, shape = hw.work_shape(600, 900, 400)
-    assert f == pytest.approx(400 / hw.WORK_SIDE) and shape == (round(600 / f), round(900 / f))
+    f, shape = hw.work_shape(600, 900, 400, work_side=256)
+    assert f == pytest.approx(400 / 256) and shape == (round(600 / f), round(900 / f))
     small = hw.shrink_cutout(rgba, shape)
     # area kept (alpha sums scale by 1 / f^2) and the colour inside unchanged
     assert small[..., 3].sum() == pytest.approx(rgba[..., 3].sum() / f ** 2, rel=0.01)
     inside = small[..., 3] > 0.999
     np.testing.assert_allclose(small[inside, :3], np.broadcast_to([0.2, 0.3, 0.4], (int(inside.sum()), 3)), atol=1e-5)
     assert hw.work_shape(600, 900, hw.WORK_SIDE) == (1.0, (600, 900))
+    assert hw.work_shape(600, 900, 400) == (1.0, (600, 900))
+
+
+@pytest.mark.parametrize("k", [1, 16])
+def test_a_cutout_on_a_larger_canvas_gets_the_tight_cutouts_heights(predictor, samples, k):
+    # a matte at the photo's size (the cutout small inside it) gives exactly the heights of
+    # the tight cutout, pasted at its place: at its own size (k = 1) and at the work size
+    # (k = 16: crop 976 px), where the shrink's grid starts at the covered box, not the canvas
+    rgba = big(samples[2], k)
+    h, w = rgba.shape[:2]
+    canvas = np.zeros((h + 37 * k, w + 53 * k, 4), np.float32)
+    canvas[21 * k:21 * k + h, 30 * k:30 * k + w] = rgba
+    a, b = predictor.predict_full(rgba), predictor.predict_full(canvas)
+    assert ("work_scale" in a) == (k > 1) and ("work_scale" in b) == (k > 1)
+    for key in ("height", "heuristic", "auto_height"):
+        assert b[key].shape == canvas.shape[:2]
+        np.testing.assert_array_equal(b[key][21 * k:21 * k + h, 30 * k:30 * k + w], a[key])
+        assert not b[key][:21 * k].any() and not b[key][:, :30 * k].any()
+    assert a["signal"] == b["signal"] and a["confidence"] == b["confidence"]

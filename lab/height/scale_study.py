@@ -1,18 +1,19 @@
 """Large cutouts: the learned height at the work size vs at the cutout's own size
-(docs/height.md, "Rules fixed before measuring: large cutouts").
+(docs/height.md, "Rules fixed before measuring: large cutouts" and the rules after it).
 
     python -m pixgraph_lab.height.scale_study --weights nodes/weights/cutout_height.pt \\
         --heights data/hreal/val data/hreal/val_organic --scales 4 8 --out runs/scale_study
 
 Each sample (256^2) is enlarged k times: the linear premultiplied RGBA and the
 true pixel height (x k) bilinearly, the object's mask by nearest neighbour.
-Paths (``--paths``, ``contact="ground"``): ``work`` (the candidate that did
-not ship, ``work_size``: a crop larger than ``work_size.WORK_SIDE`` predicted at
-that size), ``own`` (``LearnedHeightPredictor.predict_full`` as shipped: the
-whole path at the enlarged size) and ``own_scaled`` (the same with the
-confidence signals' lengths in pixels of a crop of at most ``SIGNAL_SIDE``,
-which did not ship) and ``work512`` (the work-size path at 512 px with the
-signal in 256-px units). Reported per scale and path:
+Paths (``--paths``, ``contact="ground"``; ``PATHS``): ``work512`` (shipped in the
+fifth session: a crop larger than 512 px predicted at that size,
+``pixgraph_nodes.ops.height_work_size``, the confidence signals' lengths in
+pixels of a crop of at most ``SIGNAL_SIDE``), ``work`` (the same at 256 px with
+the signals in the cutout's own pixels, a candidate that did not ship),
+``own`` (the path shipped until then: everything at the enlarged size) and
+``own_scaled`` (the same with the signals in 256-px units, did not ship).
+Reported per scale and path:
 the mean MAE over the object's pixels divided by k (256^2 px units, comparable
 with k = 1) of the learned map, auto's map and the contact line; the share of
 samples auto sends to the contact line; the mean reported confidence, the
@@ -40,39 +41,77 @@ def enlarge(rgba, true, mask, k: int):
             np.repeat(np.repeat(mask, k, 0), k, 1))
 
 
-def _own(pred, rgba, signal_side):
-    """The shipped path, its confidence signals' lengths in pixels of a crop of at most
-    ``signal_side`` px (None: of the cutout's own size, as shipped)."""
-    keep = pred.signal_side
-    pred.signal_side = signal_side
-    try:
-        return pred.predict_full(rgba)
-    finally:
-        pred.signal_side = keep
-
-
-def _work(pred, rgba):
-    from .work_size import predict_at_work_size
-    return predict_at_work_size(pred, rgba)
-
-
-def _work512(pred, rgba):
-    """The third candidate: work size 512 px, the signal's lengths in 256-px crop units."""
-    from .work_size import predict_at_work_size
-    keep = pred.signal_side
-    pred.signal_side = SIGNAL_SIDE
-    try:
-        return predict_at_work_size(pred, rgba, work_side=512)
-    finally:
-        pred.signal_side = keep
+def _path(work_side, signal_side):
+    """A path of the predictor with these settings (``LearnedHeightPredictor.work_side``
+    / ``signal_side``; None: off), restored afterwards."""
+    def run(pred, rgba):
+        keep = pred.work_side, pred.signal_side
+        pred.work_side, pred.signal_side = work_side, signal_side
+        try:
+            return pred.predict_full(rgba)
+        finally:
+            pred.work_side, pred.signal_side = keep
+    return run
 
 
 PATHS = {
-    "work": _work,
-    "work512": _work512,
-    "own": lambda pred, rgba: _own(pred, rgba, None),
-    "own_scaled": lambda pred, rgba: _own(pred, rgba, SIGNAL_SIDE),
+    # the first candidate: work size 256, signals in the cutout's own pixels (at 256 px the same as 256-px units)
+    "work": _path(256, None),
+    # the fourth session's last candidate, shipped in the fifth: work size 512, signals in 256-px units
+    "work512": _path(512, SIGNAL_SIDE),
+    # the path shipped until the fifth session: everything at the cutout's own size
+    "own": _path(None, None),
+    # the same with the signals in 256-px units (the second candidate)
+    "own_scaled": _path(None, SIGNAL_SIDE),
 }
+
+
+def upper_bound(diff, n_boot: int = 10000, seed: int = 0, level: float = 0.95) -> float:
+    """The upper end of the two-sided ``level`` percentile bootstrap interval of
+    mean(``diff``) (samples resampled with replacement, ``n_boot`` times)."""
+    d = np.asarray(diff, np.float64)
+    rng = np.random.default_rng(seed)
+    means = d[rng.integers(0, len(d), size=(n_boot, len(d)))].mean(1)
+    return float(np.quantile(means, 0.5 + level / 2))
+
+
+def noninferiority(rows, new: str, old: str, scales, margin: float, time_ratio: float = 0.75):
+    """Report lines and verdict of the non-inferiority rule (docs/height.md, "Rules
+    fixed before measuring: large cutouts, non-inferiority on fresh samples"): at
+    every scale (a) the upper 95 % bootstrap bound of the paired mean difference of
+    the learned MAE (new - old) at most ``margin`` x old's mean MAE, (b) the same
+    for auto's MAE, (c) the confidence gap no larger; (d) at 8x (when measured) the
+    median time at most ``time_ratio`` x old's."""
+    lines = [f"Non-inferiority of {new} against {old} (margin {margin:.1%} of {old}'s MAE; 95 % paired bootstrap, "
+             "10,000 resamples):", "",
+             "| scale | metric | mean new - old [px] | upper 95 % bound [px] | margin [px] | met |",
+             "|---|---|---|---|---|---|"]
+    ok = []
+    for k in scales:
+        rs = [r for r in rows if r["k"] == k]
+        for metric in ("mae", "mae_auto"):
+            d = [r[f"{metric}_{new}"] - r[f"{metric}_{old}"] for r in rs]
+            ub, m = upper_bound(d), margin * float(np.mean([r[f"{metric}_{old}"] for r in rs]))
+            ok.append(ub <= m)
+            lines.append(f"| {k}x | {'learned' if metric == 'mae' else 'auto'} MAE | {np.mean(d):+.3f} | "
+                         f"{ub:+.3f} | {m:.3f} | {'yes' if ub <= m else 'no'} |")
+        gaps = []
+        for p in (new, old):
+            win = float(np.mean([r[f"mae_{p}"] < r[f"mae_heuristic_{p}"] for r in rs]))
+            gaps.append(abs(float(np.mean([r[f"confidence_{p}"] for r in rs])) - win))
+        ok.append(gaps[0] <= gaps[1])
+        lines.append(f"| {k}x | confidence gap | {gaps[0] - gaps[1]:+.3f} | | | {'yes' if gaps[0] <= gaps[1] else 'no'} |")
+    kt = 8 if 8 in scales else max(scales)
+    rs = [r for r in rows if r["k"] == kt]
+    tn, to = (float(np.median([r[f"ms_{p}"] for r in rs])) for p in (new, old))
+    lines += ["", f"median time at {kt}x: {tn:.0f} vs {to:.0f} ms ({tn / to:.2f}x)"]
+    if 8 in scales:
+        ok.append(tn <= time_ratio * to)
+        lines[-1] += f"; at 8x at most {time_ratio}x: {'yes' if tn <= time_ratio * to else 'no'}"
+    else:
+        lines[-1] += " (the rule's time is judged at 8x only: not judged here)"
+    lines += ["", f"**rule {'met' if all(ok) else 'not met'}**"]
+    return lines
 
 
 def main(argv=None) -> int:
@@ -84,6 +123,9 @@ def main(argv=None) -> int:
     ap.add_argument("--paths", default="work,own", help=f"two or more of {', '.join(PATHS)}; the first is "
                                                         "compared with the second by the ship rule")
     ap.add_argument("--limit", type=int, default=0)
+    ap.add_argument("--margin", type=float, default=None,
+                    help="also judge the first path by the non-inferiority rule (noninferiority) with this "
+                         "margin, a fraction of the second path's MAE (e.g. 0.02)")
     ap.add_argument("--out", required=True)
     a = ap.parse_args(argv)
     import torch
@@ -132,6 +174,8 @@ def main(argv=None) -> int:
         verdict.append((k, new[0] <= old[0], new[1] <= old[1], new[2] <= old[2]))
     lines += ["", f"{paths[0]} vs {paths[1]}, per scale: (learned MAE no worse, auto MAE no worse, confidence gap "
               f"no larger): " + "; ".join(f"{k}x {a_} {b_} {c_}" for k, a_, b_, c_ in verdict)]
+    if a.margin is not None:
+        lines += ["", *noninferiority(rows, paths[0], paths[1], a.scales, a.margin)]
     write_report(a.out, "scale_study.md", lines)
     return 0
 

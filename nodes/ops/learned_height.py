@@ -301,13 +301,11 @@ def convex_hull_area(mask: np.ndarray) -> float:
 
 
 #: the largest crop side [px] of the cutouts the confidence rule was chosen on (the
-#: validation renders are 256 x 256). ``LearnedHeightPredictor.signal_side =
-#: SIGNAL_SIDE`` measures a larger cutout's signal lengths in pixels of a crop this
-#: size; not the default: on validation enlarged 4x / 8x it brought the mean
-#: confidence to within 0.024 / 0.014 of the actual win rate (0.073 / 0.093 off in the
-#: cutout's own pixels) but auto's MAE rose by 0.001-0.002 px, and its rule asked for
-#: no rise
-#: (docs/height.md, "Measured: auto's blend and large cutouts")
+#: validation renders are 256 x 256). ``LearnedHeightPredictor.signal_side`` (default
+#: SIGNAL_SIDE) measures a larger cutout's signal lengths in pixels of a crop this
+#: size, so its confidence is read off the bins fitted at that size (in the cutout's
+#: own pixels, a cutout 8x larger landed in the top bin: docs/height.md, "Measured:
+#: large cutouts at 512 px")
 SIGNAL_SIDE = 256
 
 SIGNALS = ("disagreement_px", "disagreement_rel", "flip_px", "head_gain_px", "overhang_share", "solidity")
@@ -512,10 +510,13 @@ class LearnedHeightPredictor:
         # auto's rule (lab/height/confidence_study.py): which signal, its threshold and calibration
         self.confidence_rule = inf.get("confidence")
         # the confidence signals' lengths in pixels of a crop at most this large (SIGNAL_SIDE), or
-        # None: in the cutout's own pixels. None is shipped: SIGNAL_SIDE missed its rule (docs/height.md,
-        # "Measured: auto's blend and large cutouts"), though it calibrates a large cutout's confidence
-        # far better
-        self.signal_side = None
+        # None: in the cutout's own pixels (the path before the fifth session)
+        self.signal_side = SIGNAL_SIDE
+        # a cutout whose square crop is larger than this [px] is predicted at this size and
+        # the map brought back (height_work_size), or None: at its own size. Both shipped by
+        # a rule fixed before measuring (docs/height.md, "Measured: large cutouts at 512 px")
+        from .height_work_size import WORK_SIDE
+        self.work_side = WORK_SIDE
 
     def predict_normalised(self, x: np.ndarray, aux: bool = False):
         """(N, 6, S, S) inputs -> (N, S, S) height / bh; with ``aux`` also the
@@ -551,7 +552,20 @@ class LearnedHeightPredictor:
 
     def predict_full(self, rgba: np.ndarray, threshold: float = 0.5, contact: str = "ground",
                      lift: float = 0.0, signals: bool = False) -> dict:
-        """``predict`` plus the confidence: a dict with ``height`` (H, W) [px],
+        """``predict`` plus the confidence (``predict_at_own_size``); a cutout whose
+        square crop is larger than ``work_side`` px is predicted at that size and
+        the map brought back to full size (``height_work_size``; the result then
+        has ``work_scale``, the shrink factor)."""
+        if contact not in ("ground", "lifted", "free"):
+            raise ValueError(f"contact must be 'ground', 'lifted' or 'free', not {contact!r}")
+        if self.work_side:
+            from .height_work_size import predict_at_work_size
+            return predict_at_work_size(self, rgba, threshold, contact, lift, self.work_side, signals)
+        return self.predict_at_own_size(rgba, threshold, contact, lift, signals)
+
+    def predict_at_own_size(self, rgba: np.ndarray, threshold: float = 0.5, contact: str = "ground",
+                            lift: float = 0.0, signals: bool = False) -> dict:
+        """The prediction with the whole path at the input's pixel size: a dict with ``height`` (H, W) [px],
         ``heuristic`` (the contact-line height under the same contact
         constraint), and, for a checkpoint with confidence heads (``outputs``
         3), ``est_mae_learned`` / ``est_mae_heuristic`` [px] (the network's
