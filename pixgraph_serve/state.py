@@ -117,6 +117,8 @@ class ServeState:
         self.graph_path = os.path.abspath(graph_path)
         self.root = os.path.dirname(self.graph_path)
         self.limits = limits or Limits()
+        #: True when the upload folder was made here (``remove_uploads`` deletes it)
+        self.own_uploads = upload_dir is None
         self.upload_dir = upload_dir or tempfile.mkdtemp(prefix="pixgraph-uploads-")
         roots = [self.root, self.upload_dir, *(os.path.abspath(a) for a in allow)]
         self._roots = roots
@@ -139,7 +141,11 @@ class ServeState:
         #: the name the page proposes to save under (``info()["save_as"]``): the last file
         #: saved, or after ``/api/open`` the photo's name; None: the served file
         self.save_name: str | None = None
-        self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
+        try:
+            self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
+        except BaseException:
+            self.remove_uploads()
+            raise
 
     # -- graph ------------------------------------------------------------------
 
@@ -217,6 +223,15 @@ class ServeState:
             raise
         os.replace(tmp, path)
         return path, n
+
+    def remove_uploads(self) -> None:
+        """Delete the upload folder with the files in it, when this state made it (the
+        server stopping: the user's photos do not stay in the temporary folder; a graph
+        saved from the page reads copies beside it)."""
+        if self.own_uploads:
+            import shutil
+
+            shutil.rmtree(self.upload_dir, ignore_errors=True)
 
     def info(self) -> dict:
         """The graph as the UI and API clients see it: nodes in file order with the
