@@ -310,7 +310,14 @@ async def render(request: Request):
             apply_edits(state, data)
             graph = state.graph_for(mode)
             extra = scene.piggyback(state, graph, [name]) if working == 1 else []   # anchors are full-size px
-            res = state.run([name, *extra], mode, cancel=token, scale=float(working))
+            try:
+                res = state.run([name, *extra], mode, cancel=token, scale=float(working))
+            except ServeError as e:
+                if working == 1:
+                    raise
+                # a node's sizes and pixel values are the working resolution's: say so
+                raise ServeError(e.status, f"in a preview at working resolution {float(working):.3g} (its sizes and "
+                                           f"pixel values are scaled by it): {e.message}", **e.where) from None
             scene.note(state, graph, extra, res)
             if mode == "final":
                 state.final_said = res.said

@@ -254,6 +254,10 @@ def test_a_render_a_node_refuses_leaves_the_graph_as_it_was(tmp_path):
             r = c.post(path, json=body)
             assert r.status_code == 400 and r.json()["node"] == "place", (path, r.text)
             assert "placed cutout lies outside the" in r.json()["error"]
+            # the preview's numbers are at its working resolution (a 320x240 canvas, the foot
+            # at half): the error says so, or they read as wrong numbers of the user's photo
+            if body.get("work"):
+                assert "320x240" in r.json()["error"] and "working resolution 0.5" in r.json()["error"]
             values = {n["id"]: n["values"] for n in c.get("/api/graph").json()["nodes"]}
             assert values["place"]["foot"] == foot, path
             assert c.get("/api/scene").status_code == 200, path
