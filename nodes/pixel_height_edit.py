@@ -39,7 +39,7 @@ class PixelHeightEdit(Node):
     foot depth, tilt, lift or lying) the height passes through unchanged.
 
     The page (``pixgraph serve``) draws each contact point as a handle on the placed
-    cutout (an empty list: one hollow handle at the cutout's foot; "+ contact" adds
+    cutout (an empty list: one hollow handle just under the cutout's foot; "+ contact" adds
     points, "- contact" removes the last), the top's ground point as the tilt handle
     (drag it up: taller, down: shorter, by leaning the object; lying down, the same
     handle sets the thickness), the body's ground point as the foot-depth handle (a
