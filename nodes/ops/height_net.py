@@ -90,30 +90,44 @@ def relu(x: np.ndarray) -> np.ndarray:
 def max_pool2(x: np.ndarray) -> np.ndarray:
     """2 x 2 max pooling, stride 2 (torch's ``F.max_pool2d(x, 2)``: an odd last row or
     column is dropped). x: (N, H, W, C) -> (N, H // 2, W // 2, C)."""
-    N, H, W, C = x.shape
-    h, w = H // 2, W // 2
-    return x[:, :2 * h, :2 * w].reshape(N, h, 2, w, 2, C).max(axis=(2, 4))
+    H, W = x.shape[1] // 2 * 2, x.shape[2] // 2 * 2
+    return np.maximum(np.maximum(x[:, 0:H:2, 0:W:2], x[:, 0:H:2, 1:W:2]),
+                      np.maximum(x[:, 1:H:2, 0:W:2], x[:, 1:H:2, 1:W:2]))
 
 
-def _upsample2_axis(x: np.ndarray, axis: int) -> np.ndarray:
+def _upsample2_axis(x: np.ndarray, axis: int, out: np.ndarray | None = None) -> np.ndarray:
     """x2 along ``axis``, bilinear with half-pixel centres: output pixel i samples the
     input at (i + 0.5) / 2 - 0.5, clamped to the first pixel; so output 2j is
     0.25 x[j-1] + 0.75 x[j] and output 2j+1 is 0.75 x[j] + 0.25 x[j+1], each
-    neighbour index clamped to the array (edge pixels repeat)."""
-    x = np.moveaxis(x, axis, 0)
+    neighbour index clamped to the array (edge pixels repeat). Computed as
+    x[j] -+ d with d = (x[j] - x[j-1]) / 4 (the same up to float rounding)."""
+    if out is None:                  # in x's own axis order (a moved axis would leave it strided)
+        shape = list(x.shape)
+        shape[axis] *= 2
+        out = np.empty(shape, np.float32)
+    res = out
+    x, out = np.moveaxis(x, axis, 0), np.moveaxis(out, axis, 0)
     n = x.shape[0]
-    prev = np.concatenate([x[:1], x[:-1]])
-    nxt = np.concatenate([x[1:], x[-1:]])
-    out = np.empty((2 * n,) + x.shape[1:], np.float32)
-    out[0::2] = 0.75 * x + 0.25 * prev
-    out[1::2] = 0.75 * x + 0.25 * nxt
-    return np.moveaxis(out, 0, axis)
+    ev, od = out[0::2], out[1::2]
+    if n == 1:
+        ev[...] = x
+        od[...] = x
+        return res
+    d = x[1:] - x[:-1]
+    d *= 0.25
+    np.subtract(x[1:], d, out=ev[1:])
+    ev[0] = x[0]
+    np.add(x[:-1], d, out=od[:-1])
+    od[-1] = x[-1]
+    return res
 
 
-def upsample2(x: np.ndarray) -> np.ndarray:
+def upsample2(x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """Bilinear x2 upsampling of (N, H, W, C) -> (N, 2H, 2W, C), as torch's
-    ``F.interpolate(scale_factor=2, mode="bilinear", align_corners=False)``."""
-    return _upsample2_axis(_upsample2_axis(x, 1), 2)
+    ``F.interpolate(scale_factor=2, mode="bilinear", align_corners=False)`` (up to
+    float rounding); ``out``: where to write it (e.g. the first channels of a
+    concatenation)."""
+    return _upsample2_axis(_upsample2_axis(x, 1), 2, out)
 
 
 # ----------------------------------------------------------------------------- resizing
@@ -271,8 +285,13 @@ class HeightNet:
             skips.append(h)
         h = skips.pop()
         for k in reversed(range(self.levels)):
-            h = np.concatenate([upsample2(h), skips.pop()], axis=3)
-            h = self._run_block(h, self.up[k])
+            skip = skips.pop()
+            N, H2, W2, cs = skip.shape
+            cu = h.shape[3]
+            cat = np.empty((N, H2, W2, cu + cs), np.float32)     # torch.cat([upsampled, skip], 1)
+            upsample2(h, out=cat[..., :cu])
+            cat[..., cu:] = skip
+            h = self._run_block(cat, self.up[k])
         y = np.moveaxis(conv1x1(h, *self.head), 3, 1)            # (N, outputs, S, S)
         y0 = y[:, 0] + heur                                      # the residual over the heuristic channel
         if self.outputs == 1:

@@ -633,7 +633,8 @@ class LearnedHeightPredictor:
         if self.threads and self.device.type == "cpu":
             torch.set_num_threads(self.threads)
         try:
-            yield
+            with height_net.blas_threads(self.threads):      # prepare / paste resize with numpy's BLAS
+                yield
         finally:
             torch.set_num_threads(before)
 
