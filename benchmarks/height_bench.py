@@ -4,6 +4,7 @@
     python benchmarks/height_bench.py --size 2048 --runs 9 --own-size     # a large cutout: the work-size path
     python benchmarks/height_bench.py --backend both --runs 31            # numpy vs torch network, alternating
     python benchmarks/height_bench.py --first-use 5                       # a fresh process's first prediction
+    python benchmarks/height_bench.py --compare /work/wt/height/data/hreal/test   # numpy vs torch maps on a split
 
 ``--backend``: where the network runs (``LearnedHeightPredictor(backend=...)``):
 ``numpy`` (ops/height_net.py), ``torch``, or ``both``: the two timed run by run
@@ -11,7 +12,10 @@ alternately on the same cutout (ratios on a busy machine), with the largest
 difference of their maps. ``--first-use N``: N fresh Python processes per
 backend, alternating, each timing its imports (``pixgraph_nodes.ops.learned_height``,
 and torch for the torch backend), loading the predictor, the first and the
-second ``predict_full`` (medians reported).
+second ``predict_full`` (medians reported). ``--compare DIR``: no timing; every
+height sample of DIR (``generate`` output) predicted by both backends: the
+largest differences of the maps, of their MAE against the true height, of the
+confidence signal, and how often auto's choice differs.
 
 Times, median (and min) wall time and median process CPU time over ``--runs`` after warm-up, on a ``--size``
 square RGBA cutout (default 256; a shaded upright figure-like shape drawn procedurally, filling about
@@ -123,6 +127,31 @@ def first_use(n: int, size: int, weights: str, backends) -> None:
               f"torch imported: {rows[b][0]['torch']}")
 
 
+def compare(data_dir: str, weights: str) -> None:
+    """numpy vs torch predict_full on every height sample of ``data_dir``."""
+    from pixgraph_lab.height.evaluate import height_files, read_height_sample
+    from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor
+    num = LearnedHeightPredictor(weights, backend="numpy")
+    tor = LearnedHeightPredictor(weights, backend="torch")
+    dh, dmae, dsig, dconf, flips, n, mae = 0.0, 0.0, 0.0, 0.0, 0, 0, []
+    for f in height_files(data_dir):
+        _, rgba, true, mask = read_height_sample(f)
+        a, b = num.predict_full(rgba), tor.predict_full(rgba)
+        if not mask.any():
+            continue
+        n += 1
+        dh = max(dh, float(np.abs(a["height"] - b["height"]).max()))
+        ma, mb = (float(np.abs(r["auto_height"][mask] - true[mask]).mean()) for r in (a, b))
+        mae.append(ma)
+        dmae = max(dmae, abs(ma - mb))
+        dsig = max(dsig, abs(a["signal"] - b["signal"]))
+        dconf = max(dconf, abs(a["confidence"] - b["confidence"]))
+        flips += a["use_learned"] != b["use_learned"]
+    print(f"{data_dir}: {n} samples, numpy vs torch predict_full: largest |height difference| {dh:.2e} px, "
+          f"largest |auto MAE difference| {dmae:.2e} px (auto MAE {np.mean(mae):.3f} px), largest |signal "
+          f"difference| {dsig:.2e}, largest |confidence difference| {dconf:.2e}, auto's choice differs on {flips}")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--weights", default=str(ROOT / "nodes" / "weights" / "cutout_height.pt"))
@@ -135,6 +164,8 @@ def main(argv=None) -> int:
                     help="where the network runs; both: numpy and torch alternating (default)")
     ap.add_argument("--first-use", type=int, default=0, metavar="N",
                     help="instead: N fresh processes per backend, import + load + first predict")
+    ap.add_argument("--compare", default=None, metavar="DIR",
+                    help="instead: numpy vs torch on every height sample of DIR (maps, MAE, auto's choice)")
     ap.add_argument("--baseline", default=None,
                     help="a second checkpoint timed in the same run, interleaved (ratios on a busy machine)")
     ap.add_argument("--own-size", action="store_true",
@@ -146,6 +177,9 @@ def main(argv=None) -> int:
     if a.first_use:
         print(f"machine: {cpu_model()}")
         first_use(a.first_use, a.size, a.weights, backends)
+        return 0
+    if a.compare:
+        compare(a.compare, a.weights)
         return 0
     from pixgraph_nodes.ops import height_net
     from pixgraph_nodes.ops.heightmaps import contact_line_height
