@@ -2,6 +2,7 @@
 
     python benchmarks/height_bench.py [--weights nodes/weights/cutout_height.pt] [--threads N] [--runs 31]
     python benchmarks/height_bench.py --size 2048 --runs 9 --own-size     # a large cutout: the work-size path
+    python benchmarks/height_bench.py --size 400 --canvas 5120x3840 --runs 9   # a matte at a 20 MP photo's size
     python benchmarks/height_bench.py --backend both --runs 31            # numpy vs torch network, alternating
     python benchmarks/height_bench.py --first-use 5                       # a fresh process's first prediction
     python benchmarks/height_bench.py --compare /work/wt/height/data/hreal/test   # numpy vs torch maps on a split
@@ -164,6 +165,8 @@ def main(argv=None) -> int:
                     help="where the network runs; both: numpy and torch alternating (default)")
     ap.add_argument("--first-use", type=int, default=0, metavar="N",
                     help="instead: N fresh processes per backend, import + load + first predict")
+    ap.add_argument("--canvas", metavar="WxH", default=None,
+                    help="the cutout in the middle of a transparent canvas this size (a matte at a photo's size)")
     ap.add_argument("--compare", default=None, metavar="DIR",
                     help="instead: numpy vs torch on every height sample of DIR (maps, MAE, auto's choice)")
     ap.add_argument("--baseline", default=None,
@@ -187,6 +190,12 @@ def main(argv=None) -> int:
     preds = {b: LearnedHeightPredictor(a.weights, threads=a.threads or None, backend=b) for b in backends}
     pred = preds[backends[0]]
     rgba = test_cutout(a.size)
+    if a.canvas:
+        cw, ch = (int(v) for v in a.canvas.lower().split("x"))
+        canvas = np.zeros((ch, cw, 4), np.float32)
+        top, left = (ch - a.size) // 2, (cw - a.size) // 2
+        canvas[top:top + a.size, left:left + a.size] = rgba
+        rgba = canvas
     colour, alpha = straight_srgb(rgba)
     x, _, _ = prepare(colour, alpha, pred.size)
     xs = np.stack([x, x[:, :, ::-1]]).copy()          # the batch predict_full runs (the crop and its mirror)
@@ -208,7 +217,8 @@ def main(argv=None) -> int:
         lib.append(f"numpy {np.__version__}, BLAS threads via {height_net.blas_info()}")
     print(f"machine: {cpu_model()}; {'; '.join(lib)}; network threads {a.threads or 'library default'}")
     print(f"model: {a.weights} ({n_params} parameters, runs at {pred.size}^2)")
-    print(f"input {a.size}x{a.size}, median wall ms (min wall) [median CPU ms] of {a.runs} runs, alternating; "
+    print(f"input {a.size}x{a.size}{' on a ' + a.canvas + ' canvas' if a.canvas else ''}, median wall ms (min wall) "
+          f"[median CPU ms] of {a.runs} runs, alternating; "
           f"load average {load0:.1f} before, {os.getloadavg()[0]:.1f} after:")
     for name, (med, mn, cpu) in res.items():
         note = " (pinned, foot snap and confidence as the checkpoint says)" if name.endswith("predict_full") else ""

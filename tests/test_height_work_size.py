@@ -122,3 +122,21 @@ def test_shrink_cutout_reads_only_the_covered_box():
     np.testing.assert_allclose(small[inside, :3], np.broadcast_to([0.2, 0.3, 0.4], (int(inside.sum()), 3)), atol=1e-5)
     assert hw.work_shape(600, 900, hw.WORK_SIDE) == (1.0, (600, 900))
     assert hw.work_shape(600, 900, 400) == (1.0, (600, 900))
+
+
+@pytest.mark.parametrize("k", [1, 16])
+def test_a_cutout_on_a_larger_canvas_gets_the_tight_cutouts_heights(predictor, samples, k):
+    # a matte at the photo's size (the cutout small inside it) gives exactly the heights of
+    # the tight cutout, pasted at its place: at its own size (k = 1) and at the work size
+    # (k = 16: crop 976 px), where the shrink's grid starts at the covered box, not the canvas
+    rgba = big(samples[2], k)
+    h, w = rgba.shape[:2]
+    canvas = np.zeros((h + 37 * k, w + 53 * k, 4), np.float32)
+    canvas[21 * k:21 * k + h, 30 * k:30 * k + w] = rgba
+    a, b = predictor.predict_full(rgba), predictor.predict_full(canvas)
+    assert ("work_scale" in a) == (k > 1) and ("work_scale" in b) == (k > 1)
+    for key in ("height", "heuristic", "auto_height"):
+        assert b[key].shape == canvas.shape[:2]
+        np.testing.assert_array_equal(b[key][21 * k:21 * k + h, 30 * k:30 * k + w], a[key])
+        assert not b[key][:21 * k].any() and not b[key][:, :30 * k].any()
+    assert a["signal"] == b["signal"] and a["confidence"] == b["confidence"]

@@ -102,8 +102,36 @@ def predict_at_work_size(predictor, rgba: np.ndarray, threshold: float = 0.5, co
                          lift: float = 0.0, work_side: int = WORK_SIDE, signals: bool = False) -> dict:
     """``predictor.predict_at_own_size(rgba, ...)`` (``LearnedHeightPredictor``), a
     cutout whose square crop is larger than ``work_side`` predicted at that size
-    (module doc; ``work_scale`` in the result)."""
+    (module doc; ``work_scale`` in the result).
+
+    The input is first cut to its covered pixels (alpha > 0) and the maps pasted
+    back: a cutout delivered on a canvas much larger than itself (a matte at the
+    photo's size) costs what the cutout costs and gets the same heights as the
+    tight cutout (``_on_covered_box``)."""
     rgba = np.asarray(rgba, np.float32)
+    return _on_covered_box(rgba, lambda part: _predict(predictor, part, threshold, contact, lift, work_side,
+                                                       signals))
+
+
+def _on_covered_box(rgba: np.ndarray, fn) -> dict:
+    """``fn(rgba cut to its covered box)`` with its full-size maps (the arrays of the
+    cut's shape) pasted back into zeros of the input's size; the whole input when
+    it is empty or already the box."""
+    box = nonzero_box(rgba[..., 3] > 0)
+    H, W = rgba.shape[:2]
+    if box is None or box == (0, H, 0, W):
+        return fn(rgba)
+    r0, r1, c0, c1 = box
+    out = fn(np.ascontiguousarray(rgba[r0:r1, c0:c1]))
+    for k, v in out.items():
+        if isinstance(v, np.ndarray) and v.shape == (r1 - r0, c1 - c0):
+            full = np.zeros((H, W), v.dtype)
+            full[r0:r1, c0:c1] = v
+            out[k] = full
+    return out
+
+
+def _predict(predictor, rgba, threshold, contact, lift, work_side, signals) -> dict:
     mask = np.clip(rgba[..., 3], 0.0, 1.0) > threshold
     box = crop_box(mask)
     f, shape = work_shape(*mask.shape, box[6], work_side) if box else (1.0, None)
