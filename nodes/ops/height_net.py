@@ -17,7 +17,7 @@ mode="bilinear", align_corners=False)``, concatenation and the 1 x 1 head.
 
 ``resize_chw`` is the resize the predictor's pre- and post-processing use
 (``learned_height.prepare`` / ``paste``): bilinear with half-pixel centres,
-with or without antialiasing, each axis a small dense matrix; it equals torch's
+with or without antialiasing, each axis a small banded matrix; it equals torch's
 ``F.interpolate(mode="bilinear", align_corners=False, antialias=...)`` up to
 float rounding (tests/test_height_net.py).
 
@@ -161,24 +161,53 @@ def bilinear_matrix(n_in: int, n_out: int, antialias: bool) -> np.ndarray:
     return m.astype(np.float32)
 
 
+def _band_blocks(m: np.ndarray, block: int = 16):
+    """(r0, r1, lo, hi) per block of ``block`` rows of a banded (n_out, n_in) matrix:
+    rows r0..r1-1 have their nonzero weights in columns lo..hi-1."""
+    out = []
+    for r0 in range(0, m.shape[0], block):
+        r1 = min(r0 + block, m.shape[0])
+        nz = np.flatnonzero(m[r0:r1].any(axis=0))
+        lo, hi = (int(nz[0]), int(nz[-1]) + 1) if nz.size else (0, 1)
+        out.append((r0, r1, lo, hi))
+    return out
+
+
+def _rows(m: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """m @ a over a's second-last axis, (n_out, n_in) x (C, n_in, w) -> (C, n_out, w), each
+    block of output rows from the input rows its band reaches (the other weights are 0)."""
+    out = np.empty(a.shape[:-2] + (m.shape[0], a.shape[-1]), np.float32)
+    for r0, r1, lo, hi in _band_blocks(m):
+        out[..., r0:r1, :] = np.matmul(m[r0:r1, lo:hi], a[..., lo:hi, :])
+    return out
+
+
+def _cols(a: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """a @ m.T over a's last axis, (C, h, n_in) x (n_out, n_in).T -> (C, h, n_out), banded as ``_rows``."""
+    out = np.empty(a.shape[:-1] + (m.shape[0],), np.float32)
+    for r0, r1, lo, hi in _band_blocks(m):
+        out[..., r0:r1] = np.matmul(a[..., lo:hi], m[r0:r1, lo:hi].T)
+    return out
+
+
 def resize_chw(a: np.ndarray, shape: tuple[int, int], antialias: bool = True) -> np.ndarray:
     """(C, h, w) float32 -> (C, H, W): bilinear, antialiased when shrinking if
-    ``antialias`` (``bilinear_matrix``), rows and columns each one matrix product.
-    Equals torch's ``F.interpolate(a[None], size=shape, mode="bilinear",
-    align_corners=False, antialias=antialias)[0]`` up to float rounding."""
+    ``antialias`` (``bilinear_matrix``), rows and columns each a product with a
+    banded matrix (in blocks of output pixels, each reading only the input pixels
+    its weights reach). Equals torch's ``F.interpolate(a[None], size=shape,
+    mode="bilinear", align_corners=False, antialias=antialias)[0]`` up to float
+    rounding."""
     a = np.asarray(a, np.float32)
     C, h, w = a.shape
     H, W = (int(s) for s in shape)
     if (H, W) == (h, w):
         return a.copy()
-    # the side that shrinks more goes first, so the second product works on fewer pixels
     mr = bilinear_matrix(h, H, antialias)            # (H, h)
-    mc = bilinear_matrix(w, W, antialias).T          # (w, W)
+    mc = bilinear_matrix(w, W, antialias)            # (W, w)
+    # the side that shrinks more goes first, so the second product works on fewer pixels
     if H * w <= h * W:
-        t = np.matmul(mr, a)                          # (C, H, w)
-        return np.matmul(t, mc)
-    t = np.matmul(a, mc)                              # (C, h, W)
-    return np.matmul(mr, t)
+        return _cols(_rows(mr, a), mc)
+    return _rows(mr, _cols(a, mc))
 
 
 # ----------------------------------------------------------------------------- weights
