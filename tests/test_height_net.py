@@ -143,7 +143,9 @@ def test_a_stale_npz_is_refused(tmp_path):
 
 def test_choose_backend(tmp_path, monkeypatch):
     monkeypatch.delenv("PIXGRAPH_HEIGHT_BACKEND", raising=False)
-    assert lh.DEFAULT_BACKEND == "numpy" and lh.choose_backend(lh.WEIGHTS) == "numpy"
+    # torch is imported here: on a machine where it sees a GPU it is chosen, else numpy
+    gpu = torch.cuda.is_available()
+    assert lh.DEFAULT_BACKEND == "numpy" and lh.choose_backend(lh.WEIGHTS) == ("torch" if gpu else "numpy")
     (tmp_path / "run.pt").write_bytes(b"")
     assert lh.choose_backend(tmp_path / "run.pt") == "torch"        # a training run's checkpoint: no .npz
     monkeypatch.setenv("PIXGRAPH_HEIGHT_BACKEND", "torch")
