@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import importlib.util
 import pathlib
 
 import numpy as np
@@ -15,28 +14,23 @@ from pixgraph.node import InputError, Node, node, param, port
 from ._checks import same_size
 from .ops.heightmaps import ContactLinePredictor
 
-NO_TORCH = ("method 'learned' needs torch, which is not installed (pip install torch); "
-            "using the contact-line heuristic instead")
-
-
 @functools.lru_cache(maxsize=2)
-def _learned(path: str, mtime_ns: int):
-    # keyed on mtime too, so retrained weights are picked up without a restart
+def _learned(path: str, mtime_ns: int, npz_mtime_ns: int):
+    # keyed on the files' mtimes too, so retrained weights are picked up without a restart
     from .ops.learned_height import LearnedHeightPredictor
     return LearnedHeightPredictor(path)
 
 
 def learned_predictor():
-    """The shipped learned predictor (``weights/cutout_height.pt``), loaded once;
-    None when torch is missing."""
-    try:
-        import torch  # noqa: F401
-    except ImportError:
-        return None
+    """The shipped learned predictor (``weights/cutout_height.pt``, its network run in
+    numpy from ``cutout_height.npz`` unless ``learned_height.choose_backend`` picks
+    torch), loaded once."""
     from .ops.learned_height import WEIGHTS
-    if not WEIGHTS.exists():
+    npz = WEIGHTS.with_suffix(".npz")
+    if not WEIGHTS.exists() and not npz.exists():
         raise FileNotFoundError(f"no shipped cutout-height weights {WEIGHTS}")
-    return _learned(str(WEIGHTS), WEIGHTS.stat().st_mtime_ns)
+    mt = [p.stat().st_mtime_ns if p.exists() else 0 for p in (WEIGHTS, npz)]
+    return _learned(str(WEIGHTS), *mt)
 
 
 def cutout_rgba(mask: np.ndarray, image: np.ndarray) -> np.ndarray:
@@ -55,10 +49,9 @@ def cutout_rgba(mask: np.ndarray, image: np.ndarray) -> np.ndarray:
 
 def _weights_version() -> str:
     """What the learned method's result depends on besides its inputs: the shipped
-    weights' digest, or that torch is missing (then it falls back to the contact line,
-    and that result must not be served later as a learned one)."""
-    if importlib.util.find_spec("torch") is None:
-        return "no-torch"
+    weights' digest (the .npz the numpy network reads is exported from the .pt and
+    refuses to load when it is not that .pt's: ``height_net.load_npz``; the numpy and
+    torch networks agree to float rounding, tests/test_height_net.py)."""
     path = pathlib.Path(__file__).parent / "weights" / "cutout_height.pt"
     return hashlib.sha256(path.read_bytes()).hexdigest()[:12] if path.exists() else "no-weights"
 
@@ -72,8 +65,8 @@ class CutoutHeight(Node):
     trained on rendered cutouts (people, animals, figurines, furniture, products,
     vehicles, random shapes) reads the colour (``image``) and alpha, any size (a cutout
     larger than 512 px is predicted at 512 px and its map enlarged: ops/height_work_size.py)
-    (pixgraph_nodes.ops.learned_height; needs torch, else falls back to contact_line with
-    a log message); ``auto``: the learned height unless the checkpoint's confidence
+    (pixgraph_nodes.ops.learned_height; the network runs in numpy, no torch needed:
+    ops/height_net.py); ``auto``: the learned height unless the checkpoint's confidence
     rule (a per-cutout signal and threshold chosen on validation) says the contact
     line is likely better, then the contact line (docs/height.md, "The contact,
     confidence and auto"). The contact is a constraint: for
@@ -123,31 +116,27 @@ class CutoutHeight(Node):
                                  "(e.g. image: cutout.image)")
             same_size(mask=mask, image=inputs.image)
             predictor = learned_predictor()
-            if predictor is not None:
-                r = predictor.predict_full(cutout_rgba(mask, inputs.image), contact=params.contact, lift=lift)
-                conf = r["confidence"]
-                if conf is None:
-                    conf = float("nan")
-                    if params.method == "auto":
-                        ctx.log("auto: the shipped weights have no confidence heads; using the learned height")
-                # auto's choice: the checkpoint's confidence rule (predict_full), else confidence >= 0.5
-                use = r.get("use_learned", not conf < 0.5)
-                if params.method == "learned" or use:
-                    ctx.log(f"{params.method}: learned height (confidence {conf:.2f})")
-                    return {"height": r["height"], "confidence": float(conf)}
-                why = (f"signal {r['signal']:.3g} above the threshold chosen on validation" if "signal" in r
-                       else f"confidence {conf:.2f} < 0.5")
-                ctx.log(f"auto: contact line ({why}; the learned map beat it on {conf:.0%} of similar "
-                        "validation cutouts)" if "signal" in r else f"auto: contact line ({why})")
-                # the contact line under the same contact constraint as the learned map (what
-                # the studies measured as auto): its contact pixels pinned to the ground (or lift)
-                from pixgraph_nodes.ops.learned_height import pin_contact
-                h = self._heuristic(mask, "contact_line", params.tolerance)
-                return {"height": pin_contact(h, mask > 0.5, lift), "confidence": float(conf)}
-            ctx.log(NO_TORCH)
+            r = predictor.predict_full(cutout_rgba(mask, inputs.image), contact=params.contact, lift=lift)
+            conf = r["confidence"]
+            if conf is None:
+                conf = float("nan")
+                if params.method == "auto":
+                    ctx.log("auto: the shipped weights have no confidence heads; using the learned height")
+            # auto's choice: the checkpoint's confidence rule (predict_full), else confidence >= 0.5
+            use = r.get("use_learned", not conf < 0.5)
+            if params.method == "learned" or use:
+                ctx.log(f"{params.method}: learned height (confidence {conf:.2f})")
+                return {"height": r["height"], "confidence": float(conf)}
+            why = (f"signal {r['signal']:.3g} above the threshold chosen on validation" if "signal" in r
+                   else f"confidence {conf:.2f} < 0.5")
+            ctx.log(f"auto: contact line ({why}; the learned map beat it on {conf:.0%} of similar "
+                    "validation cutouts)" if "signal" in r else f"auto: contact line ({why})")
+            # the contact line under the same contact constraint as the learned map (what
+            # the studies measured as auto): its contact pixels pinned to the ground (or lift)
+            from pixgraph_nodes.ops.learned_height import pin_contact
             h = self._heuristic(mask, "contact_line", params.tolerance)
-        else:
-            h = self._heuristic(mask, params.method, params.tolerance)
+            return {"height": pin_contact(h, mask > 0.5, lift), "confidence": float(conf)}
+        h = self._heuristic(mask, params.method, params.tolerance)
         return {"height": self._lift(h, mask, lift), "confidence": float("nan")}
 
     @staticmethod

@@ -126,17 +126,33 @@ def test_shrink_cutout_reads_only_the_covered_box():
 
 @pytest.mark.parametrize("k", [1, 16])
 def test_a_cutout_on_a_larger_canvas_gets_the_tight_cutouts_heights(predictor, samples, k):
-    # a matte at the photo's size (the cutout small inside it) gives exactly the heights of
-    # the tight cutout, pasted at its place: at its own size (k = 1) and at the work size
-    # (k = 16: crop 976 px), where the shrink's grid starts at the covered box, not the canvas
+    # a matte at the photo's size (the cutout small inside it, at an even offset) gives exactly
+    # the heights of the tight cutout, pasted at its place: at its own size (k = 1) and at the
+    # work size (k = 16: crop 976 px), where the shrink's grid starts at the covered box, not
+    # at the canvas's corner
     rgba = big(samples[2], k)
     h, w = rgba.shape[:2]
+    top, left = 22 * k, 30 * k
     canvas = np.zeros((h + 37 * k, w + 53 * k, 4), np.float32)
-    canvas[21 * k:21 * k + h, 30 * k:30 * k + w] = rgba
+    canvas[top:top + h, left:left + w] = rgba
     a, b = predictor.predict_full(rgba), predictor.predict_full(canvas)
     assert ("work_scale" in a) == (k > 1) and ("work_scale" in b) == (k > 1)
     for key in ("height", "heuristic", "auto_height"):
         assert b[key].shape == canvas.shape[:2]
-        np.testing.assert_array_equal(b[key][21 * k:21 * k + h, 30 * k:30 * k + w], a[key])
-        assert not b[key][:21 * k].any() and not b[key][:, :30 * k].any()
+        np.testing.assert_array_equal(b[key][top:top + h, left:left + w], a[key])
+        assert not b[key][:top].any() and not b[key][:, :left].any()
     assert a["signal"] == b["signal"] and a["confidence"] == b["confidence"]
+
+
+@pytest.mark.parametrize("top,left", [(0, 0), (1, 0), (0, 1), (5, 8), (7, 3)])
+def test_the_cut_to_the_covered_box_leaves_the_own_size_path_bit_identical(predictor, samples, top, left):
+    # the cut starts on an even row and column (crop_box rounds halves to even): at any offset
+    # the own-size path gives the numbers of the whole input, as before the cut existed
+    for rgba in samples:
+        h, w = rgba.shape[:2]
+        canvas = np.zeros((h + 9, w + 11, 4), np.float32)
+        canvas[top:top + h, left:left + w] = rgba
+        a, b = predictor.predict_full(canvas), predictor.predict_at_own_size(canvas)
+        assert "work_scale" not in a
+        np.testing.assert_array_equal(a["height"], b["height"])
+        assert a["signal"] == b["signal"]

@@ -1,5 +1,5 @@
 """The learned cutout pixel-height predictor (method 'learned' of pixgraph.CutoutHeight):
-shipped weights on held-out cutouts, size invariance, the no-torch fallback."""
+shipped weights on held-out cutouts, size invariance, learned heights without torch."""
 import json
 import pathlib
 import subprocess
@@ -147,14 +147,23 @@ def test_learned_needs_the_image_and_matching_sizes():
     assert np.all(run_node(np.zeros((40, 30, 3), np.float32), np.zeros((40, 30), np.float32)) == 0)
 
 
-def test_without_torch_learned_falls_back_to_the_contact_line(monkeypatch):
-    a = np.zeros((60, 40), np.float32)
-    a[10:50, 5:30] = 1
-    monkeypatch.setitem(sys.modules, "torch", None)          # `import torch` raises ImportError
-    ctx = Ctx()
-    h = run_node(np.ones((60, 40, 3), np.float32), a, ctx=ctx)
-    np.testing.assert_array_equal(h, contact_line_height(a))
-    assert ctx.logs == [ch.NO_TORCH] and "torch" in ctx.logs[0] and "contact-line" in ctx.logs[0]
+def test_without_torch_learned_runs_the_numpy_network(monkeypatch):
+    # torch hidden (`import torch` raises ImportError): the learned method still runs its
+    # network (in numpy, ops/height_net.py), the same map as torch's
+    s = heldout(REAL)[0]
+    ref = lh.LearnedHeightPredictor(backend="torch").predict(ch.cutout_rgba(s["alpha"], s["image"]))
+    monkeypatch.setitem(sys.modules, "torch", None)
+    ch._learned.cache_clear()
+    try:
+        assert lh.choose_backend(lh.WEIGHTS) == "numpy"
+        ctx = Ctx()
+        h = run_node(s["image"], s["alpha"], ctx=ctx)
+    finally:
+        ch._learned.cache_clear()
+    m = s["alpha"] > 0.5
+    assert np.abs(h - contact_line_height(s["alpha"]))[m].max() > 1.0        # not the contact line
+    np.testing.assert_allclose(h, ref, atol=1e-3)
+    assert ctx.logs[0].startswith("learned: learned height")
 
 
 def test_importing_the_node_does_not_import_torch():
@@ -275,13 +284,14 @@ def _prepare_full_size(colour, alpha, size, height=None):
 
 
 def _paste_full_size(pred, box, bh, mask):
-    """``paste`` as it was: the whole (H, W) map computed, then masked (the reference)."""
-    import torch.nn.functional as F
+    """``paste`` as it was: the whole (H, W) map computed, then masked (the reference;
+    its resize is the numpy one paste uses, which equals torch's to float rounding:
+    tests/test_height_net.py)."""
+    from pixgraph_nodes.ops.height_net import resize_chw
     r0, r1, c0, c1, top, left, side = box
     H, W = mask.shape
     m_small = lh._resize(lh._crop(mask.astype(np.float32), top, left, side)[None], pred.shape[0])[0]
-    t = torch.from_numpy(np.stack([pred * m_small, m_small]).astype(np.float32))[None]
-    big = F.interpolate(t, size=(side, side), mode="bilinear", align_corners=False)[0].numpy()
+    big = resize_chw(np.stack([pred * m_small, m_small]).astype(np.float32), (side, side), antialias=False)
     val = np.where(big[1] > 1e-6, big[0] / np.maximum(big[1], 1e-6), 0.0)
     out = np.zeros((H, W), np.float32)
     y0, x0, y1, x1 = max(top, 0), max(left, 0), min(top + side, H), min(left + side, W)

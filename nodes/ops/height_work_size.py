@@ -116,12 +116,22 @@ def predict_at_work_size(predictor, rgba: np.ndarray, threshold: float = 0.5, co
 def _on_covered_box(rgba: np.ndarray, fn) -> dict:
     """``fn(rgba cut to its covered box)`` with its full-size maps (the arrays of the
     cut's shape) pasted back into zeros of the input's size; the whole input when
-    it is empty or already the box."""
+    it is empty or already the box.
+
+    The cut starts on an even row and column: ``crop_box`` centres the network's
+    square crop with ``round``, which rounds halves to even, so a cut by an odd
+    number of pixels could move that crop by one pixel, and the network is not
+    blind to such a shift (one held-out 40 x 30 cutout: 1.5 vs 3.4 px MAE). Cut by
+    even numbers, the path at the cutout's own size gives the whole input's
+    numbers exactly."""
     box = nonzero_box(rgba[..., 3] > 0)
     H, W = rgba.shape[:2]
-    if box is None or box == (0, H, 0, W):
+    if box is None:
         return fn(rgba)
     r0, r1, c0, c1 = box
+    r0, c0 = r0 - r0 % 2, c0 - c0 % 2
+    if (r0, r1, c0, c1) == (0, H, 0, W):
+        return fn(rgba)
     out = fn(np.ascontiguousarray(rgba[r0:r1, c0:c1]))
     for k, v in out.items():
         if isinstance(v, np.ndarray) and v.shape == (r1 - r0, c1 - c0):

@@ -19,8 +19,13 @@ twice the box height. ``predict`` multiplies back by ``bh`` and pastes the map
 into the input's frame (normalised convolution with the cutout's mask so the
 zeros outside the object never bleed into edge pixels).
 
-torch is imported only inside the functions that need it, so importing this
-module (and the node that uses it) works without torch.
+Inference needs numpy alone: the network runs in numpy (``height_net``, weights
+``cutout_height.npz`` exported from the checkpoint) or in torch
+(``LearnedHeightPredictor``'s ``backend``), and the resizing of ``prepare`` /
+``paste`` is numpy's (``height_net.resize_chw``, torch's bilinear resize up to
+float rounding). torch is imported only by the torch backend and for training
+(``build_model``), so importing this module (and the node that uses it) works
+without torch.
 """
 from __future__ import annotations
 
@@ -31,12 +36,18 @@ import pathlib
 
 import numpy as np
 
+from . import height_net
 from .heightmaps import contact_line_height
 from .resample import nonzero_box
 
 MARGIN = 0.1          # crop margin on each side, fraction of the box's longer side
 IN_CHANNELS = 6
 WEIGHTS = pathlib.Path(__file__).resolve().parent.parent / "weights" / "cutout_height.pt"
+#: where ``LearnedHeightPredictor`` runs the network by default: ``numpy`` (``height_net``)
+#: or ``torch``. Chosen by measurement (``benchmarks/height_bench.py --backend both``;
+#: docs/height.md, "How it works"); torch is also taken, on its GPU, when the process has
+#: already imported torch and torch sees a GPU
+DEFAULT_BACKEND = "numpy"
 
 
 def srgb_encode(x: np.ndarray) -> np.ndarray:
@@ -84,12 +95,10 @@ def _crop(a: np.ndarray, top: int, left: int, side: int) -> np.ndarray:
 
 
 def _resize(a: np.ndarray, size: int) -> np.ndarray:
-    """(C, h, w) float32 -> (C, size, size), bilinear, antialiased when shrinking."""
-    import torch
-    import torch.nn.functional as F
-    t = torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]
-    return F.interpolate(t, size=(size, size), mode="bilinear", align_corners=False,
-                         antialias=True)[0].numpy()
+    """(C, h, w) float32 -> (C, size, size), bilinear, antialiased when shrinking (torch's
+    ``F.interpolate(..., mode="bilinear", align_corners=False, antialias=True)`` up to
+    float rounding, in numpy: ``height_net.resize_chw``)."""
+    return height_net.resize_chw(a, (size, size), antialias=True)
 
 
 def prepare(colour: np.ndarray, alpha: np.ndarray, size: int, threshold: float = 0.5,
@@ -148,11 +157,11 @@ def paste(pred: np.ndarray, box, bh: float, mask: np.ndarray, clip: bool = True)
     if box is None:
         return out
     r0, r1, c0, c1, top, left, side = box
-    import torch
-    import torch.nn.functional as F
     m_small = _resize(_crop(mask, top, left, side).astype(np.float32)[None], pred.shape[0])[0]
-    t = torch.from_numpy(np.stack([pred * m_small, m_small]).astype(np.float32))[None]
-    big = F.interpolate(t, size=(side, side), mode="bilinear", align_corners=False)[0].numpy()
+    # back to the crop's size without antialiasing (torch's default bilinear: a crop smaller
+    # than the network's input is sampled, not averaged)
+    big = height_net.resize_chw(np.stack([pred * m_small, m_small]).astype(np.float32), (side, side),
+                                antialias=False)
     y0, x0 = max(top, 0), max(left, 0)
     y1, x1 = min(top + side, H), min(left + side, W)
     num, den = (b[y0 - top:y1 - top, x0 - left:x1 - left] for b in big)
@@ -472,28 +481,92 @@ def fold_batchnorm(model):
     return model
 
 
+def choose_backend(path: pathlib.Path, backend: str | None = None) -> str:
+    """Where ``LearnedHeightPredictor`` runs the network for the checkpoint ``path``.
+
+    ``backend``: ``numpy`` or ``torch``, or None: the environment variable
+    ``PIXGRAPH_HEIGHT_BACKEND`` when set, else torch when the process has already
+    imported torch and torch sees a GPU, else ``DEFAULT_BACKEND``; a backend that
+    cannot run falls back to the other one: numpy needs the exported ``.npz`` beside
+    the ``.pt`` (a training run's checkpoint has none), torch must be importable."""
+    import importlib.util
+    import os
+    import sys
+    path = pathlib.Path(path)
+    if backend is not None:
+        if backend not in ("numpy", "torch"):
+            raise ValueError(f"LearnedHeightPredictor: backend must be 'numpy' or 'torch', not {backend!r}")
+        return backend
+    env = os.environ.get("PIXGRAPH_HEIGHT_BACKEND", "").strip().lower()
+    if env:
+        if env not in ("numpy", "torch"):
+            raise ValueError(f"PIXGRAPH_HEIGHT_BACKEND must be 'numpy' or 'torch', not {env!r}")
+        return env
+    has_npz = path.suffix == ".npz" or path.with_suffix(".npz").exists()
+    torch_mod = sys.modules.get("torch")
+    try:
+        has_torch = torch_mod is not None or (
+            "torch" not in sys.modules and importlib.util.find_spec("torch") is not None)
+    except (ImportError, ValueError):
+        has_torch = False
+    if torch_mod is not None and has_torch and path.suffix != ".npz":
+        try:
+            if torch_mod.cuda.is_available():
+                return "torch"
+        except Exception:  # noqa: BLE001 - a broken CUDA setup: the CPU backends still work
+            pass
+    if DEFAULT_BACKEND == "numpy" and has_npz:
+        return "numpy"
+    if has_torch and path.suffix != ".npz":
+        return "torch"
+    if has_npz:
+        return "numpy"
+    raise FileNotFoundError(f"{path}: the numpy network needs {path.with_suffix('.npz')} "
+                            "(python -m pixgraph_lab.height.export --npz) and torch is not installed")
+
+
 class LearnedHeightPredictor:
     """``HeightPredictor`` from a trained checkpoint (``predict(rgba)`` -> (H, W) px).
 
     rgba: float32 (H, W, 4) linear premultiplied colour + alpha, any size.
+
+    ``path``: the checkpoint (``.pt``; the numpy backend reads the ``.npz`` beside it)
+    or the numpy weights (``.npz``). ``backend``: ``numpy`` (``height_net``; no torch
+    needed), ``torch`` (on torch's GPU when it sees one) or None (``choose_backend``).
+    ``threads``: the threads the network runs on, torch's or numpy's BLAS's
+    (``height_net.blas_threads``); None: the library's default.
     """
 
     def __init__(self, path: str | pathlib.Path = WEIGHTS, threads: int | None = 1,
                  flip_average: bool | None = None, heuristic_detail: bool | None = None,
-                 pin_fade: float | None | str = "checkpoint", foot_snap: dict | None | str = "checkpoint"):
-        import torch
-        ck = torch.load(path, map_location="cpu", weights_only=True)
-        cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else ck["config"]
+                 pin_fade: float | None | str = "checkpoint", foot_snap: dict | None | str = "checkpoint",
+                 backend: str | None = None):
+        path = pathlib.Path(path)
+        self.path = path
+        self.backend = choose_backend(path, backend)
+        self._model = None
+        if self.backend == "numpy":
+            npz = path if path.suffix == ".npz" else path.with_suffix(".npz")
+            if not npz.exists():
+                raise FileNotFoundError(f"{npz}: no numpy weights for {path} "
+                                        "(python -m pixgraph_lab.height.export --npz writes them)")
+            arrays, cfg = height_net.load_npz(npz, check_against=path.with_suffix(".pt"))
+            self.net = height_net.HeightNet(arrays, cfg)
+            self.device = None
+        else:
+            import torch
+            ck = torch.load(path, map_location="cpu", weights_only=True)
+            cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else ck["config"]
+            self._state = ck["model"]
+            self.device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
+            self.net = None
         self.size = int(cfg["size"])
         self.outputs = int(cfg.get("outputs", 1))
-        self.model = build_model(int(cfg["base"]), int(cfg["levels"]), self.outputs)
-        self.model.load_state_dict({k: v.float() for k, v in ck["model"].items()})
-        self.model = fold_batchnorm(self.model)       # inference only: BatchNorm folded into the convs
-        self.device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
-        self.model.to(self.device)
         self.config = cfg
-        # the network is small (~0.1 GFLOP at 64^2): one thread is as fast as two on an
-        # idle machine and much faster on a busy one (benchmarks/height_bench.py)
+        if self.backend == "torch":
+            self.model                                   # build it now: load errors show here
+        # the network is small (~0.44 GFLOP per 64^2 crop): one thread is about as fast as two
+        # on an idle machine and much faster on a busy one (benchmarks/height_bench.py)
         self.threads = threads
         # inference options (``predict``); None: the checkpoint's choice (``config["inference"]``,
         # chosen on the validation split by lab/height/inference_study.py), else off
@@ -518,24 +591,50 @@ class LearnedHeightPredictor:
         from .height_work_size import WORK_SIDE
         self.work_side = WORK_SIDE
 
+    @property
+    def model(self):
+        """The folded torch model (torch backend; built on first use for the numpy one, for
+        the lab scripts that evaluate or count its parameters)."""
+        if self._model is None:
+            import torch
+            if self.net is not None and not hasattr(self, "_state"):
+                ck = torch.load(self.path.with_suffix(".pt"), map_location="cpu", weights_only=True)
+                self._state = ck["model"]
+                self.device = torch.device("cpu")
+            model = build_model(int(self.config["base"]), int(self.config["levels"]), self.outputs)
+            model.load_state_dict({k: v.float() for k, v in self._state.items()})
+            self._model = fold_batchnorm(model).to(self.device)   # inference only: BatchNorm folded
+        return self._model
+
     def predict_normalised(self, x: np.ndarray, aux: bool = False):
         """(N, 6, S, S) inputs -> (N, S, S) height / bh; with ``aux`` also the
         error heads (N, 2, S, S) (None for a 1-output model)."""
+        if self.backend == "numpy":
+            with self._threads():
+                h, e = split_output(self.net(np.ascontiguousarray(x, np.float32)))
+            h = np.ascontiguousarray(h)
+            return (h, e) if aux else h
         import torch
         with self._threads(), torch.inference_mode():
-            h, e = split_output(self.model(torch.from_numpy(x).to(self.device)).float())
+            h, e = split_output(self.model(torch.from_numpy(np.ascontiguousarray(x, np.float32))
+                                           .to(self.device)).float())
             h = h.cpu().numpy()
             e = None if e is None else e.cpu().numpy()
         return (h, e) if aux else h
 
     @contextlib.contextmanager
     def _threads(self):
+        if self.backend == "numpy":
+            with height_net.blas_threads(self.threads):
+                yield
+            return
         import torch
         before = torch.get_num_threads()
         if self.threads and self.device.type == "cpu":
             torch.set_num_threads(self.threads)
         try:
-            yield
+            with height_net.blas_threads(self.threads):      # prepare / paste resize with numpy's BLAS
+                yield
         finally:
             torch.set_num_threads(before)
 
