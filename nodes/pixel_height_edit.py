@@ -13,6 +13,10 @@ from .ops.lights import foot_of_mask
 from .ops.height_edit import edit_pixel_height
 
 
+#: how far outside the cutout a contact point may lie and be put on its edge [px]
+EDGE_SLACK = 1.0
+
+
 @node("pixgraph.PixelHeightEdit", version=1)
 class PixelHeightEdit(Node):
     """Edit a cutout's pixel height where a predictor got it wrong (the math and its
@@ -35,7 +39,7 @@ class PixelHeightEdit(Node):
     foot depth, tilt, lift or lying) the height passes through unchanged.
 
     The page (``pixgraph serve``) draws each contact point as a handle on the placed
-    cutout (an empty list: one hollow handle at the cutout's foot; "+ contact" adds
+    cutout (an empty list: one hollow handle just under the cutout's foot; "+ contact" adds
     points, "- contact" removes the last), the top's ground point as the tilt handle
     (drag it up: taller, down: shorter, by leaning the object; lying down, the same
     handle sets the thickness), the body's ground point as the foot-depth handle (a
@@ -71,7 +75,7 @@ class PixelHeightEdit(Node):
         height: T.PixelHeight = port(doc="edited pixel height [px], 0 outside the mask")
 
     # 2: defaults pass through; 3: shift is a per-column offset; 4: close points: their mean; 5: foot_depth
-    impl_version = "5"
+    impl_version = "6"   # 6: points up to EDGE_SLACK px outside the cutout are put on its edge
 
     #: what a shell's page draws (read by pixgraph_serve): contact points, the tilt handle
     #: (lying: the thickness), the body's foot-depth ring, the lying toggle, by these
@@ -99,9 +103,15 @@ class PixelHeightEdit(Node):
             raise InputError(f"param 'contact_points': expected pairs u, v (an even count), got {len(pts)} numbers")
         H, W = h.shape
         P = np.asarray(pts, np.float64).reshape(-1, 2)
-        out = P[(P[:, 0] < 0) | (P[:, 0] > W) | (P[:, 1] < 0) | (P[:, 1] > H)]
+        # at a working resolution (a page's previews) the cutout has round(size x scale)
+        # pixels, up to half a pixel fewer than its size x the scale: a point on its edge
+        # (where a page puts a contact dragged below the foot) comes out up to EDGE_SLACK
+        # px outside. Such points are put on the edge; points further out are refused.
+        s = EDGE_SLACK
+        out = P[(P[:, 0] < -s) | (P[:, 0] > W + s) | (P[:, 1] < -s) | (P[:, 1] > H + s)]
         if len(out):
             raise InputError(f"param 'contact_points': point(s) {out.tolist()} outside the {W}x{H} cutout")
+        P = np.clip(P, 0.0, [W, H])
         try:
             return {"height": edit_pixel_height(h, m > 0.5, P, params.contact_mode, params.tilt,
                                                 params.elevation, params.lying, params.thickness, params.lift,

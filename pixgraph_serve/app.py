@@ -112,6 +112,16 @@ def apply_edits(state: ServeState, data: dict) -> None:
     state.edit(apply)
 
 
+def edited_run(state: ServeState, work):
+    """``work()`` (a request's edits, then a run of the edited graph), all or nothing: when
+    the run fails (a node refuses the edited params, the time limit) the graph goes back to
+    what it was, so a drag the graph cannot take (a cutout off the photo) does not leave
+    every later render, ``/api/scene`` and a reload of the page failing on it. A run
+    cancelled by a newer render of the page keeps its edits (the newer one carries only
+    its own)."""
+    return state.edit(work, keep_on=(Cancelled,))
+
+
 def outputs_of(data: dict) -> list[str] | None:
     outs = data.get("outputs")
     if outs is None:
@@ -211,7 +221,8 @@ async def post_run(request: Request):
         graph = state.graph
         return graph, state.run(outs, mode)
 
-    (graph, res), _ = await locked(request, run_counted, state, work)
+    # a run a node refuses takes its edits back with it (edited_run)
+    (graph, res), _ = await locked(request, run_counted, state, lambda: edited_run(state, work))
     run = request.app.state.runs.add(graph, mode, res.outputs)
     described = {}
     for name, v in res.outputs.items():
@@ -299,14 +310,21 @@ async def render(request: Request):
             apply_edits(state, data)
             graph = state.graph_for(mode)
             extra = scene.piggyback(state, graph, [name]) if working == 1 else []   # anchors are full-size px
-            res = state.run([name, *extra], mode, cancel=token, scale=float(working))
+            try:
+                res = state.run([name, *extra], mode, cancel=token, scale=float(working))
+            except ServeError as e:
+                if working == 1:
+                    raise
+                # a node's sizes and pixel values are the working resolution's: say so
+                raise ServeError(e.status, f"in a preview at working resolution {float(working):.3g} (its sizes and "
+                                           f"pixel values are scaled by it): {e.message}", **e.where) from None
             scene.note(state, graph, extra, res)
             if mode == "final":
                 state.final_said = res.said
             return res, encode(res[name], name, scale)
 
         try:
-            (res, png), runs = await anyio.to_thread.run_sync(run_counted, state, work)
+            (res, png), runs = await anyio.to_thread.run_sync(run_counted, state, lambda: edited_run(state, work))
         except Cancelled:
             if tracked and not renders.current(client, seq):
                 return _stale(renders, seq)

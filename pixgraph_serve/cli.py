@@ -64,4 +64,6 @@ def cli_serve(args, registry, usage_error) -> int:
         serve(state, args.host, args.port, on_ready=ready, token=None if args.no_token else new_token())
     except OSError as e:
         raise usage_error(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
+    finally:
+        state.remove_uploads()
     return 0

@@ -150,6 +150,8 @@ def open_files(state: ServeState, data: dict) -> dict:
     except ServeError:
         state.graph = previous
         raise
+    # a new graph, not the served file's: the page proposes the photo's name to save it under
+    state.save_name = os.path.splitext(os.path.basename(resolved["photo"]))[0] + ".yaml"
     return {"template": name, "yaml": state.yaml(), "notes": found}
 
 

@@ -8,7 +8,8 @@ sockets, and the process ends without the interpreter's teardown (half a second
 with torch and OpenCL loaded); ``STOP_GRACE`` seconds after the signal it ends in
 any case. Graph saves, uploads and written outputs go to a temporary name
 and are renamed, so a stop leaves at most a temporary file, never half a file
-under the real name.
+under the real name. The upload folder the server made (the photos opened in the
+page) is removed on every way out.
 """
 from __future__ import annotations
 
@@ -51,31 +52,36 @@ def serve(state: ServeState, host: str = "127.0.0.1", port: int = 8765, on_ready
         def handle_exit(self, sig, frame):  # runs in the main thread, on the signal
             self.should_exit = self.force_exit = True
             if state.cancel_all():
-                _exit_now()     # a run is going: nothing to wait for (saves and uploads are renamed into place)
-            threading.Thread(target=_exit_after, args=(STOP_GRACE,), daemon=True).start()
+                _exit_now(state)     # a run is going: nothing to wait for (saves and uploads are renamed into place)
+            threading.Thread(target=_exit_after, args=(STOP_GRACE, state), daemon=True).start()
 
         async def shutdown(self, sockets=None):
             await super().shutdown(sockets)
             if self.force_exit and state.running():
                 # a node still busy: asyncio.run would wait for its thread before returning
-                _exit_now()
+                _exit_now(state)
 
     config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off",
                             limit_concurrency=64, timeout_keep_alive=30)
     server = Server(config)
     if on_ready is not None:
         on_ready(f"http://{shown}:{bound}/" + (f"?token={token}" if token else ""))
-    server.run(sockets=[sock])
+    try:
+        server.run(sockets=[sock])
+    finally:
+        state.remove_uploads()
     if server.force_exit:       # stopped by a signal: skip the interpreter's teardown (0.5 s with torch loaded)
-        _exit_now()
+        _exit_now(state)
 
 
-def _exit_after(seconds: float) -> None:
+def _exit_after(seconds: float, state: ServeState) -> None:
     threading.Event().wait(seconds)
-    _exit_now()
+    _exit_now(state)
 
 
-def _exit_now() -> None:
+def _exit_now(state: ServeState | None = None) -> None:
+    if state is not None:
+        state.remove_uploads()
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()

@@ -117,6 +117,8 @@ class ServeState:
         self.graph_path = os.path.abspath(graph_path)
         self.root = os.path.dirname(self.graph_path)
         self.limits = limits or Limits()
+        #: True when the upload folder was made here (``remove_uploads`` deletes it)
+        self.own_uploads = upload_dir is None
         self.upload_dir = upload_dir or tempfile.mkdtemp(prefix="pixgraph-uploads-")
         roots = [self.root, self.upload_dir, *(os.path.abspath(a) for a in allow)]
         self._roots = roots
@@ -136,7 +138,14 @@ class ServeState:
         self.anchors = None
         #: what the nodes of the last final said (``RunResult.said``: cached nodes included)
         self.final_said: dict[str, list[str]] = {}
-        self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
+        #: the name the page proposes to save under (``info()["save_as"]``): the last file
+        #: saved, or after ``/api/open`` the photo's name; None: the served file
+        self.save_name: str | None = None
+        try:
+            self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
+        except BaseException:
+            self.remove_uploads()
+            raise
 
     # -- graph ------------------------------------------------------------------
 
@@ -215,10 +224,20 @@ class ServeState:
         os.replace(tmp, path)
         return path, n
 
+    def remove_uploads(self) -> None:
+        """Delete the upload folder with the files in it, when this state made it (the
+        server stopping: the user's photos do not stay in the temporary folder; a graph
+        saved from the page reads copies beside it)."""
+        if self.own_uploads:
+            import shutil
+
+            shutil.rmtree(self.upload_dir, ignore_errors=True)
+
     def info(self) -> dict:
         """The graph as the UI and API clients see it: nodes in file order with the
         params set and their effective values, inputs, outputs, and node types (those
-        used, and those a node may be switched to: ``alternatives``)."""
+        used, and those a node may be switched to: ``alternatives``); ``save_as``: the
+        name the page proposes to save under (``save_name``)."""
         from pixgraph.reference import as_dict
 
         g = self.graph
@@ -232,7 +251,7 @@ class ServeState:
         used = {inst.type for inst in g.nodes.values()}
         for t in list(used):
             used.update(self.alternatives(t))
-        return {"file": self.graph_path, "nodes": nodes,
+        return {"file": self.graph_path, "save_as": self.save_name or os.path.basename(self.graph_path), "nodes": nodes,
                 "outputs": {k: str(v) for k, v in g.outputs.items()},
                 "types": {t: as_dict(self.registry.get(t)) for t in sorted(used)},
                 "limits": dataclasses.asdict(self.limits)}
@@ -255,16 +274,20 @@ class ServeState:
 
     # -- edits (all or nothing) ---------------------------------------------------
 
-    def edit(self, apply) -> Graph:
-        """Call ``apply()`` (any number of ``set_*`` calls); if it raises, the graph and
-        the stashed params are restored and the error propagates: nothing is half-applied."""
+    def edit(self, apply, keep_on: tuple = ()):
+        """Call ``apply()`` (any number of ``set_*`` calls, and a run of the edited graph)
+        and return what it returns; if it raises, the graph and the stashed params are
+        restored and the error propagates: nothing is half-applied. An exception of a class
+        in ``keep_on`` keeps the edits (a render cancelled by a newer one of the page: the
+        newer one carries only its own edits)."""
         graph, stash = self.graph, dict(self._stash)
         try:
-            apply()
+            return apply()
+        except keep_on:
+            raise
         except BaseException:
             self.graph, self._stash = graph, stash
             raise
-        return self.graph
 
     def set_params(self, params: Mapping[str, Any]) -> Graph:
         """Apply ``{"node.param": value}`` (or ``{"node": {"param": value}}``) edits."""
@@ -351,6 +374,8 @@ class ServeState:
             if os.path.exists(tmp):
                 os.unlink(tmp)
             raise ServeError(400, f"save: cannot write {path or target}: {e.strerror or e}", field="path") from None
+        inside = os.path.commonpath([target, self.root]) == self.root
+        self.save_name = os.path.relpath(target, self.root) if inside else target
         return target
 
     # -- run ----------------------------------------------------------------------

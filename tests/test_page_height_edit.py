@@ -66,14 +66,15 @@ def test_drag_the_cutouts_contact_and_tilt_in_the_page(browser, tmp_path):
         assert e["sources"] == ["fg_h"]
         assert page.locator('[data-param="fg_h.method"]').is_visible()
         assert not page.locator('[data-param="cutout.path"]').is_visible()
-        # the hollow contact handle sits on the cutout's foot, the tilt handle on its top
-        for sel, (u, v) in {"#contact-new": scene["place"]["foot"],
-                            "#tilt-handle": to_canvas(e, e["top"][0], e["top"][1])}.items():
+        # the hollow contact handle sits just under the cutout's foot (2.6 handle radii: clear
+        # of the cutout's foot square), the tilt handle on its top
+        for sel, (u, v), below in (("#contact-new", scene["place"]["foot"], 2.6 * 7),
+                                   ("#tilt-handle", to_canvas(e, e["top"][0], e["top"][1]), 0)):
             b = page.locator(sel).bounding_box()
             assert 12 <= b["width"] <= 20, (sel, b)
             x, y = centre(page, sel)
             sx, sy = screen(page, u, v)
-            assert abs(x - sx) < 1.5 and abs(y - sy) < 1.5, sel
+            assert abs(x - sx) < 1.5 and abs(y - sy - below) < 1.5, sel
         photo = _png(httpx.get(url + "/api/outputs/photo.image.png", timeout=60).content)
         alpha = _png(httpx.get(url + "/api/outputs/place.alpha.png", timeout=60).content)[:, :, 0]
 
@@ -241,5 +242,36 @@ def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_pa
                 assert len(said) == 1 and said[0].startswith(f"fg_h: {method}: ") and "confidence 0." in said[0], logs
         assert np.logical_xor(heights["learned"], before).sum() > 100, "the learned height changed nothing"
         assert np.array_equal(heights["contact_line"], before)
+        assert not errors, errors
+        page.close()
+
+
+def test_the_cutouts_foot_handle_is_not_hidden_by_the_new_contact_handle(browser, tmp_path):
+    """Both start at the cutout's foot: the hollow "new contact" ring was drawn over the
+    cutout's green foot square and covered all of it, so a drag of the square (to move the
+    cutout) added a contact point instead (the figure sank). Each is reachable now: the
+    square moves the foot, the ring (just under it) adds a point."""
+    graph = edit_graph(str(tmp_path))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        k = page.evaluate("window.pixgraphView.state.k")
+        foot = httpx.get(url + "/api/scene", timeout=60).json()["place"]["foot"]
+        x, y = centre(page, "#foot-handle")
+        assert (x, y) == pytest.approx(screen(page, *foot), abs=1.5)
+        for dx in (-3, 0, 3):
+            for dy in (-3, 0, 3):
+                assert page.evaluate(f"document.elementFromPoint({x + dx}, {y + dy}).id") == "foot-handle", (dx, dy)
+        gx, gy = centre(page, "#contact-new")
+        assert page.evaluate(f"document.elementFromPoint({gx}, {gy}).id") == "contact-new"
+        drag(page, (x, y), (x + 20, y - 10))
+        params = graph_params(url)
+        assert params["edit"]["contact_points"] == []
+        assert params["place"]["foot"] == pytest.approx([foot[0] + 20 / k, foot[1] - 10 / k], abs=1 / k + 0.2)
+        # the ring still adds a contact point where it is let go
+        e = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        fu, fv = graph_params(url)["place"]["foot"]
+        drag(page, centre(page, "#contact-new"), screen(page, fu - 10, fv - 5))
+        assert graph_params(url)["edit"]["contact_points"] == pytest.approx(
+            list(to_cutout(e, fu - 10, fv - 5)), abs=1.0 / k + 0.2)
         assert not errors, errors
         page.close()

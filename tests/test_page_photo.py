@@ -380,3 +380,140 @@ def test_corner_and_back_wall_templates(browser, tmp_path):
             [0, row - slope * 256, 512, 330], abs=1.0)
         assert not errors, errors
         page.close()
+
+
+def test_a_graph_a_node_refuses_opens_with_its_panel_to_mend_it(browser, tmp_path):
+    """A served graph whose cutout lies off the photo (PlaceCutout refuses it, so /api/scene
+    cannot place the handles): the page still builds the param panel and says which node
+    refused; the foot typed in the panel mends it, and the image and the handles come.
+    Before, the page showed only the error: no image, no panel, nothing to fix it with."""
+    graph = own_photo_copy(str(tmp_path))
+    text = open(graph).read()
+    assert "foot: [270, 345]" in text
+    with open(graph, "w") as f:
+        f.write(text.replace("foot: [270, 345]", "foot: [5000, 345]"))
+    with running_server(graph) as (url, _):
+        page = browser.new_page(viewport=VIEWPORT)
+        errors = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(url + "/")
+        page.wait_for_selector("body[data-ready='1']", state="attached", timeout=120000)
+        assert page.locator("#error").is_visible()
+        assert "node 'place'" in page.inner_text("#error") and "outside" in page.inner_text("#error")
+        assert page.locator("details.node").count() == len(graph_params(url))
+        assert page.locator("#cutout-box").count() == 0            # no handles without a scene
+        page.click("details.node:has([data-param='place.foot']) > summary")
+        field = page.locator('[data-param="place.foot"]')
+        assert field.input_value() == "5000, 345"
+        field.fill("270, 345")
+        field.press("Enter")
+        wait_final(page, 0)
+        page.wait_for_selector("#cutout-box", timeout=60000)
+        assert graph_params(url)["place"]["foot"] == [270, 345]
+        assert page.locator("#error").is_hidden()
+        img = shown(page)
+        assert img.shape == (480, 640, 3) and img.std() > 0.1
+        check_handles_visible(page)
+        assert not errors, errors
+        page.close()
+
+
+def test_the_save_name_survives_a_reload(browser, tmp_path):
+    """After "open photo", the box proposes the photo's name; after a save, the name saved.
+    A reload of the page keeps proposing it: before, it went back to the served graph's
+    own file, so the next "save" wrote the user's photo graph over the graph the server
+    was started with (graphs/own_photo.yaml)."""
+    files = photo_files(str(tmp_path / "mine"), 960, 720, mask=False)
+    graph = own_photo_copy(str(tmp_path / "served"))
+    served_text = open(graph).read()
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        assert page.input_value("#save-name") == "own_photo.yaml"      # the served graph: save over it
+        page.click("#open")
+        page.set_input_files("#open-photo", files["photo"])
+        page.set_input_files("#open-cutout", files["cutout"])
+        seq = last_seq(page)
+        page.click("#open-go")
+        page.wait_for_selector("body[data-ready='2']", state="attached", timeout=180000)
+        wait_final(page, seq)
+        assert page.input_value("#save-name") == "photo_960x720.yaml"
+        page.reload()
+        page.wait_for_selector("body[data-ready='1']", state="attached", timeout=180000)
+        wait_final(page, 0)
+        assert page.input_value("#save-name") == "photo_960x720.yaml"
+        page.fill("#save-name", "mine/scene.yaml")
+        page.click("#save")
+        page.wait_for_function("document.getElementById('status').textContent.startsWith('saved')", timeout=60000)
+        page.reload()
+        page.wait_for_selector("body[data-ready='1']", state="attached", timeout=180000)
+        wait_final(page, 0)
+        assert page.input_value("#save-name") == "mine/scene.yaml"
+        page.click("#save")
+        page.wait_for_function("document.getElementById('status').textContent.startsWith('saved')", timeout=60000)
+        assert open(graph).read() == served_text                     # the served graph's file untouched
+        assert "figure_rgba.png" in (tmp_path / "served" / "mine" / "scene.yaml").read_text()
+        assert not errors, errors
+        page.close()
+
+
+def test_an_error_while_dragging_does_not_move_the_image_under_the_pointer(browser, tmp_path):
+    """The cutout dragged off the photo and back: the previews off the photo fail and the
+    error appears under the image, which shrinks the stage. The view keeps its place while
+    the pointer is down (it re-fits after), so the drag ends where the pointer does.
+    Before, the view re-fitted at once: the image moved under the pointer (half the
+    error's height) and the rest of the drag landed that far off."""
+    graph = own_photo_copy(str(tmp_path))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        foot = graph_params(url)["place"]["foot"]
+        view = {k: page.evaluate(f"window.pixgraphView.state.{k}") for k in ("k", "ox", "oy")}
+        h0 = page.locator("#stage").bounding_box()["height"]
+        bx, by = centre(page, "#cutout-box")
+        seq = last_seq(page)
+        page.mouse.move(bx, by)
+        page.mouse.down()
+        page.mouse.move(bx + 900, by, steps=6)
+        page.wait_for_selector("#error:not([hidden])", timeout=60000)
+        assert "node 'place'" in page.inner_text("#error")
+        assert page.locator("#stage").bounding_box()["height"] < h0 - 20       # the stage did shrink
+        assert {k: page.evaluate(f"window.pixgraphView.state.{k}") for k in ("k", "ox", "oy")} == view
+        page.mouse.move(bx + 20, by + 10, steps=6)
+        page.wait_for_function("(q => !q.inflight && !q.pending)(window.pixgraphQueue())", timeout=60000)
+        page.mouse.up()
+        wait_final(page, seq)
+        k = view["k"]
+        assert graph_params(url)["place"]["foot"] == pytest.approx([foot[0] + 20 / k, foot[1] + 10 / k], abs=1.5)
+        assert page.locator("#error").is_hidden()
+        assert not errors, errors
+        page.close()
+
+
+def test_find_horizon_lines_start_on_a_newly_opened_photo(browser, tmp_path):
+    """"find horizon" lays its two lines on the floor of the image shown (at 25-35 % and
+    65-75 % of its width, 70-95 % of its height). Used on the served graph and then on a
+    photo opened after it, they started where they were on the first image (here its
+    640x480 pixels: the top left eighth of a 1920x1440 photo)."""
+    files = photo_files(str(tmp_path / "mine"), 1920, 1440, mask=False)
+    graph = own_photo_copy(str(tmp_path / "served"))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        page.click("#find-horizon")
+        assert centre(page, "#finder-0-0") == pytest.approx(screen(page, 0.25 * 640, 0.95 * 480), abs=1.5)
+        page.click("#find-horizon")                 # off again
+        page.click("#open")
+        page.set_input_files("#open-photo", files["photo"])
+        page.set_input_files("#open-cutout", files["cutout"])
+        seq = last_seq(page)
+        page.click("#open-go")
+        page.wait_for_selector("body[data-ready='2']", state="attached", timeout=180000)
+        wait_final(page, seq)
+        page.click("#find-horizon")
+        # read in one go in the page (a re-render for the new view may redraw the handles)
+        pins = page.evaluate("""() => [0, 1].flatMap((i) => [0, 1].map((j) => {
+            const e = document.getElementById(`finder-${i}-${j}`);
+            return [Number(e.getAttribute('x')) + 5, Number(e.getAttribute('y')) + 5]; }))""")
+        want = [page.evaluate(f"window.pixgraphView.toScreen({u * 1920}, {v * 1440})")
+                for u, v in ((0.25, 0.95), (0.35, 0.7), (0.75, 0.95), (0.65, 0.7))]
+        assert np.asarray(pins) == pytest.approx(np.asarray(want), abs=0.5)
+        assert not errors, errors
+        page.close()

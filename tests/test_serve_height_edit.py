@@ -230,3 +230,61 @@ def test_render_answers_a_jpeg_preview(photo_state):
         assert np.abs(np.asarray(img, np.float32) - ref).mean() < 3.0      # the same picture, lossy
         bad = c.post("/api/render", json={"mode": "preview", "format": "gif"})
         assert bad.status_code == 400 and "format" in bad.json()["error"]
+
+
+def test_a_render_a_node_refuses_leaves_the_graph_as_it_was(tmp_path):
+    """The cutout dragged off the photo: PlaceCutout refuses it (400, naming the node), and the
+    served graph keeps the foot it had, so /api/scene (what the page loads its handles and panel
+    from) still answers and the next render of another edit works. Before, the refused foot
+    stayed in the graph: every later render and /api/scene failed with the same error, and a
+    reload of the page showed nothing but that error (no image, no panel to fix it in)."""
+    from starlette.testclient import TestClient
+
+    paths = _assets(str(tmp_path))
+    text = files.fill(files.template_text("own_photo"), paths, {"W": 640, "H": 480, "w": 159, "h": 285})
+    (tmp_path / "g.yaml").write_text(text)
+    state = ServeState(str(tmp_path / "g.yaml"))
+    state.set_type("shadow", "pixgraph.HardShadow")
+    foot = state.info()["nodes"][[n["id"] for n in state.info()["nodes"]].index("place")]["values"]["foot"]
+    with TestClient(serve_app.create_app(state)) as c:
+        for path, body in (("/api/render", {"params": {"place.foot": [5000, 345]}}),
+                           ("/api/run", {"params": {"place.foot": [5000, 345]}, "outputs": ["final"]}),
+                           ("/api/render", {"params": {"place.foot": [5000, 345]}, "mode": "preview",
+                                            "work": 0.5, "client": "a", "seq": 1})):
+            r = c.post(path, json=body)
+            assert r.status_code == 400 and r.json()["node"] == "place", (path, r.text)
+            assert "placed cutout lies outside the" in r.json()["error"]
+            # the preview's numbers are at its working resolution (a 320x240 canvas, the foot
+            # at half): the error says so, or they read as wrong numbers of the user's photo
+            if body.get("work"):
+                assert "320x240" in r.json()["error"] and "working resolution 0.5" in r.json()["error"]
+            values = {n["id"]: n["values"] for n in c.get("/api/graph").json()["nodes"]}
+            assert values["place"]["foot"] == foot, path
+            assert c.get("/api/scene").status_code == 200, path
+        ok = c.post("/api/render", json={"params": {"light.azimuth": -20}})
+        assert ok.status_code == 200 and ok.headers["content-type"] == "image/png"
+
+
+def test_a_contact_point_on_the_cutouts_bottom_edge_works_in_previews(photo_state):
+    """The page clamps a contact point to the cutout's pixel edges [0, w] x [0, h]; a drag
+    to the foot's bottom edge gives v = h, which the final takes. At a preview's working
+    resolution the cutout is round(h x scale) rows, here less than h x scale, and the edge
+    point was refused ("outside the 80x142 cutout", the working size) on every preview
+    of the drag. It now lies on the scaled cutout's edge: the same edit as the point
+    moved onto that edge by hand."""
+    state = photo_state
+    h = state.run(["cutout.alpha"])["cutout.alpha"].shape[0]
+    assert h == 285 and int(h * 0.5) != h * 0.5               # 142 rows at half size, not 142.5
+    edge, inside = [58.5, float(h)], [58.5, 2.0 * int(h * 0.5)]   # 285 -> 142.5; 284 -> 142.0
+    serve_app.apply_edits(state, {"params": {"edit.contact_points": edge}})
+    at_edge = state.run(["edit.height"], "preview", scale=0.5)["edit.height"]
+    full = state.run(["edit.height"], "final")["edit.height"]
+    serve_app.apply_edits(state, {"params": {"edit.contact_points": inside}})
+    moved = state.run(["edit.height"], "preview", scale=0.5)["edit.height"]
+    assert np.array_equal(at_edge, moved)
+    assert full.shape == (285, 159) and at_edge.shape == (142, 80)
+    # further out than that is still a mistake, named by node and param
+    serve_app.apply_edits(state, {"params": {"edit.contact_points": [58.5, h + 3.0]}})
+    with pytest.raises(Exception, match=r"edit.*contact_points.*outside"):
+        state.run(["edit.height"], "final")
+    serve_app.apply_edits(state, {"params": {"edit.contact_points": []}})

@@ -8,13 +8,14 @@ import http.server
 import os
 import shutil
 import signal
+import tempfile
 import threading
 import time
 
 import httpx
 import pytest
 
-from serve_helpers import copy_scene, start_server
+from serve_helpers import REPO, copy_scene, start_server
 
 EVIL_GRAPH = """pixgraph: 1
 nodes:
@@ -280,7 +281,38 @@ def test_a_signal_stops_an_idle_server(tmp_path):
         assert proc.wait(timeout=5) == 0
 
 
-def test_bad_serve_options_exit_2_with_one_line(tmp_path, capsys):
+@pytest.mark.parametrize("busy", [False, True])
+def test_a_stopped_server_leaves_no_uploaded_photo_behind(tmp_path, busy):
+    """The photos and cutouts opened in the page go to an upload folder the server made;
+    it is removed when the server stops (idle or mid-render), so the user's photos do not
+    stay in the temporary folder (a graph saved from the page reads copies beside it).
+    Before, every stop left the folder and its files behind."""
+    with start_server(copy_scene(str(tmp_path / "scene")), "--no-token") as (url, _, proc):
+        with open(os.path.join(REPO, "graphs", "assets", "figure.png"), "rb") as f:
+            r = httpx.put(url + "/api/uploads/mine.png", content=f.read(), timeout=60)
+        r.raise_for_status()
+        folder = os.path.dirname(r.json()["path"])
+        assert os.path.isfile(os.path.join(folder, "mine.png"))
+        if busy:
+            async def go():
+                async with httpx.AsyncClient(base_url=url, timeout=600) as c:
+                    long = asyncio.create_task(c.post("/api/render", json={"params": {"shadow.samples": 65536}}))
+                    for _ in range(6000):
+                        if long.done() or (await c.get("/api/status")).json()["running"]:
+                            break
+                        await asyncio.sleep(0.01)
+                    proc.send_signal(signal.SIGTERM)
+                    code = await asyncio.get_running_loop().run_in_executor(None, proc.wait, 5)
+                    long.cancel()
+                    return code
+            assert asyncio.run(go()) == 0
+        else:
+            proc.send_signal(signal.SIGTERM)
+            assert proc.wait(timeout=5) == 0
+    assert not os.path.exists(folder)
+
+
+def test_bad_serve_options_exit_2_with_one_line(tmp_path, capsys, monkeypatch):
     graph = copy_scene(str(tmp_path / "scene"))
     import socket
 
@@ -292,10 +324,15 @@ def test_bad_serve_options_exit_2_with_one_line(tmp_path, capsys):
              ["--port", str(busy.getsockname()[1])], ["--host", "no-such-host.invalid"]]
     from pixgraph.cli import main
 
+    temp = tmp_path / "temp"          # where the server would make its upload folder
+    temp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temp))
     for extra in cases + [None]:
         args = [graph, *extra] if extra is not None else [str(tmp_path / "missing.yaml")]
         code = main(["serve", "--port", "0", *args])           # in-process: each fails before serving
         err = capsys.readouterr().err
         assert code == 2, (extra, err)
         assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, (extra, err)
+    # none of them left an upload folder behind
+    assert os.listdir(temp) == []
     busy.close()

@@ -2,7 +2,7 @@
 // "height_edit", e.g. pixgraph.PixelHeightEdit), drawn over the placed cutout:
 //   contact points (orange): where the object touches the ground, in the cutout's
 //     pixels mapped to the image by the scene's `frame`; a drag from the hollow
-//     handle at the cutout's foot adds one (or "+ contact", then a press on the
+//     handle just under the cutout's foot adds one (or "+ contact", then a press on the
 //     image), "- contact" removes the last; each point is dragged on its own;
 //   tilt (orange square): on the object's top, a guide down to the ground under it;
 //     pulled up the object stands taller, pushed down it leans back (tilt, about the
@@ -16,9 +16,12 @@
 "use strict";
 
 import {$} from "./app.js";
-import {extraHandles, handle, round, svgEl} from "./handles.js";
+import {extraHandles, handle, R, round, svgEl} from "./handles.js";
 import {finalize, ui} from "./render.js";
-import {eventToImage, toScreen} from "./view.js";
+import {eventToImage, toScreen, view} from "./view.js";
+
+//: how far under the cutout's foot the "new contact" ring is drawn [screen px]
+const GHOST_BELOW = 2.6 * R;
 
 let adding = false;
 
@@ -90,9 +93,12 @@ function drawHeightEdit(s) {
     svgEl("polyline", {class: `guide contact${lying ? " off" : ""}`, points: line.join(" ")});
   }
   if (!lying) {
-    // the cutout's foot: dragged from there, a new contact point (the first replaces the
-    // input's implicit contact, the lowest row; more: a line, several feet)
-    const el = handle("contact ghost", "contact-new", toCanvas(e, e.foot), (p) =>
+    // just under the cutout's foot (GHOST_BELOW screen px, clear of the cutout's own foot
+    // square, which moves the cutout): dragged from there, a new contact point where it is
+    // let go (the first replaces the input's implicit contact, the lowest row; more: a
+    // line, several feet)
+    const [fu, fv] = toCanvas(e, e.foot);
+    const el = handle("contact ghost", "contact-new", [fu, fv + GHOST_BELOW / view.k], (p) =>
       ({edits: param(e, "points", [...(vals.points || []), ...toCutout(e, p)]), at: p}));
     el.setAttribute("title", "drag from the cutout's foot to where it touches the ground: a contact point");
   }

@@ -9,7 +9,7 @@ import {finalize, ui} from "./render.js";
 import {eventToImage, toScreen, view} from "./view.js";
 
 const SVG = "http://www.w3.org/2000/svg";
-export const finder = {on: false, lines: null};
+export const finder = {on: false, lines: null, size: null};
 
 // Where lines a and b (each two image points) meet, or null when they are parallel.
 export function meet(a, b) {
@@ -22,9 +22,12 @@ export function meet(a, b) {
 
 export function toggleFinder() {
   finder.on = !finder.on;
-  if (finder.on && !finder.lines) {
-    const {W, H} = view;
+  const {W, H} = view;
+  // laid on the floor of the image shown; again on an image of another size (a photo
+  // opened since): the lines were in the first image's pixels
+  if (finder.on && (!finder.lines || finder.size[0] !== W || finder.size[1] !== H)) {
     finder.lines = [[[0.25 * W, 0.95 * H], [0.35 * W, 0.7 * H]], [[0.75 * W, 0.95 * H], [0.65 * W, 0.7 * H]]];
+    finder.size = [W, H];
   }
   $("find-horizon").classList.toggle("on", finder.on);
   drawFinder();

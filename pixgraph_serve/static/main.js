@@ -6,7 +6,7 @@ import {wireFiles} from "./files.js";
 import {cutoutWheel, drawHandles} from "./handles.js";
 import {syncHeightTools, wireHeightTools} from "./heightedit.js";
 import {buildPanel, syncControls, wireToolbar} from "./panel.js";
-import {finalize, refresh, render, ui} from "./render.js";
+import {finalize, markBad, refresh, render, ui} from "./render.js";
 import {setImageSize, view, wireView} from "./view.js";
 
 let reRender = null;
@@ -20,20 +20,33 @@ function onViewChange() {
 }
 
 // The graph, its handles and a first final image: at start and after opening files.
+// A graph a node refuses (its scene cannot be described) still gets its param panel, the
+// node's error and its field marked, so it can be mended in the page.
 async function load() {
+  let failed = null;
   try {
     await refresh();
   } catch (err) {
-    showError(err.message);
+    failed = err;
+  }
+  if (!ui.info) {           // not even the graph: nothing to show but the error
+    showError(failed.message);
     return;
   }
   if (ui.scene.camera) setImageSize(ui.scene.camera.width, ui.scene.camera.height);
-  if (!$("save-name").value) $("save-name").value = ui.info.file.split(/[\\/]/).pop();
+  // what the server proposes (the last name saved, the opened photo's, else the served file's):
+  // a reload keeps it, so "save" does not write the user's graph over the served one
+  if (!$("save-name").value) $("save-name").value = ui.info.save_as || ui.info.file.split(/[\\/]/).pop();
   buildPanel();
   syncControls();
   syncHeightTools();
   drawHandles();
-  await render({}, "final");
+  if (failed) {
+    showError(failed.message);
+    markBad(failed.data);
+  } else {
+    await render({}, "final");
+  }
   document.body.dataset.synced = ui.shownSeq;
   document.body.dataset.ready = String(Number(document.body.dataset.ready || 0) + 1);
 }
@@ -42,6 +55,7 @@ function main() {
   wireView();
   view.listeners.push(onViewChange);
   view.wheelHook = cutoutWheel;
+  view.holdFit = () => !!ui.drag;      // re-fitted after the drag, when the scene comes (setImageSize)
   ui.onScene.push(() => {
     if (ui.scene.camera) setImageSize(ui.scene.camera.width, ui.scene.camera.height);
     syncControls();

@@ -109,15 +109,21 @@ export async function finalize(edits) {
   return ok === true;
 }
 
-// Graph and handles from the server, after an edit has been applied.
+// Graph and handles from the server, after an edit has been applied. When the scene
+// cannot be described (a node of the graph refuses its params, e.g. a served graph whose
+// cutout lies off the photo), the graph and its param panel still come, without
+// handles, and the scene's error is thrown after them: the param can be fixed here.
 export async function refresh() {
-  let notes;
-  [ui.info, ui.scene, notes] = await Promise.all([api("GET", "/api/graph"), api("GET", "/api/scene"),
-                                                  api("GET", "/api/notes").catch(() => ({notes: []}))]);
+  let notes, failed = null;
+  [ui.info, ui.scene, notes] = await Promise.all([
+    api("GET", "/api/graph"),
+    api("GET", "/api/scene").catch((err) => { failed = err; return {roles: {}}; }),
+    api("GET", "/api/notes").catch(() => ({notes: []}))]);
   showNotes(notes.notes);
   showLines("logs", notes.logs);
   for (const f of ui.onScene) f();
   document.body.dataset.synced = ui.shownSeq;
+  if (failed) throw failed;
 }
 
 // Lines of text under the image: the graph check's warnings (#notes, e.g. a horizon

@@ -14,6 +14,7 @@ export const view = {
   fitted: true,
   listeners: [],            // called after every zoom, pan or resize
   wheelHook: null,          // (event, [u, v]) -> true when it used the wheel event
+  holdFit: null,            // () -> true while a handle is dragged: the stage resized, the view stays
 };
 
 export function toScreen(u, v) { return [view.ox + u * view.k, view.oy + v * view.k]; }
@@ -162,6 +163,8 @@ export function wireView() {
   $("zoom-1").addEventListener("click", oneToOne);
   $("zoom-in").addEventListener("click", () => zoomCentre(1.5));
   $("zoom-out").addEventListener("click", () => zoomCentre(1 / 1.5));
-  new ResizeObserver(() => (view.fitted ? fit() : changed())).observe(stage);
+  // a fitted view re-fits when the stage changes size (the window, or a message under the
+  // image), except while a handle is dragged: the image would move under the pointer
+  new ResizeObserver(() => (view.fitted && !(view.holdFit && view.holdFit()) ? fit() : changed())).observe(stage);
   window.pixgraphView = {toScreen, toImage, imageDataURL, state: view};
 }
