@@ -7,6 +7,14 @@ around them); edits build a new immutable ``Graph`` and swap it in, so a run in
 progress keeps the graph it started with, and an edit that fails anywhere leaves
 the graph as it was (``edit`` is all or nothing).
 
+**Undo.** The server keeps the history of the graph's states (``undo``, ``redo``):
+each a reference to an immutable ``Graph`` (node types, params, wiring: no pixels)
+and the params stashed by type switches, at most ``Limits.undo_steps`` of them. An
+edit made through ``edit(..., step=True)`` that changes the graph keeps the state
+before it, unless it carries the same ``action`` as the step before (a drag's
+previews and its final: one step). One history per server, shared by its clients,
+as the graph is; a reload of the page keeps it.
+
 The session keeps its memory cache across requests: a light drag changes one
 param of the light node, so only the nodes downstream of it run again. Runs at a
 working resolution below full size (the page's previews) have a session and cache
@@ -56,6 +64,8 @@ class Limits:
     #: memory cache of the runs at a working resolution below 1 (the page's previews), kept
     #: apart from the full-size runs' so a final of a large photo cannot evict them [bytes]
     scaled_cache_bytes: int = 512 << 20
+    #: graph states kept to undo (each a reference to an immutable graph: params, no pixels)
+    undo_steps: int = 100
 
 
 class Deadlines:
@@ -93,6 +103,19 @@ class Deadlines:
                         del self._items[token]
                 nearest = min((d for d, _ in self._items.values()), default=None)
                 self._cv.wait(None if nearest is None else max(0.0, nearest - now))
+
+
+@dataclasses.dataclass(frozen=True)
+class Step:
+    """A state of the edit history: the graph (immutable: node types, params and wiring,
+    never pixels) and the params its type switches stashed (``ServeState.set_type``)."""
+
+    graph: Graph
+    stash: Mapping[tuple[str, str], dict]
+
+
+#: the most characters of an edit's ``action`` (the page's id of one user action)
+MAX_ACTION = 200
 
 
 def _graph_errors(fn):
@@ -141,6 +164,9 @@ class ServeState:
         #: the name the page proposes to save under (``info()["save_as"]``): the last file
         #: saved, or after ``/api/open`` the photo's name; None: the served file
         self.save_name: str | None = None
+        self._undo: list[Step] = []     # oldest first
+        self._redo: list[Step] = []     # the next redo last
+        self._action: str | None = None   # the action of the newest undo step (None: ended)
         try:
             self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
         except BaseException:
@@ -237,7 +263,8 @@ class ServeState:
         """The graph as the UI and API clients see it: nodes in file order with the
         params set and their effective values, inputs, outputs, and node types (those
         used, and those a node may be switched to: ``alternatives``); ``save_as``: the
-        name the page proposes to save under (``save_name``)."""
+        name the page proposes to save under (``save_name``); ``history``: the undo and
+        redo steps there are (``history()``)."""
         from pixgraph.reference import as_dict
 
         g = self.graph
@@ -254,7 +281,7 @@ class ServeState:
         return {"file": self.graph_path, "save_as": self.save_name or os.path.basename(self.graph_path), "nodes": nodes,
                 "outputs": {k: str(v) for k, v in g.outputs.items()},
                 "types": {t: as_dict(self.registry.get(t)) for t in sorted(used)},
-                "limits": dataclasses.asdict(self.limits)}
+                "limits": dataclasses.asdict(self.limits), "history": self.history()}
 
     def handles(self, type_id: str) -> dict | None:
         """The ``handles`` a node type declares (a dict with a ``kind``), or None."""
@@ -274,20 +301,69 @@ class ServeState:
 
     # -- edits (all or nothing) ---------------------------------------------------
 
-    def edit(self, apply, keep_on: tuple = ()):
+    def edit(self, apply, keep_on: tuple = (), step: bool = False, action: str | None = None):
         """Call ``apply()`` (any number of ``set_*`` calls, and a run of the edited graph)
-        and return what it returns; if it raises, the graph and the stashed params are
-        restored and the error propagates: nothing is half-applied. An exception of a class
-        in ``keep_on`` keeps the edits (a render cancelled by a newer one of the page: the
-        newer one carries only its own edits)."""
-        graph, stash = self.graph, dict(self._stash)
+        and return what it returns; if it raises, the graph, the stashed params and the
+        undo history are restored and the error propagates: nothing is half-applied. An
+        exception of a class in ``keep_on`` keeps the edits (a render cancelled by a newer
+        one of the page: the newer one carries only its own edits).
+
+        step: the edit is a user's (``undo`` can take it back): when it changed the graph,
+        the state before it becomes an undo step and the redo steps are dropped, unless
+        ``action`` (the page's id of one user action, e.g. a whole drag) is the action of
+        the newest step: then it continues that step."""
+        if action is not None and (not isinstance(action, str) or len(action) > MAX_ACTION):
+            raise ServeError(400, f"action must be a string of at most {MAX_ACTION} characters", field="action")
+        before = Step(self.graph, dict(self._stash))
+        history = (list(self._undo), list(self._redo), self._action)
         try:
-            return apply()
+            out = apply()
         except keep_on:
+            if step:
+                self._record(before, action)
             raise
         except BaseException:
-            self.graph, self._stash = graph, stash
+            self.graph, self._stash = before.graph, dict(before.stash)
+            self._undo, self._redo, self._action = history
             raise
+        if step:
+            self._record(before, action)
+        return out
+
+    def _record(self, before: Step, action: str | None) -> None:
+        if self.graph == before.graph:
+            return                       # nothing changed (a re-sent final, a render of the same params)
+        if action is not None and action == self._action and self._undo:
+            return                       # the same user action goes on: its first state is kept
+        self._undo.append(before)
+        del self._undo[:-max(1, self.limits.undo_steps)]
+        self._redo.clear()
+        self._action = action
+
+    def history(self) -> dict:
+        """``{"undo": steps, "redo": steps, "limit": undo_steps}``."""
+        return {"undo": len(self._undo), "redo": len(self._redo), "limit": self.limits.undo_steps}
+
+    def undo(self) -> Graph:
+        """Go back to the state before the newest step (its graph and stashed params);
+        the state left goes on the redo list. 409 when there is nothing to undo."""
+        return self._move(self._undo, self._redo, "undo")
+
+    def redo(self) -> Graph:
+        """Go forward to the state the newest undo left; 409 when there is nothing to redo."""
+        return self._move(self._redo, self._undo, "redo")
+
+    def _move(self, source: list[Step], dest: list[Step], what: str) -> Graph:
+        if not source:
+            raise ServeError(409, f"nothing to {what}: the history has {len(self._undo)} step(s) to undo "
+                                  f"and {len(self._redo)} to redo", field=what)
+        target = source[-1]
+        graph = self._checked(target.graph)   # the path and pixel rules again: files change
+        dest.append(Step(self.graph, dict(self._stash)))
+        source.pop()
+        self.graph, self._stash = graph, dict(target.stash)
+        self._action = None              # the next edit starts a step of its own
+        return self.graph
 
     def set_params(self, params: Mapping[str, Any]) -> Graph:
         """Apply ``{"node.param": value}`` (or ``{"node": {"param": value}}``) edits."""
