@@ -359,9 +359,17 @@ async def _history_move(request: Request, which: str):
     """Undo or redo, answered with the restored graph (``GET /api/graph``'s), its handles
     (``GET /api/scene``'s; when the scene cannot be described, ``scene`` is null and
     ``scene_error`` says why) and its YAML, so a client redraws without asking again.
-    Files on disk are never touched: a saved graph stays as saved."""
-    await json_body(request)      # a JSON POST like every other edit (415 otherwise); {} or empty
+    Files on disk are never touched: a saved graph stays as saved. ``client`` and ``seq``
+    (optional, as in ``/api/render``) supersede that page's renders."""
+    data = await json_body(request)      # a JSON POST like every other edit (415 otherwise); {} or empty
     state = _serve(request)
+    client, seq = data.get("client"), data.get("seq")
+    if client is not None:
+        # the page's client and a new seq: its render still running (of the state being left)
+        # is cancelled rather than waited for, as a newer render would cancel it
+        if not isinstance(client, str) or isinstance(seq, bool) or not isinstance(seq, int):
+            raise ServeError(400, "client must be a string and seq an integer", field="seq")
+        request.app.state.renders.claim(client, seq)
 
     def work():
         getattr(state, which)()

@@ -1,0 +1,92 @@
+"""Undo and redo in the page, in headless Chromium: a drag of the pixel height's tilt handle
+(many previews) is one step; Ctrl+Z brings back the param, the image the page draws (its
+pixels) and the handle's place, Ctrl+Shift+Z the drag again; Ctrl+Z in a text field is
+the field's own; the toolbar's buttons are disabled with nothing to undo or redo and
+undo a toggle. The own-photo graph with the hand edit (test_page_height_edit.py's)."""
+import httpx
+import numpy as np
+import pytest
+
+from serve_helpers import chromium_browser, running_server
+from test_page_height_edit import edit_graph
+from test_page_photo import centre, drag, graph_params, keep, last_seq, open_page, shown, wait_final
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with chromium_browser() as b:
+        yield b
+
+
+def history(url) -> dict:
+    return httpx.get(url + "/api/graph", timeout=60).json()["history"]
+
+
+def test_ctrl_z_takes_a_whole_drag_back_and_ctrl_shift_z_redoes_it(browser, tmp_path):
+    graph = edit_graph(str(tmp_path))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        assert page.locator("#undo").is_disabled() and page.locator("#redo").is_disabled()
+        tilt0 = graph_params(url)["edit"]["tilt"]
+        before = shown(page)
+        handle0 = centre(page, "#tilt-handle")
+        # the tilt handle pushed 40 px down in 8 steps, held until a preview was drawn
+        drag(page, handle0, (handle0[0], handle0[1] + 40), steps=8, hold_for_preview=True)
+        previews = page.evaluate("window.pixgraphShown.filter(s => s.mode === 'preview').length")
+        assert previews >= 1
+        tilt1 = graph_params(url)["edit"]["tilt"]
+        assert tilt1 > tilt0 + 5
+        after = shown(page)
+        assert after.shape == before.shape and np.abs(after - before).mean(axis=2).max() > 0.1   # the shadow moved
+        assert history(url) == {"undo": 1, "redo": 0, "limit": 100}                 # one step, not one per preview
+        assert page.locator("#undo").is_enabled() and page.locator("#redo").is_disabled()
+        keep(page, "undo_dragged.png")
+
+        seq = last_seq(page)
+        page.locator("#stage").click(position={"x": 5, "y": 5})   # the page has the focus, no field
+        page.keyboard.press("Control+z")
+        wait_final(page, seq)
+        assert graph_params(url)["edit"]["tilt"] == tilt0
+        undone = shown(page)
+        assert undone.shape == before.shape
+        assert np.abs(undone - before).max() < 1.5 / 255          # the same image as before the drag
+        assert centre(page, "#tilt-handle") == pytest.approx(handle0, abs=0.5)
+        assert float(page.locator('[data-param="edit.tilt"]').input_value()) == tilt0
+        assert page.locator("#undo").is_disabled() and page.locator("#redo").is_enabled()
+        keep(page, "undo_undone.png")
+
+        seq = last_seq(page)
+        page.keyboard.press("Control+Shift+z")
+        wait_final(page, seq)
+        assert graph_params(url)["edit"]["tilt"] == tilt1
+        assert np.abs(shown(page) - after).max() < 1.5 / 255
+        assert history(url) == {"undo": 1, "redo": 0, "limit": 100}
+
+        # Ctrl+Z while typing in a param's field is the field's own: the graph keeps the drag
+        field = page.locator('[data-param="light.radius"]')
+        field.click()
+        field.press("End")
+        field.type("5")
+        field.press("Control+z")
+        page.wait_for_timeout(300)
+        assert history(url) == {"undo": 1, "redo": 0, "limit": 100}
+        assert graph_params(url)["edit"]["tilt"] == tilt1
+        field.press("Escape")
+
+        # a toggle is one step too; the toolbar's undo button takes it back (Ctrl+Y redoes)
+        seq = last_seq(page)
+        page.check("#lying")
+        wait_final(page, seq)
+        assert graph_params(url)["edit"]["lying"] is True and history(url)["undo"] == 2
+        seq = last_seq(page)
+        page.click("#undo")
+        wait_final(page, seq)
+        assert graph_params(url)["edit"]["lying"] is False and not page.locator("#lying").is_checked()
+        assert np.abs(shown(page) - after).max() < 1.5 / 255
+        seq = last_seq(page)
+        page.locator("#stage").click(position={"x": 5, "y": 5})
+        page.keyboard.press("Control+y")
+        wait_final(page, seq)
+        assert graph_params(url)["edit"]["lying"] is True and page.locator("#lying").is_checked()
+        assert not errors, errors
+        page.close()
