@@ -7,13 +7,9 @@ around them); edits build a new immutable ``Graph`` and swap it in, so a run in
 progress keeps the graph it started with, and an edit that fails anywhere leaves
 the graph as it was (``edit`` is all or nothing).
 
-**Undo.** The server keeps the history of the graph's states (``undo``, ``redo``):
-each a reference to an immutable ``Graph`` (node types, params, wiring: no pixels)
-and the params stashed by type switches, at most ``Limits.undo_steps`` of them. An
-edit made through ``edit(..., step=True)`` that changes the graph keeps the state
-before it, unless it carries the same ``action`` as the step before (a drag's
-previews and its final: one step). One history per server, shared by its clients,
-as the graph is; a reload of the page keeps it.
+**Undo.** An edit made through ``edit(..., step=True)`` keeps the graph's state before
+it in the undo history (``history.py``: params, no pixels); ``undo`` and ``redo`` move
+through it. One history per server, shared by its clients as the graph is.
 
 The session keeps its memory cache across requests: a light drag changes one
 param of the light node, so only the nodes downstream of it run again. Runs at a
@@ -40,6 +36,7 @@ from pixgraph.paths import PathError
 from pixgraph.session import Session
 
 from .errors import RunTimeout, ServeError, serve_error
+from .history import History, Step
 
 #: image file extensions whose header is checked against the pixel limit
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".hdr")
@@ -105,19 +102,6 @@ class Deadlines:
                 self._cv.wait(None if nearest is None else max(0.0, nearest - now))
 
 
-@dataclasses.dataclass(frozen=True)
-class Step:
-    """A state of the edit history: the graph (immutable: node types, params and wiring,
-    never pixels) and the params its type switches stashed (``ServeState.set_type``)."""
-
-    graph: Graph
-    stash: Mapping[tuple[str, str], dict]
-
-
-#: the most characters of an edit's ``action`` (the page's id of one user action)
-MAX_ACTION = 200
-
-
 def _graph_errors(fn):
     """Run ``fn()``; a GraphError (a PathError is one) becomes its ServeError."""
     try:
@@ -164,9 +148,7 @@ class ServeState:
         #: the name the page proposes to save under (``info()["save_as"]``): the last file
         #: saved, or after ``/api/open`` the photo's name; None: the served file
         self.save_name: str | None = None
-        self._undo: list[Step] = []     # oldest first
-        self._redo: list[Step] = []     # the next redo last
-        self._action: str | None = None   # the action of the newest undo step (None: ended)
+        self.steps = History(self.limits.undo_steps)
         try:
             self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
         except BaseException:
@@ -312,57 +294,40 @@ class ServeState:
         the state before it becomes an undo step and the redo steps are dropped, unless
         ``action`` (the page's id of one user action, e.g. a whole drag) is the action of
         the newest step: then it continues that step."""
-        if action is not None and (not isinstance(action, str) or len(action) > MAX_ACTION):
-            raise ServeError(400, f"action must be a string of at most {MAX_ACTION} characters", field="action")
-        before = Step(self.graph, dict(self._stash))
-        history = (list(self._undo), list(self._redo), self._action)
+        History.check_action(action)
+        before, saved = Step(self.graph, dict(self._stash)), self.steps.save()
         try:
             out = apply()
         except keep_on:
             if step:
-                self._record(before, action)
+                self.steps.record(before, self.graph, action)
             raise
         except BaseException:
             self.graph, self._stash = before.graph, dict(before.stash)
-            self._undo, self._redo, self._action = history
+            self.steps.restore(saved)
             raise
         if step:
-            self._record(before, action)
+            self.steps.record(before, self.graph, action)
         return out
 
-    def _record(self, before: Step, action: str | None) -> None:
-        if self.graph == before.graph:
-            return                       # nothing changed (a re-sent final, a render of the same params)
-        if action is not None and action == self._action and self._undo:
-            return                       # the same user action goes on: its first state is kept
-        self._undo.append(before)
-        del self._undo[:-max(1, self.limits.undo_steps)]
-        self._redo.clear()
-        self._action = action
-
     def history(self) -> dict:
-        """``{"undo": steps, "redo": steps, "limit": undo_steps}``."""
-        return {"undo": len(self._undo), "redo": len(self._redo), "limit": self.limits.undo_steps}
+        """``{"undo": steps, "redo": steps, "limit": Limits.undo_steps}``."""
+        return self.steps.counts()
 
     def undo(self) -> Graph:
         """Go back to the state before the newest step (its graph and stashed params);
-        the state left goes on the redo list. 409 when there is nothing to undo."""
-        return self._move(self._undo, self._redo, "undo")
+        the state left can be redone. 409 when there is nothing to undo."""
+        return self._go("undo")
 
     def redo(self) -> Graph:
         """Go forward to the state the newest undo left; 409 when there is nothing to redo."""
-        return self._move(self._redo, self._undo, "redo")
+        return self._go("redo")
 
-    def _move(self, source: list[Step], dest: list[Step], what: str) -> Graph:
-        if not source:
-            raise ServeError(409, f"nothing to {what}: the history has {len(self._undo)} step(s) to undo "
-                                  f"and {len(self._redo)} to redo", field=what)
-        target = source[-1]
+    def _go(self, what: str) -> Graph:
+        target = self.steps.peek(what)
         graph = self._checked(target.graph)   # the path and pixel rules again: files change
-        dest.append(Step(self.graph, dict(self._stash)))
-        source.pop()
+        self.steps.moved(what, Step(self.graph, dict(self._stash)))
         self.graph, self._stash = graph, dict(target.stash)
-        self._action = None              # the next edit starts a step of its own
         return self.graph
 
     def set_params(self, params: Mapping[str, Any]) -> Graph:
