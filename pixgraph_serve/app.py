@@ -369,7 +369,8 @@ async def _history_move(request: Request, which: str):
         # is cancelled rather than waited for, as a newer render would cancel it
         if not isinstance(client, str) or isinstance(seq, bool) or not isinstance(seq, int):
             raise ServeError(400, "client must be a string and seq an integer", field="seq")
-        request.app.state.renders.claim(client, seq)
+        if state.history()[which]:    # nothing to move: leave its render alone (the answer is a 409)
+            request.app.state.renders.claim(client, seq)
 
     def work():
         getattr(state, which)()

@@ -251,3 +251,22 @@ def test_undo_is_guarded_like_every_post(tmp_path):
         r = c.post("/api/undo", json={}, headers={**ok, "Origin": "http://testserver"})   # the page's own
         assert r.status_code == 200
         assert state.graph.nodes["light"].params["azimuth"] == -25
+
+
+def test_an_undo_from_the_page_supersedes_its_older_renders(tmp_path):
+    """The page sends its client id and a new seq with an undo: a render of that page still
+    running (a final of the state being left) is cancelled and an older one never starts,
+    as a newer render would do; with nothing to undo its renders are left alone."""
+    state = _state(tmp_path)
+    with _client(state) as c:
+        final = {"mode": "final", "scale": 4, "client": "page"}
+        assert c.post("/api/undo", json={"client": "page", "seq": 3}).status_code == 409
+        assert c.post("/api/render", json={**final, "seq": 3}).status_code == 200      # not claimed by the 409
+        c.post("/api/params", json={"params": {"light.azimuth": 15}})
+        assert c.post("/api/undo", json={"client": "page", "seq": 5}).status_code == 200
+        stale = c.post("/api/render", json={**final, "seq": 4})
+        assert stale.status_code == 409 and stale.json()["error"].startswith("stale")
+        assert c.post("/api/render", json={**final, "seq": 6}).status_code == 200
+        bad = c.post("/api/redo", json={"client": "page", "seq": "7"})
+        assert bad.status_code == 400 and bad.json()["field"] == "seq"
+        assert values(c)["light"]["azimuth"] == -25

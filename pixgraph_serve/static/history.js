@@ -28,17 +28,14 @@ export function syncHistory() {
 async function step(which) {
   if (ui.drag) return;                 // the pointer is still down: the drag has not ended
   await ui.editing;                    // the last edit's final: its edits are in the graph first
-  if (!counts()[which]) {
-    $("status").textContent = `nothing to ${which}`;
-    return;
-  }
   let res;
   try {
     // the client and a new seq: this page's render still running (a final of the state being
     // left, never of an edit: those were waited for) is cancelled, not waited for
     res = await api("POST", `/api/${which}`, {client: ui.client, seq: ++ui.seq});
   } catch (err) {
-    showError(err.message);
+    if (err.status !== 409) showError(err.message);
+    else $("status").textContent = `nothing to ${which}`;    // the server's history is the one that counts
     return;
   }
   ui.info = res.graph;
