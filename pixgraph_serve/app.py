@@ -360,7 +360,8 @@ async def _history_move(request: Request, which: str):
     (``GET /api/scene``'s; when the scene cannot be described, ``scene`` is null and
     ``scene_error`` says why) and its YAML, so a client redraws without asking again.
     Files on disk are never touched: a saved graph stays as saved. ``client`` and ``seq``
-    (optional, as in ``/api/render``) supersede that page's renders."""
+    (optional, as in ``/api/render``) supersede that page's renders; ``"scene": false``
+    leaves the scene out (``scene`` null)."""
     data = await json_body(request)      # a JSON POST like every other edit (415 otherwise); {} or empty
     state = _serve(request)
     client, seq = data.get("client"), data.get("seq")
@@ -372,11 +373,17 @@ async def _history_move(request: Request, which: str):
         if state.history()[which]:    # nothing to move: leave its render alone (the answer is a 409)
             request.app.state.renders.claim(client, seq)
 
+    with_scene = data.get("scene", True)
+    if not isinstance(with_scene, bool):
+        raise ServeError(400, "scene must be true or false", field="scene")
+
     def work():
         getattr(state, which)()
         described, error = None, None
         try:
-            described = scene.describe(state)
+            # the scene may run nodes at full size (a 20 MP photo: seconds): the page asks
+            # without it, shows a preview first and asks for the scene after
+            described = scene.describe(state) if with_scene else None
         except (ServeError, RunTimeout) as e:
             error = serve_error(e).to_json()
         return {which: True, "history": state.history(), "graph": state.info(), "scene": described,

@@ -57,9 +57,10 @@ def test_undo_restores_a_param_and_redo_puts_it_back(tmp_path):
         empty = c.post("/api/undo", content=b"", headers={"Content-Type": "application/json"})
         assert empty.status_code == 200                           # an empty JSON body is {} too
         assert values(c)["light"]["azimuth"] == -25
-        r = c.post("/api/redo", json={})
-        assert r.status_code == 200 and r.json()["redo"] is True
+        r = c.post("/api/redo", json={"scene": False})        # what the page asks: the scene after a preview
+        assert r.status_code == 200 and r.json()["redo"] is True and r.json()["scene"] is None
         assert values(c)["light"]["azimuth"] == 40 and values(c)["shadow"]["thickness"] == 6
+        assert c.post("/api/redo", json={"scene": "no"}).status_code == 400
         assert c.post("/api/redo", json={}).status_code == 200
         assert values(c)["shadow"]["thickness"] == 9
         assert history(c) == {"undo": 2, "redo": 0, "limit": 100}

@@ -20,7 +20,7 @@ import {show, view} from "./view.js";
 //: pixels a preview computes while the pointer moves, at most
 const PREVIEW_PIXELS = 0.5e6;
 //: photos larger than this get a screen-sized preview on release before the final [pixels]
-const RELEASE_PIXELS = 4e6;
+export const RELEASE_PIXELS = 4e6;
 
 export const ui = {
   client: Math.random().toString(36).slice(2), seq: 0, shownSeq: 0,
@@ -28,6 +28,7 @@ export const ui = {
   drag: null, renders: 0, onScene: [],
   action: null, actions: 0,   // the user action in progress (previews sent, final to come), how many so far
   editing: Promise.resolve(), // the last finalize that carried edits (undo waits for it)
+  restoring: 0,               // an undo whose graph's handles are still to come (history.js)
 };
 
 window.pixgraphShown = [];   // what was displayed, for tests and timing
