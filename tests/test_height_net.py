@@ -253,3 +253,24 @@ def test_blas_threads_sets_and_restores():
         assert get() == 2
     finally:
         set_(before)
+
+
+@pytest.mark.parametrize("content", [NPZ.read_bytes()[:100000],                   # cut short (a failed copy)
+                                     b"",                                          # empty
+                                     b"version https://git-lfs.github.com/spec/v1\noid sha256:ab\nsize 3966802\n",
+                                     b"\x93NUMPY not an npz"])
+def test_a_broken_npz_is_an_error_naming_the_file(tmp_path, content):
+    # numpy's own errors ("File is not a zip file", "No data left in file", "This file contains
+    # pickled (object) data ... allow_pickle") name no file and, for the last, suggest unpickling
+    (tmp_path / "w.npz").write_bytes(content)
+    with pytest.raises(ValueError, match=r"w\.npz.*export --npz") as e:
+        lh.LearnedHeightPredictor(tmp_path / "w.npz", backend="numpy")
+    assert "allow_pickle" not in str(e.value)
+
+
+def test_an_npz_of_another_network_is_an_error_naming_the_file(tmp_path):
+    arrays, cfg = hn.load_npz(NPZ)
+    del arrays["head.weight"]
+    hn.write_npz(arrays, cfg, tmp_path / "w.npz")
+    with pytest.raises(ValueError, match=r"w\.npz.*head\.weight"):
+        lh.LearnedHeightPredictor(tmp_path / "w.npz", backend="numpy")

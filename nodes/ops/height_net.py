@@ -258,9 +258,16 @@ def load_npz(path, check_against=None):
     exported from, when that file exists: a different digest raises ValueError (the
     .pt was replaced without running the export)."""
     path = pathlib.Path(path)
-    with np.load(path, allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files}
-    cfg = json.loads(str(arrays.pop("__config__")))
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        cfg = json.loads(str(arrays.pop("__config__")))
+    except FileNotFoundError:
+        raise
+    except Exception as e:  # noqa: BLE001 - numpy's own messages name no file (zip, pickle, EOF, JSON)
+        raise ValueError(f"{path}: not the numpy network's weights ({type(e).__name__}: "
+                         f"{str(e).split('.')[0]}): write them again with "
+                         "`python -m pixgraph_lab.height.export --npz`") from None
     src = str(arrays.pop("__source_sha256__", ""))
     if check_against is not None and src and pathlib.Path(check_against).exists():
         if pt_digest(check_against) != src:
