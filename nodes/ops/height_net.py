@@ -369,7 +369,7 @@ def _openblas_calls():
     return _openblas or None
 
 
-_active = [0, 0]           # [blocks inside blas_threads now, the thread count before the first]
+_active = [0, 0, None]     # [blocks inside blas_threads now, the count before the first, threadpoolctl's limiter]
 
 
 @contextlib.contextmanager
@@ -377,7 +377,9 @@ def blas_threads(n: int | None):
     """Run the block with at most ``n`` BLAS threads (None: leave as is): numpy's
     OpenBLAS through its own call (``_openblas_calls``), else threadpoolctl when it is
     importable, else nothing. The setting is process-wide: blocks that overlap (threads)
-    share it, and the last one out restores the count from before the first."""
+    share it, the first one in sets it and the last one out restores the count from
+    before the first (also through threadpoolctl, whose own blocks each restore what
+    they saw on entry: overlapping ones left the process at ``n`` for good)."""
     if not n:
         yield
         return
@@ -388,22 +390,32 @@ def blas_threads(n: int | None):
         except ImportError:
             yield
             return
-        with threadpool_limits(limits=int(n), user_api="blas"):
-            yield
-        return
-    set_, get = calls
+
+        def set_(k):
+            _active[2] = threadpool_limits(limits=int(k), user_api="blas")
+            _active[2].__enter__()
+
+        def restore(_):
+            lim, _active[2] = _active[2], None
+            lim.__exit__(None, None, None)
+        get = None
+    else:
+        set_, get = calls
+        restore = set_
     with _lock:
         if _active[0] == 0:
-            _active[1] = get()
+            _active[1] = get() if get else None
+            set_(int(n))
+        elif get:
+            set_(int(n))
         _active[0] += 1
-        set_(int(n))
     try:
         yield
     finally:
         with _lock:
             _active[0] -= 1
             if _active[0] == 0:
-                set_(_active[1])
+                restore(_active[1])
 
 
 def blas_info() -> str:
