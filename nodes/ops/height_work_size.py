@@ -113,10 +113,33 @@ def predict_at_work_size(predictor, rgba: np.ndarray, threshold: float = 0.5, co
                                                        signals))
 
 
+def covered_box(alpha: np.ndarray):
+    """(r0, r1, c0, c1): the box of ``alpha > 0`` widened to start on an even row and
+    column (``_on_covered_box``), or None when ``alpha`` is empty or the box is all of it."""
+    H, W = alpha.shape[:2]
+    box = nonzero_box(np.asarray(alpha) > 0)
+    if box is None:
+        return None
+    r0, r1, c0, c1 = box
+    r0, c0 = r0 - r0 % 2, c0 - c0 % 2
+    return None if (r0, r1, c0, c1) == (0, H, 0, W) else (r0, r1, c0, c1)
+
+
+def paste_maps(out: dict, box, shape) -> dict:
+    """``out`` with its maps of the box's shape pasted into zeros of ``shape`` (H, W)."""
+    r0, r1, c0, c1 = box
+    for k, v in out.items():
+        if isinstance(v, np.ndarray) and v.shape == (r1 - r0, c1 - c0):
+            full = np.zeros(tuple(shape), v.dtype)
+            full[r0:r1, c0:c1] = v
+            out[k] = full
+    return out
+
+
 def _on_covered_box(rgba: np.ndarray, fn) -> dict:
     """``fn(rgba cut to its covered box)`` with its full-size maps (the arrays of the
     cut's shape) pasted back into zeros of the input's size; the whole input when
-    it is empty or already the box.
+    it is empty or already the box (``covered_box``, ``paste_maps``).
 
     The cut starts on an even row and column: ``crop_box`` centres the network's
     square crop with ``round``, which rounds halves to even, so a cut by an odd
@@ -124,21 +147,11 @@ def _on_covered_box(rgba: np.ndarray, fn) -> dict:
     blind to such a shift (one held-out 40 x 30 cutout: 1.5 vs 3.4 px MAE). Cut by
     even numbers, the path at the cutout's own size gives the whole input's
     numbers exactly."""
-    box = nonzero_box(rgba[..., 3] > 0)
-    H, W = rgba.shape[:2]
+    box = covered_box(rgba[..., 3])
     if box is None:
         return fn(rgba)
     r0, r1, c0, c1 = box
-    r0, c0 = r0 - r0 % 2, c0 - c0 % 2
-    if (r0, r1, c0, c1) == (0, H, 0, W):
-        return fn(rgba)
-    out = fn(np.ascontiguousarray(rgba[r0:r1, c0:c1]))
-    for k, v in out.items():
-        if isinstance(v, np.ndarray) and v.shape == (r1 - r0, c1 - c0):
-            full = np.zeros((H, W), v.dtype)
-            full[r0:r1, c0:c1] = v
-            out[k] = full
-    return out
+    return paste_maps(fn(np.ascontiguousarray(rgba[r0:r1, c0:c1])), box, rgba.shape[:2])
 
 
 def _predict(predictor, rgba, threshold, contact, lift, work_side, signals) -> dict:
