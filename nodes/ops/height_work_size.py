@@ -26,7 +26,10 @@ fresh validation samples existed (docs/height.md, "Measured: large cutouts at
 512 px"): on 280 fresh samples enlarged 4x / 8x its learned MAE differed from
 the full-size path's by -0.003 / -0.001 px (upper 95 % bounds +0.031 / +0.045
 px, margin 0.156), its confidence was 0.012-0.013 off the actual win rate
-(full-size path 0.029 / 0.052) and at 8x it took 0.67x the time. At 256 px
+(full-size path 0.029 / 0.052) and at 8x it took 0.67x the time. With the cut to
+the covered box (``_on_covered_box``, added after the decision) the same samples
+give bounds +0.036 / +0.041 px, a confidence 0.015 / 0.020 off and 0.26-0.30x the
+time at 8x. At 256 px
 (the first candidate) it had cost 0.3-0.8 % of MAE on the old validation set.
 """
 from __future__ import annotations
