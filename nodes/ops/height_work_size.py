@@ -19,7 +19,9 @@ predicted there, and the map brought back to full size:
   tolerance x ``f``;
 * the contact line (``heuristic``) is computed at full size, pinned the same way;
 * the confidence, signal and auto's choice are the work size's; ``est_mae_*``
-  are scaled by ``f`` into full-size px.
+  are scaled by ``f`` into full-size px;
+* a cutout thinner than a work-size pixel everywhere (no shrunk pixel reaches
+  the threshold) is predicted at its own size instead.
 
 Shipped with ``WORK_SIDE = 512`` by a non-inferiority rule fixed before its
 fresh validation samples existed (docs/height.md, "Measured: large cutouts at
@@ -164,7 +166,12 @@ def _predict(predictor, rgba, threshold, contact, lift, work_side, signals) -> d
     if f <= 1.0:
         return predictor.predict_at_own_size(rgba, threshold, contact, lift, signals)
     small = shrink_cutout(rgba, shape)
+    mask_small = np.clip(small[..., 3], 0.0, 1.0) > threshold
+    if not mask_small.any():
+        # thinner than a work-size pixel everywhere (a 3-px leaning pole 4,000 px tall:
+        # no shrunk pixel reaches the threshold): at the work size the cutout would be
+        # empty, its map 0 and its confidence None, so it is predicted at its own size
+        return predictor.predict_at_own_size(rgba, threshold, contact, lift, signals)
     lv = float(lift) if contact == "lifted" else 0.0
     out = predictor.predict_at_own_size(small, threshold, contact, lv / f, signals)
-    mask_small = np.clip(small[..., 3], 0.0, 1.0) > threshold
     return enlarge_prediction(out, f, mask, mask_small, contact, lv, predictor.pin_fade, predictor.foot_snap)
