@@ -131,13 +131,18 @@ def covered_box(alpha: np.ndarray):
 
 
 def paste_maps(out: dict, box, shape) -> dict:
-    """``out`` with its maps of the box's shape pasted into zeros of ``shape`` (H, W)."""
+    """``out`` with its maps of the box's shape pasted into zeros of ``shape`` (H, W); a
+    map under two keys (``auto_height`` is ``height`` where auto takes the learned map)
+    stays one array."""
     r0, r1, c0, c1 = box
+    done = {}
     for k, v in out.items():
         if isinstance(v, np.ndarray) and v.shape == (r1 - r0, c1 - c0):
-            full = np.zeros(tuple(shape), v.dtype)
-            full[r0:r1, c0:c1] = v
-            out[k] = full
+            if id(v) not in done:                 # (v kept with it: its id stays its own)
+                full = np.zeros(tuple(shape), v.dtype)
+                full[r0:r1, c0:c1] = v
+                done[id(v)] = (v, full)
+            out[k] = done[id(v)][1]
     return out
 
 
