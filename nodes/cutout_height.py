@@ -47,6 +47,21 @@ def cutout_rgba(mask: np.ndarray, image: np.ndarray) -> np.ndarray:
     return np.concatenate([rgb * m[..., None], m[..., None]], axis=2).astype(np.float32)
 
 
+def predict_on_covered_box(predictor, mask: np.ndarray, image: np.ndarray, **kw) -> dict:
+    """``predictor.predict_full(cutout_rgba(mask, image), **kw)``, the RGBA made for the
+    mask's covered box only (``height_work_size.covered_box``, the cut the predictor
+    makes itself: the same heights, bit for bit) and the maps pasted back: a matte at
+    a photo's size costs what its cutout costs (a 400-px object on a 20 MP canvas:
+    0.6 s -> 0.05 s, most of it was ``cutout_rgba`` of the whole canvas)."""
+    from .ops.height_work_size import covered_box, paste_maps
+    box = covered_box(mask)
+    if box is None:
+        return predictor.predict_full(cutout_rgba(mask, image), **kw)
+    r0, r1, c0, c1 = box
+    part = predictor.predict_full(cutout_rgba(mask[r0:r1, c0:c1], np.asarray(image)[r0:r1, c0:c1]), **kw)
+    return paste_maps(part, box, mask.shape)
+
+
 def _weights_version() -> str:
     """What the learned method's result depends on besides its inputs: the shipped
     weights' digest (the .npz the numpy network reads is exported from the .pt and
@@ -103,9 +118,10 @@ class CutoutHeight(Node):
         confidence: T.Scalar = port(doc="learned / auto: the estimated chance (0-1) that the learned height "
                                         "beats the contact line; NaN when the network did not run")
 
-    impl_version = "6+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence; 4: foot snap,
+    impl_version = "7+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence; 4: foot snap,
     # confidence rule; 5: auto's fallback pins the contact line's contact like the learned map's; 6: a cutout
-    # whose crop is larger than 512 px is predicted at 512 px, the confidence signals in 256-px units
+    # whose crop is larger than 512 px is predicted at 512 px, the confidence signals in 256-px units; 7: one
+    # thinner than a 512-px work pixel everywhere is predicted at its own size (it was 0 everywhere)
 
     def compute(self, ctx, inputs, params):
         mask = np.asarray(inputs.mask, dtype=np.float32)
@@ -116,7 +132,7 @@ class CutoutHeight(Node):
                                  "(e.g. image: cutout.image)")
             same_size(mask=mask, image=inputs.image)
             predictor = learned_predictor()
-            r = predictor.predict_full(cutout_rgba(mask, inputs.image), contact=params.contact, lift=lift)
+            r = predict_on_covered_box(predictor, mask, inputs.image, contact=params.contact, lift=lift)
             conf = r["confidence"]
             if conf is None:
                 conf = float("nan")

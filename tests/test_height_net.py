@@ -253,3 +253,70 @@ def test_blas_threads_sets_and_restores():
         assert get() == 2
     finally:
         set_(before)
+
+
+@pytest.mark.parametrize("content", [NPZ.read_bytes()[:100000],                   # cut short (a failed copy)
+                                     b"",                                          # empty
+                                     b"version https://git-lfs.github.com/spec/v1\noid sha256:ab\nsize 3966802\n",
+                                     b"\x93NUMPY not an npz"])
+def test_a_broken_npz_is_an_error_naming_the_file(tmp_path, content):
+    # numpy's own errors ("File is not a zip file", "No data left in file", "This file contains
+    # pickled (object) data ... allow_pickle") name no file and, for the last, suggest unpickling
+    (tmp_path / "w.npz").write_bytes(content)
+    with pytest.raises(ValueError, match=r"w\.npz.*export --npz") as e:
+        lh.LearnedHeightPredictor(tmp_path / "w.npz", backend="numpy")
+    assert "allow_pickle" not in str(e.value)
+
+
+def test_an_npz_of_another_network_is_an_error_naming_the_file(tmp_path):
+    arrays, cfg = hn.load_npz(NPZ)
+    del arrays["head.weight"]
+    hn.write_npz(arrays, cfg, tmp_path / "w.npz")
+    with pytest.raises(ValueError, match=r"w\.npz.*head\.weight"):
+        lh.LearnedHeightPredictor(tmp_path / "w.npz", backend="numpy")
+
+
+def test_blas_threads_through_threadpoolctl_restores_after_overlapping_threads(monkeypatch):
+    # numpy's BLAS not a bundled OpenBLAS (Debian's numpy, MKL): threadpoolctl sets the limit.
+    # Two predictions on the engine's threads overlap: A enters, B enters, A leaves, B leaves.
+    # Each threadpool_limits restores what it saw on entry, so B (which saw A's 1) left the
+    # whole process at 1 BLAS thread for good. A stand-in threadpoolctl records the setting.
+    import threading
+    import types
+    blas = {"threads": 4}
+
+    class Limits:
+        def __init__(self, limits, user_api):
+            self.n = limits
+
+        def __enter__(self):
+            self.before = blas["threads"]
+            blas["threads"] = self.n
+
+        def __exit__(self, *exc):
+            blas["threads"] = self.before
+
+    monkeypatch.setitem(sys.modules, "threadpoolctl", types.SimpleNamespace(threadpool_limits=Limits))
+    monkeypatch.setattr(hn, "_openblas_calls", lambda: None)
+    a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+    seen = {}
+
+    def a():
+        with hn.blas_threads(1):
+            a_in.set()
+            b_in.wait(5)
+            seen["a"] = blas["threads"]
+        a_out.set()
+
+    def b():
+        a_in.wait(5)
+        with hn.blas_threads(1):
+            b_in.set()
+            a_out.wait(5)
+            seen["b"] = blas["threads"]              # still inside: still limited
+
+    ts = [threading.Thread(target=a), threading.Thread(target=b)]
+    [t.start() for t in ts]
+    [t.join(10) for t in ts]
+    assert seen == {"a": 1, "b": 1}
+    assert blas["threads"] == 4                      # the count from before the first block

@@ -156,3 +156,36 @@ def test_the_cut_to_the_covered_box_leaves_the_own_size_path_bit_identical(predi
         assert "work_scale" not in a
         np.testing.assert_array_equal(a["height"], b["height"])
         assert a["signal"] == b["signal"]
+
+
+def test_a_cutout_thinner_than_a_work_size_pixel_is_predicted_at_its_own_size():
+    # a leaning pole 2 px wide whose crop is ~5.3x the work size (here 64 px, so the test
+    # is small; at the shipped 512 px: a 3-px pole 4,000 px tall): shrunk, no pixel's alpha
+    # reaches the threshold, so the work size had an empty cutout and learned / auto gave
+    # 0 everywhere, confidence None ("no confidence heads" in CutoutHeight's log)
+    p = lh.LearnedHeightPredictor()
+    p.work_side = 64
+    v, u = np.mgrid[0:300, 0:170] + 0.5
+    d = np.abs((u - 10) * 280 - (v - 290) * -150) / np.hypot(280, 150)
+    a = ((d < 1.0) & (v > 10) & (v < 290)).astype(np.float32)
+    rgba = np.concatenate([np.full(a.shape + (3,), 0.3, np.float32) * a[..., None], a[..., None]], -1)
+    r0, r1, c0, c1 = hw.covered_box(a)                                            # the path's cut
+    cut = rgba[r0:r1, c0:c1]
+    f, shape = hw.work_shape(*cut.shape[:2], lh.crop_box(cut[..., 3] > 0.5)[6], 64)
+    assert f > 4 and not (hw.shrink_cutout(cut, shape)[..., 3] > 0.5).any()       # nothing left at 64 px
+    r, own = p.predict_full(rgba), p.predict_at_own_size(rgba)
+    assert r["confidence"] is not None and r["height"].max() > 20
+    np.testing.assert_array_equal(r["height"], own["height"])
+    assert "work_scale" not in r
+
+
+def test_maps_pasted_back_from_the_covered_box_are_not_copied_twice(predictor, samples):
+    # auto_height is the height map itself where auto takes the learned map: pasted back
+    # into the canvas it stays one array (a 48 MP canvas: 192 MB less)
+    canvas = np.zeros((300, 260, 4), np.float32)
+    h, w = samples[0].shape[:2]
+    canvas[40:40 + h, 60:60 + w] = samples[0]
+    tight = predictor.predict_full(samples[0])
+    r = predictor.predict_full(canvas)
+    assert tight["use_learned"] and tight["auto_height"] is tight["height"]
+    assert r["auto_height"] is r["height"] and r["height"].shape == (300, 260)

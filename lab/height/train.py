@@ -204,6 +204,10 @@ def main(argv=None) -> int:
     ap.add_argument("--init", default=None,
                     help="start from this checkpoint's weights (e.g. the shipped one; a 1-output "
                          "head is copied into the height channel of a 3-output one)")
+    ap.add_argument("--widen-from", default=None,
+                    help="start from this narrower checkpoint widened to --base (lab/height/widen.py: the same "
+                         "function, copies broken by --widen-noise)")
+    ap.add_argument("--widen-noise", type=float, default=0.01)
     ap.add_argument("--pin", action="store_true",
                     help="train the contact-pinned height (the contact pixels' mean shifted to 0, "
                          "as predict does with contact='ground')")
@@ -233,13 +237,22 @@ def main(argv=None) -> int:
                 sd[k] = v
         model.load_state_dict(sd)
         print(f"initialised from {a.init}", flush=True)
+    if a.widen_from and not os.path.exists(os.path.join(a.out, "last.pt")):
+        from .widen import widen_state
+        ck0 = torch.load(a.widen_from, map_location="cpu", weights_only=True)
+        cfg0 = json.loads(ck0["config"]) if isinstance(ck0["config"], str) else ck0["config"]
+        if (int(cfg0["levels"]), int(cfg0.get("outputs", 1))) != (a.levels, a.outputs):
+            raise SystemExit(f"--widen-from {a.widen_from}: levels/outputs {cfg0['levels']}/{cfg0.get('outputs', 1)} "
+                             f"differ from --levels {a.levels} --outputs {a.outputs}")
+        model.load_state_dict(widen_state(ck0["model"], int(cfg0["base"]), a.base, a.levels, a.widen_noise, a.seed))
+        print(f"widened {a.widen_from} from base {cfg0['base']} to {a.base}", flush=True)
     opt = torch.optim.AdamW(model.parameters(), lr=a.lr, weight_decay=1e-4)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=a.lr, total_steps=a.steps,
                                                 pct_start=min(0.5, max(0.05, 3.0 / a.steps)))
     gen = torch.Generator().manual_seed(a.seed)
     rng = np.random.default_rng(a.seed)
     config = {"size": a.size, "base": a.base, "levels": a.levels, "in_channels": 6, "outputs": a.outputs,
-              "pin": bool(a.pin), "init": a.init,
+              "pin": bool(a.pin), "init": a.init or a.widen_from,
               "target": "pixel height / cutout bounding-box height"}
     state = {"step": 0, "curve": [], "best": float("inf"), "seconds": 0.0}
     last = os.path.join(a.out, "last.pt")

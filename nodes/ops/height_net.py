@@ -258,9 +258,16 @@ def load_npz(path, check_against=None):
     exported from, when that file exists: a different digest raises ValueError (the
     .pt was replaced without running the export)."""
     path = pathlib.Path(path)
-    with np.load(path, allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files}
-    cfg = json.loads(str(arrays.pop("__config__")))
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        cfg = json.loads(str(arrays.pop("__config__")))
+    except FileNotFoundError:
+        raise
+    except Exception as e:  # noqa: BLE001 - numpy's own messages name no file (zip, pickle, EOF, JSON)
+        raise ValueError(f"{path}: not the numpy network's weights ({type(e).__name__}: "
+                         f"{str(e).split('.')[0]}): write them again with "
+                         "`python -m pixgraph_lab.height.export --npz`") from None
     src = str(arrays.pop("__source_sha256__", ""))
     if check_against is not None and src and pathlib.Path(check_against).exists():
         if pt_digest(check_against) != src:
@@ -362,7 +369,7 @@ def _openblas_calls():
     return _openblas or None
 
 
-_active = [0, 0]           # [blocks inside blas_threads now, the thread count before the first]
+_active = [0, 0, None]     # [blocks inside blas_threads now, the count before the first, threadpoolctl's limiter]
 
 
 @contextlib.contextmanager
@@ -370,7 +377,9 @@ def blas_threads(n: int | None):
     """Run the block with at most ``n`` BLAS threads (None: leave as is): numpy's
     OpenBLAS through its own call (``_openblas_calls``), else threadpoolctl when it is
     importable, else nothing. The setting is process-wide: blocks that overlap (threads)
-    share it, and the last one out restores the count from before the first."""
+    share it, the first one in sets it and the last one out restores the count from
+    before the first (also through threadpoolctl, whose own blocks each restore what
+    they saw on entry: overlapping ones left the process at ``n`` for good)."""
     if not n:
         yield
         return
@@ -381,22 +390,32 @@ def blas_threads(n: int | None):
         except ImportError:
             yield
             return
-        with threadpool_limits(limits=int(n), user_api="blas"):
-            yield
-        return
-    set_, get = calls
+
+        def set_(k):
+            _active[2] = threadpool_limits(limits=int(k), user_api="blas")
+            _active[2].__enter__()
+
+        def restore(_):
+            lim, _active[2] = _active[2], None
+            lim.__exit__(None, None, None)
+        get = None
+    else:
+        set_, get = calls
+        restore = set_
     with _lock:
         if _active[0] == 0:
-            _active[1] = get()
+            _active[1] = get() if get else None
+            set_(int(n))
+        elif get:
+            set_(int(n))
         _active[0] += 1
-        set_(int(n))
     try:
         yield
     finally:
         with _lock:
             _active[0] -= 1
             if _active[0] == 0:
-                set_(_active[1])
+                restore(_active[1])
 
 
 def blas_info() -> str:

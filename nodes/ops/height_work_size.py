@@ -19,14 +19,19 @@ predicted there, and the map brought back to full size:
   tolerance x ``f``;
 * the contact line (``heuristic``) is computed at full size, pinned the same way;
 * the confidence, signal and auto's choice are the work size's; ``est_mae_*``
-  are scaled by ``f`` into full-size px.
+  are scaled by ``f`` into full-size px;
+* a cutout thinner than a work-size pixel everywhere (no shrunk pixel reaches
+  the threshold) is predicted at its own size instead.
 
 Shipped with ``WORK_SIDE = 512`` by a non-inferiority rule fixed before its
 fresh validation samples existed (docs/height.md, "Measured: large cutouts at
 512 px"): on 280 fresh samples enlarged 4x / 8x its learned MAE differed from
 the full-size path's by -0.003 / -0.001 px (upper 95 % bounds +0.031 / +0.045
 px, margin 0.156), its confidence was 0.012-0.013 off the actual win rate
-(full-size path 0.029 / 0.052) and at 8x it took 0.67x the time. At 256 px
+(full-size path 0.029 / 0.052) and at 8x it took 0.67x the time. With the cut to
+the covered box (``_on_covered_box``, added after the decision) the same samples
+give bounds +0.036 / +0.041 px, a confidence 0.015 / 0.020 off and 0.26-0.30x the
+time at 8x. At 256 px
 (the first candidate) it had cost 0.3-0.8 % of MAE on the old validation set.
 """
 from __future__ import annotations
@@ -113,10 +118,38 @@ def predict_at_work_size(predictor, rgba: np.ndarray, threshold: float = 0.5, co
                                                        signals))
 
 
+def covered_box(alpha: np.ndarray):
+    """(r0, r1, c0, c1): the box of ``alpha > 0`` widened to start on an even row and
+    column (``_on_covered_box``), or None when ``alpha`` is empty or the box is all of it."""
+    H, W = alpha.shape[:2]
+    box = nonzero_box(np.asarray(alpha) > 0)
+    if box is None:
+        return None
+    r0, r1, c0, c1 = box
+    r0, c0 = r0 - r0 % 2, c0 - c0 % 2
+    return None if (r0, r1, c0, c1) == (0, H, 0, W) else (r0, r1, c0, c1)
+
+
+def paste_maps(out: dict, box, shape) -> dict:
+    """``out`` with its maps of the box's shape pasted into zeros of ``shape`` (H, W); a
+    map under two keys (``auto_height`` is ``height`` where auto takes the learned map)
+    stays one array."""
+    r0, r1, c0, c1 = box
+    done = {}
+    for k, v in out.items():
+        if isinstance(v, np.ndarray) and v.shape == (r1 - r0, c1 - c0):
+            if id(v) not in done:                 # (v kept with it: its id stays its own)
+                full = np.zeros(tuple(shape), v.dtype)
+                full[r0:r1, c0:c1] = v
+                done[id(v)] = (v, full)
+            out[k] = done[id(v)][1]
+    return out
+
+
 def _on_covered_box(rgba: np.ndarray, fn) -> dict:
     """``fn(rgba cut to its covered box)`` with its full-size maps (the arrays of the
     cut's shape) pasted back into zeros of the input's size; the whole input when
-    it is empty or already the box.
+    it is empty or already the box (``covered_box``, ``paste_maps``).
 
     The cut starts on an even row and column: ``crop_box`` centres the network's
     square crop with ``round``, which rounds halves to even, so a cut by an odd
@@ -124,21 +157,11 @@ def _on_covered_box(rgba: np.ndarray, fn) -> dict:
     blind to such a shift (one held-out 40 x 30 cutout: 1.5 vs 3.4 px MAE). Cut by
     even numbers, the path at the cutout's own size gives the whole input's
     numbers exactly."""
-    box = nonzero_box(rgba[..., 3] > 0)
-    H, W = rgba.shape[:2]
+    box = covered_box(rgba[..., 3])
     if box is None:
         return fn(rgba)
     r0, r1, c0, c1 = box
-    r0, c0 = r0 - r0 % 2, c0 - c0 % 2
-    if (r0, r1, c0, c1) == (0, H, 0, W):
-        return fn(rgba)
-    out = fn(np.ascontiguousarray(rgba[r0:r1, c0:c1]))
-    for k, v in out.items():
-        if isinstance(v, np.ndarray) and v.shape == (r1 - r0, c1 - c0):
-            full = np.zeros((H, W), v.dtype)
-            full[r0:r1, c0:c1] = v
-            out[k] = full
-    return out
+    return paste_maps(fn(np.ascontiguousarray(rgba[r0:r1, c0:c1])), box, rgba.shape[:2])
 
 
 def _predict(predictor, rgba, threshold, contact, lift, work_side, signals) -> dict:
@@ -148,7 +171,12 @@ def _predict(predictor, rgba, threshold, contact, lift, work_side, signals) -> d
     if f <= 1.0:
         return predictor.predict_at_own_size(rgba, threshold, contact, lift, signals)
     small = shrink_cutout(rgba, shape)
+    mask_small = np.clip(small[..., 3], 0.0, 1.0) > threshold
+    if not mask_small.any():
+        # thinner than a work-size pixel everywhere (a 3-px leaning pole 4,000 px tall:
+        # no shrunk pixel reaches the threshold): at the work size the cutout would be
+        # empty, its map 0 and its confidence None, so it is predicted at its own size
+        return predictor.predict_at_own_size(rgba, threshold, contact, lift, signals)
     lv = float(lift) if contact == "lifted" else 0.0
     out = predictor.predict_at_own_size(small, threshold, contact, lv / f, signals)
-    mask_small = np.clip(small[..., 3], 0.0, 1.0) > threshold
     return enlarge_prediction(out, f, mask, mask_small, contact, lv, predictor.pin_fade, predictor.foot_snap)

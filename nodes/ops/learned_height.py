@@ -551,7 +551,11 @@ class LearnedHeightPredictor:
                 raise FileNotFoundError(f"{npz}: no numpy weights for {path} "
                                         "(python -m pixgraph_lab.height.export --npz writes them)")
             arrays, cfg = height_net.load_npz(npz, check_against=path.with_suffix(".pt"))
-            self.net = height_net.HeightNet(arrays, cfg)
+            try:
+                self.net = height_net.HeightNet(arrays, cfg)
+            except (KeyError, ValueError) as e:    # another network's arrays (a missing layer, a shape)
+                raise ValueError(f"{npz}: not the weights of this network ({type(e).__name__}: {e}); "
+                                 "write them again with `python -m pixgraph_lab.height.export --npz`") from None
             self.device = None
         else:
             import torch

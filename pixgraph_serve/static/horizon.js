@@ -22,15 +22,19 @@ export function meet(a, b) {
 
 export function toggleFinder() {
   finder.on = !finder.on;
+  $("find-horizon").classList.toggle("on", finder.on);
+  drawFinder();
+}
+
+// The lines laid on the floor of the image shown; again on an image of another size (a
+// photo opened since, whether the finder was on or off meanwhile): the lines were in
+// the first image's pixels.
+function layLines() {
   const {W, H} = view;
-  // laid on the floor of the image shown; again on an image of another size (a photo
-  // opened since): the lines were in the first image's pixels
-  if (finder.on && (!finder.lines || finder.size[0] !== W || finder.size[1] !== H)) {
+  if (!finder.lines || finder.size[0] !== W || finder.size[1] !== H) {
     finder.lines = [[[0.25 * W, 0.95 * H], [0.35 * W, 0.7 * H]], [[0.75 * W, 0.95 * H], [0.65 * W, 0.7 * H]]];
     finder.size = [W, H];
   }
-  $("find-horizon").classList.toggle("on", finder.on);
-  drawFinder();
 }
 
 function el(tag, attrs, parent) {
@@ -46,6 +50,7 @@ export function drawFinder() {
   if (old) old.remove();
   $("horizon-apply").hidden = !finder.on;
   if (!finder.on) return;
+  layLines();
   const g = el("g", {id: "finder"}, $("handles"));
   const guides = finder.lines.map(() => el("line", {class: "guide finder"}, g));
   const mark = el("circle", {class: "finder-meet", r: 5}, g);
