@@ -2,7 +2,7 @@
 (many previews) is one step; Ctrl+Z brings back the param, the image the page draws (its
 pixels) and the handle's place, Ctrl+Shift+Z the drag again; Ctrl+Z in a text field is
 the field's own; the toolbar's buttons are disabled with nothing to undo or redo and
-undo a toggle. The own-photo graph with the hand edit (test_page_height_edit.py's)."""
+undo a toggle; a shadow method switch undone brings back the old type's param panel. The own-photo graph with the hand edit (test_page_height_edit.py's)."""
 import time
 
 import httpx
@@ -91,6 +91,19 @@ def test_ctrl_z_takes_a_whole_drag_back_and_ctrl_shift_z_redoes_it(browser, tmp_
         page.keyboard.press("Control+y")
         wait_final(page, seq)
         assert graph_params(url)["edit"]["lying"] is True and page.locator("#lying").is_checked()
+
+        # the shadow method switched: the panel shows the new type's params; undone, the old type's
+        assert page.locator('[data-param="shadow.samples"]').count() == 0
+        seq = last_seq(page)
+        page.check('input[name=method][value="pixgraph.SoftShadow"]')
+        wait_final(page, seq)
+        assert page.locator('[data-param="shadow.samples"]').count() == 1
+        seq = last_seq(page)
+        page.keyboard.press("Control+z")
+        wait_final(page, seq)
+        assert page.locator('input[name=method][value="pixgraph.HardShadow"]').is_checked()
+        assert page.locator('[data-param="shadow.samples"]').count() == 0
+        assert graph_params(url)["edit"]["lying"] is True
         assert not errors, errors
         page.close()
 
