@@ -364,6 +364,9 @@ async def _history_move(request: Request, which: str):
     leaves the scene out (``scene`` null)."""
     data = await json_body(request)      # a JSON POST like every other edit (415 otherwise); {} or empty
     state = _serve(request)
+    with_scene = data.get("scene", True)
+    if not isinstance(with_scene, bool):
+        raise ServeError(400, "scene must be true or false", field="scene")
     client, seq = data.get("client"), data.get("seq")
     if client is not None:
         # the page's client and a new seq: its render still running (of the state being left)
@@ -372,10 +375,6 @@ async def _history_move(request: Request, which: str):
             raise ServeError(400, "client must be a string and seq an integer", field="seq")
         if state.history()[which]:    # nothing to move: leave its render alone (the answer is a 409)
             request.app.state.renders.claim(client, seq)
-
-    with_scene = data.get("scene", True)
-    if not isinstance(with_scene, bool):
-        raise ServeError(400, "scene must be true or false", field="scene")
 
     def work():
         getattr(state, which)()
