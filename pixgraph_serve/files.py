@@ -19,6 +19,7 @@ import ast
 import filecmp
 import importlib.metadata
 import os
+import re
 import shutil
 from importlib import resources
 from typing import Any
@@ -116,7 +117,8 @@ def open_files(state: ServeState, data: dict) -> dict:
     """``{"photo": path, "cutout": path, "mask": path?}`` (paths from the upload API,
     or relative to the served graph's folder) -> the served graph becomes the
     template filled in with them, unless the nodes' checks from the files' headers
-    refuse it (then the served graph stays). Returns ``{"template", "yaml", "notes"}``."""
+    refuse it (then the served graph stays). Returns ``{"template", "yaml", "notes",
+    "save_as"}`` (``save_name_for``)."""
     files = {}
     for role in FILE_ROLES:
         v = data.get(role)
@@ -151,8 +153,22 @@ def open_files(state: ServeState, data: dict) -> dict:
         state.graph = previous
         raise
     # a new graph, not the served file's: the page proposes the photo's name to save it under
-    state.save_name = os.path.splitext(os.path.basename(resolved["photo"]))[0] + ".yaml"
-    return {"template": name, "yaml": state.yaml(), "notes": found}
+    state.save_name = save_name_for(resolved["photo"], state.graph_path)
+    return {"template": name, "yaml": state.yaml(), "notes": found, "save_as": state.save_name}
+
+
+def save_name_for(photo: str, served: str) -> str:
+    """The file name proposed for saving the graph of an opened photo: the photo's
+    name with anything but letters, digits, ``_ . -`` made ``_`` and ``.yaml``; never
+    the served graph's own name (the photo ``own_photo.jpg`` beside ``own_photo.yaml``
+    would otherwise propose to write over the graph the server was started with)."""
+    stem = re.sub(r"[^A-Za-z0-9_.-]", "_", os.path.splitext(os.path.basename(photo))[0]) or "photo"
+    name = stem + ".yaml"
+    k = 1
+    while name.lower() == os.path.basename(served).lower():
+        name = f"{stem}_{k}.yaml"
+        k += 1
+    return name
 
 
 def notes(state: ServeState) -> list[str]:

@@ -168,3 +168,22 @@ def test_page_modules_are_served_and_nothing_else(served):
             assert "http://" not in r.text.replace("http://www.w3.org/2000/svg", "")
     for bad in ("index.html", "state.py", "..%2Fstate.py", "nope.js", "App.js"):
         assert client.get(f"/static/{bad}").status_code == 404, bad
+
+
+def test_the_proposed_save_name_is_never_the_served_graphs(served, tmp_path):
+    # the example's own photo (assets/own_photo.jpg) opened beside the served own_photo.yaml:
+    # the proposal was "own_photo.yaml", i.e. "save" wrote over the graph the server was
+    # started with (found by the review); the page now shows the server's proposal, so a
+    # reload proposes the same name ("(1) beach.jpg", uploaded by the page as "1__beach.jpg":
+    # the page proposed "_1__beach.yaml", after a reload the server "1__beach.yaml")
+    state, client = served
+    f = mine(tmp_path)
+    cut = {"cutout": upload(client, f["cutout"]), "mask": upload(client, f["mask"])}
+    r = client.post("/api/open", json={"photo": "assets/own_photo.jpg", **cut})
+    assert r.status_code == 200, r.text
+    assert r.json()["save_as"] == "own_photo_1.yaml"
+    assert client.get("/api/graph").json()["save_as"] == "own_photo_1.yaml"
+    r = client.post("/api/open", json={"photo": upload(client, f["photo"], "1__beach.jpg"), **cut})
+    assert r.json()["save_as"] == "1__beach.yaml" == client.get("/api/graph").json()["save_as"]
+    assert files.save_name_for("/x/OWN_PHOTO.png", "/srv/own_photo.yaml") == "OWN_PHOTO_1.yaml"
+    assert files.save_name_for("/x/été.jpg", "/srv/g.yaml") == "_t_.yaml"

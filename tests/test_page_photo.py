@@ -524,3 +524,23 @@ def test_find_horizon_lines_start_on_a_newly_opened_photo(browser, tmp_path, off
         assert np.asarray(pins) == pytest.approx(np.asarray(want), abs=0.5)
         assert not errors, errors
         page.close()
+
+
+def test_a_slider_pressed_and_released_without_moving_leaves_the_view_fitting(browser, tmp_path):
+    """Pressing a toolbar slider marks a drag (the view must not re-fit under a drag) and
+    only its 'change' event ended it; released without a new value there is no 'change',
+    so the view stopped following the window (found by the review: after a click on the
+    elevation thumb, a smaller window kept the old scale)."""
+    graph = own_photo_copy(str(tmp_path / "served"))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        k0 = page.evaluate("window.pixgraphView.state.k")
+        page.evaluate("""() => { const e = document.getElementById('elevation');
+            e.dispatchEvent(new PointerEvent('pointerdown', {bubbles: true}));
+            e.dispatchEvent(new PointerEvent('pointerup', {bubbles: true})); }""")
+        page.set_viewport_size({"width": 900, "height": 560})
+        page.wait_for_function(f"window.pixgraphView.state.k < {k0} - 0.01", timeout=10000)
+        st = page.evaluate("window.pixgraphView.state")
+        assert st["fitted"], st
+        assert not errors, errors
+        page.close()

@@ -48,16 +48,17 @@ async function assign(files) {
 
 export async function openChosen(reload) {
   const paths = {};
+  let opened;
   try {
     $("status").textContent = "uploading\u2026";
     for (const role of ROLES) if (chosen[role]) paths[role] = await upload(chosen[role]);
     $("status").textContent = "building the graph\u2026";
-    await api("POST", "/api/open", paths);
+    opened = await api("POST", "/api/open", paths);
   } catch (err) {
     showError(err.message);
     return false;
   }
-  $("save-name").value = chosen.photo.name.replace(/\.[^.]*$/, "").replace(/[^A-Za-z0-9_.-]/g, "_") + ".yaml";
+  $("save-name").value = opened.save_as;   // the server's proposal, the same after a reload
   $("open-form").hidden = true;
   await reload();
   return true;

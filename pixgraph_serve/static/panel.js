@@ -135,6 +135,10 @@ export function wireToolbar() {
   const sliderDrag = (id, edits) => {
     const el = $(id);
     el.addEventListener("pointerdown", () => { ui.drag = {el}; });
+    // released without a new value there is no 'change': the drag ends here too
+    const release = () => { if (ui.drag && ui.drag.el === el) ui.drag = null; };
+    el.addEventListener("pointerup", release);
+    el.addEventListener("pointercancel", release);
     el.addEventListener("input", () => {
       $(`${id}-value`).textContent = Number(el.value).toFixed(id === "elevation" ? 1 : 2);
       ui.drag = ui.drag || {el};
