@@ -2,7 +2,8 @@
 
 Every error is JSON ``{"error": "...", "node": ..., "field": ...}`` with the status
 ``errors.STATUS`` gives (400 bad input, 403 a path outside the allowed folders or a
-request ``guard.py`` refuses, 404, 409 a render superseded by a newer one, 413 over
+request ``guard.py`` refuses, 404, 409 a render superseded by a newer one or an undo
+or redo with nothing to take back, 413 over
 a limit, 415 a body that is not JSON, 422 a node that failed, 503 a run over the
 time limit or a server shutting down); anything else is a 500 with a one-line
 message, never a traceback.
@@ -13,6 +14,10 @@ superseded is dropped (409 ``stale``) when it would start, and cancelled (throug
 ``CancelToken``) when it is running, so drags never queue work. ``POST /api/run``
 answers a run id; ``GET /api/outputs/NAME.png?run=ID`` is that run's image, encoded
 once however many clients ask (``runs.py``) and streamed in chunks.
+
+Undo: every edit (``apply_edits``, a posted graph, ``/api/open``) is an undo step of
+``ServeState``'s history, or part of the step of its ``action``; ``POST /api/undo`` and
+``POST /api/redo`` move through it and answer the graph and the scene.
 """
 from __future__ import annotations
 
@@ -34,7 +39,7 @@ from starlette.routing import Route
 from pixgraph.events import Cancelled, CancelToken
 from . import files, scene
 from .encode import encode_exr, encode_jpeg, encode_png
-from .errors import STATUS, ServeError, serve_error
+from .errors import STATUS, RunTimeout, ServeError, serve_error
 from .guard import COOKIE, Guard, media_type
 from .runs import Encoded, Renders, Runs
 from .state import ServeState, check_depth
@@ -97,7 +102,9 @@ async def json_body(request: Request) -> dict:
 
 
 def apply_edits(state: ServeState, data: dict) -> None:
-    """A request's node type switches, light handle drags and params, all or nothing."""
+    """A request's node type switches, light handle drags and params, all or nothing;
+    one undo step, or part of the step of its ``action`` (the page's id of one user
+    action: a drag's previews and its final carry the same)."""
     def apply():
         types = data.get("types") or {}
         if not isinstance(types, dict):
@@ -109,7 +116,7 @@ def apply_edits(state: ServeState, data: dict) -> None:
         if data.get("params"):
             state.set_params(data["params"])
 
-    state.edit(apply)
+    state.edit(apply, step=True, action=data.get("action"))
 
 
 def edited_run(state: ServeState, work):
@@ -189,7 +196,7 @@ async def post_graph(request: Request):
     except UnicodeDecodeError:
         raise ServeError(400, "graph text must be UTF-8") from None
     state = _serve(request)
-    await locked(request, state.load_text, text)
+    await locked(request, lambda: state.edit(lambda: state.load_text(text), step=True))
     return JSONResponse(state.info())
 
 
@@ -338,6 +345,52 @@ async def render(request: Request):
         "X-Pixgraph-Runs": str(runs), "X-Pixgraph-Seconds": f"{time.perf_counter() - t0:.4f}"})
 
 
+async def undo(request: Request):
+    """Back to the graph before the newest step (``ServeState.undo``); 409 with nothing to undo."""
+    return await _history_move(request, "undo")
+
+
+async def redo(request: Request):
+    """Forward to the graph the newest undo left; 409 with nothing to redo."""
+    return await _history_move(request, "redo")
+
+
+async def _history_move(request: Request, which: str):
+    """Undo or redo, answered with the restored graph (``GET /api/graph``'s), its handles
+    (``GET /api/scene``'s; when the scene cannot be described, ``scene`` is null and
+    ``scene_error`` says why) and its YAML, so a client redraws without asking again.
+    Files on disk are never touched: a saved graph stays as saved. ``client`` and ``seq``
+    (optional, as in ``/api/render``) supersede that page's renders; ``"scene": false``
+    leaves the scene out (``scene`` null)."""
+    data = await json_body(request)      # a JSON POST like every other edit (415 otherwise); {} or empty
+    state = _serve(request)
+    with_scene = data.get("scene", True)
+    if not isinstance(with_scene, bool):
+        raise ServeError(400, "scene must be true or false", field="scene")
+    client, seq = data.get("client"), data.get("seq")
+    if client is not None:
+        # the page's client and a new seq: its render still running (of the state being left)
+        # is cancelled rather than waited for, as a newer render would cancel it
+        if not isinstance(client, str) or isinstance(seq, bool) or not isinstance(seq, int):
+            raise ServeError(400, "client must be a string and seq an integer", field="seq")
+        if state.history()[which]:    # nothing to move: leave its render alone (the answer is a 409)
+            request.app.state.renders.claim(client, seq)
+
+    def work():
+        getattr(state, which)()
+        described, error = None, None
+        try:
+            # the scene may run nodes at full size (a 20 MP photo: seconds): the page asks
+            # without it, shows a preview first and asks for the scene after
+            described = scene.describe(state) if with_scene else None
+        except (ServeError, RunTimeout) as e:
+            error = serve_error(e).to_json()
+        return {which: True, "history": state.history(), "graph": state.info(), "scene": described,
+                "scene_error": error, "yaml": state.yaml()}
+
+    return JSONResponse(await locked(request, work))
+
+
 async def save(request: Request):
     data = await json_body(request)
     path = data.get("path")
@@ -387,6 +440,8 @@ ROUTES = [
     Route("/api/outputs/{name}", get_output),
     Route("/api/render", render, methods=["POST"]),
     Route("/api/save", save, methods=["POST"]),
+    Route("/api/undo", undo, methods=["POST"]),
+    Route("/api/redo", redo, methods=["POST"]),
     Route("/api/uploads/{name}", upload, methods=["PUT"]),
     *files.routes(locked, json_body),
 ]

@@ -244,7 +244,9 @@ def routes(locked, json_body):
 
     async def open_route(request):
         data = await json_body(request)
-        return JSONResponse(await locked(request, open_files, serve(request), data))
+        state = serve(request)
+        # one undo step: undo goes back to the graph before the photo was opened
+        return JSONResponse(await locked(request, lambda: state.edit(lambda: open_files(state, data), step=True)))
 
     async def save_route(request):
         data = await json_body(request)

@@ -7,6 +7,10 @@ around them); edits build a new immutable ``Graph`` and swap it in, so a run in
 progress keeps the graph it started with, and an edit that fails anywhere leaves
 the graph as it was (``edit`` is all or nothing).
 
+**Undo.** An edit made through ``edit(..., step=True)`` keeps the graph's state before
+it in the undo history (``history.py``: params, no pixels); ``undo`` and ``redo`` move
+through it. One history per server, shared by its clients as the graph is.
+
 The session keeps its memory cache across requests: a light drag changes one
 param of the light node, so only the nodes downstream of it run again. Runs at a
 working resolution below full size (the page's previews) have a session and cache
@@ -32,6 +36,7 @@ from pixgraph.paths import PathError
 from pixgraph.session import Session
 
 from .errors import RunTimeout, ServeError, serve_error
+from .history import History, Step
 
 #: image file extensions whose header is checked against the pixel limit
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr", ".hdr")
@@ -56,6 +61,8 @@ class Limits:
     #: memory cache of the runs at a working resolution below 1 (the page's previews), kept
     #: apart from the full-size runs' so a final of a large photo cannot evict them [bytes]
     scaled_cache_bytes: int = 512 << 20
+    #: graph states kept to undo (each a reference to an immutable graph: params, no pixels)
+    undo_steps: int = 100
 
 
 class Deadlines:
@@ -141,6 +148,7 @@ class ServeState:
         #: the name the page proposes to save under (``info()["save_as"]``): the last file
         #: saved, or after ``/api/open`` the photo's name; None: the served file
         self.save_name: str | None = None
+        self.steps = History(self.limits.undo_steps)
         try:
             self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
         except BaseException:
@@ -237,7 +245,8 @@ class ServeState:
         """The graph as the UI and API clients see it: nodes in file order with the
         params set and their effective values, inputs, outputs, and node types (those
         used, and those a node may be switched to: ``alternatives``); ``save_as``: the
-        name the page proposes to save under (``save_name``)."""
+        name the page proposes to save under (``save_name``); ``history``: the undo and
+        redo steps there are (``history()``)."""
         from pixgraph.reference import as_dict
 
         g = self.graph
@@ -254,7 +263,7 @@ class ServeState:
         return {"file": self.graph_path, "save_as": self.save_name or os.path.basename(self.graph_path), "nodes": nodes,
                 "outputs": {k: str(v) for k, v in g.outputs.items()},
                 "types": {t: as_dict(self.registry.get(t)) for t in sorted(used)},
-                "limits": dataclasses.asdict(self.limits)}
+                "limits": dataclasses.asdict(self.limits), "history": self.history()}
 
     def handles(self, type_id: str) -> dict | None:
         """The ``handles`` a node type declares (a dict with a ``kind``), or None."""
@@ -274,20 +283,52 @@ class ServeState:
 
     # -- edits (all or nothing) ---------------------------------------------------
 
-    def edit(self, apply, keep_on: tuple = ()):
+    def edit(self, apply, keep_on: tuple = (), step: bool = False, action: str | None = None):
         """Call ``apply()`` (any number of ``set_*`` calls, and a run of the edited graph)
-        and return what it returns; if it raises, the graph and the stashed params are
-        restored and the error propagates: nothing is half-applied. An exception of a class
-        in ``keep_on`` keeps the edits (a render cancelled by a newer one of the page: the
-        newer one carries only its own edits)."""
-        graph, stash = self.graph, dict(self._stash)
+        and return what it returns; if it raises, the graph, the stashed params and the
+        undo history are restored and the error propagates: nothing is half-applied. An
+        exception of a class in ``keep_on`` keeps the edits (a render cancelled by a newer
+        one of the page: the newer one carries only its own edits).
+
+        step: the edit is a user's (``undo`` can take it back): when it changed the graph,
+        the state before it becomes an undo step and the redo steps are dropped, unless
+        ``action`` (the page's id of one user action, e.g. a whole drag) is the action of
+        the newest step: then it continues that step."""
+        History.check_action(action)
+        before, saved = Step(self.graph, dict(self._stash)), self.steps.save()
         try:
-            return apply()
+            out = apply()
         except keep_on:
+            if step:
+                self.steps.record(before, self.graph, action)
             raise
         except BaseException:
-            self.graph, self._stash = graph, stash
+            self.graph, self._stash = before.graph, dict(before.stash)
+            self.steps.restore(saved)
             raise
+        if step:
+            self.steps.record(before, self.graph, action)
+        return out
+
+    def history(self) -> dict:
+        """``{"undo": steps, "redo": steps, "limit": Limits.undo_steps}``."""
+        return self.steps.counts()
+
+    def undo(self) -> Graph:
+        """Go back to the state before the newest step (its graph and stashed params);
+        the state left can be redone. 409 when there is nothing to undo."""
+        return self._go("undo")
+
+    def redo(self) -> Graph:
+        """Go forward to the state the newest undo left; 409 when there is nothing to redo."""
+        return self._go("redo")
+
+    def _go(self, what: str) -> Graph:
+        target = self.steps.peek(what)
+        graph = self._checked(target.graph)   # the path and pixel rules again: files change
+        self.steps.moved(what, Step(self.graph, dict(self._stash)))
+        self.graph, self._stash = graph, dict(target.stash)
+        return self.graph
 
     def set_params(self, params: Mapping[str, Any]) -> Graph:
         """Apply ``{"node.param": value}`` (or ``{"node": {"param": value}}``) edits."""

@@ -49,7 +49,8 @@ def _probe_requests(url, token):
     or a rebound domain, can make; the attacker may even have guessed the token."""
     port = url.rsplit(":", 1)[1]
     bodies = {"/api/graph": EVIL_GRAPH, "/api/run": '{"params": {"light.azimuth": 90}}', "/api/save": "{}",
-              "/api/params": '{"params": {"light.azimuth": 90}}', "/api/render": '{"mode": "final"}'}
+              "/api/params": '{"params": {"light.azimuth": 90}}', "/api/render": '{"mode": "final"}',
+              "/api/undo": "{}", "/api/redo": "{}"}
     spoofs = [{"Host": "evil.example"}, {"Host": f"evil.example:{port}"}, {"Origin": "http://evil.example"},
               {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}"},
               {"Origin": "http://127.0.0.1:1"}, {"Origin": "null"}, {"Sec-Fetch-Site": "cross-site"},
@@ -78,19 +79,26 @@ def test_the_probe_is_refused_and_nothing_changes(server):
     before = snapshot(folder)
     ok = {"X-Pixgraph-Token": token}
     with httpx.Client(base_url=url, timeout=120) as c:
+        # an edit to undo, and one undone to redo: an undo or redo let through would change the graph
+        for az in (30, 35):
+            c.post("/api/params", json={"params": {"light.azimuth": az}}, headers=ok).raise_for_status()
+        c.post("/api/undo", json={}, headers=ok).raise_for_status()
         yaml_before = c.get("/api/graph.yaml", headers=ok).text
+        history0 = c.get("/api/graph", headers=ok).json()["history"]
+        assert history0["undo"] >= 1 and history0["redo"] == 1
         status0 = c.get("/api/status", headers=ok).json()
         answers = []
         for method, path, headers, body in _probe_requests(url, token):
             r = c.request(method, path, headers=headers, content=body)
             answers.append((r.status_code, method, path, headers))
         accepted = [a for a in answers if a[0] < 400]
-        assert len(answers) == 375 and accepted == []
+        assert len(answers) == 517 and accepted == []
         assert {a[0] for a in answers} <= {403, 415}
         status = c.get("/api/status", headers=ok).json()
         assert status["refused"] - status0["refused"] == len(answers)          # each reached the guard
         assert status["runs"] == status0["runs"]                               # nothing ran
         assert c.get("/api/graph.yaml", headers=ok).text == yaml_before
+        assert c.get("/api/graph", headers=ok).json()["history"] == history0
         # the controls: the same requests from the page itself are accepted
         r = c.post("/api/params", json={"params": {"light.azimuth": 91}}, headers=ok)
         assert r.status_code == 200, r.text

@@ -7,6 +7,7 @@
 //   handles.js  the handles over the image (cutout, horizon, wall, light), sized in screen pixels
 //   panel.js    the toolbar and the param panel
 //   heightedit.js  the cutout's pixel height by hand: contact points, tilt, lying down
+//   history.js  undo and redo (the server keeps the history), the buttons and Ctrl+Z
 //   horizon.js  "find horizon": two lines along parallel floor lines meet on the horizon
 //   files.js    open or drop a photo and a cutout, save the graph with its files
 //   main.js     start-up

@@ -82,6 +82,7 @@ export function drawHandles() {
   svg.replaceChildren();
   const box = svg.getBoundingClientRect();
   svgEl("rect", {class: "pan", x: 0, y: 0, width: box.width, height: box.height});
+  if (ui.restoring) return;       // an undo's graph, whose scene is still to come (history.js)
   const s = ui.scene || {};
   const roles = s.roles || {};
   const {W, H} = view;

@@ -5,6 +5,7 @@ import {$, showError} from "./app.js";
 import {wireFiles} from "./files.js";
 import {cutoutWheel, drawHandles} from "./handles.js";
 import {syncHeightTools, wireHeightTools} from "./heightedit.js";
+import {wireHistory} from "./history.js";
 import {buildPanel, syncControls, wireToolbar} from "./panel.js";
 import {finalize, markBad, refresh, render, ui} from "./render.js";
 import {setImageSize, view, wireView} from "./view.js";
@@ -64,6 +65,7 @@ function main() {
   });
   wireToolbar();
   wireHeightTools();
+  wireHistory();
   wireFiles(load);
   load();
 }

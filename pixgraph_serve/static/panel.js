@@ -8,6 +8,7 @@ import {applyFinder, toggleFinder} from "./horizon.js";
 import {finalize, preview, ui} from "./render.js";
 
 export function syncControls() {
+  if (ui.info && panelKey() !== builtFor) buildPanel(false);   // a node switched type (or an undo did)
   const s = ui.scene || {};
   const light = s.light;
   for (const id of ["elevation", "softness"]) $(id).disabled = !light;
@@ -54,14 +55,24 @@ function openAtStart() {
   return new Set([roles.light, roles.shadow, ...((scene.height_edit || {}).sources || [])]);
 }
 
-export function buildPanel() {
+// The nodes and their types the panel shows: another graph (an undo, a type switch) rebuilds it.
+let builtFor = null;
+const panelKey = () => JSON.stringify(ui.info.nodes.map((n) => [n.id, n.type]));
+
+// fresh: a graph loaded (the boxes of openAtStart open), else rebuilt after a type switch or
+// an undo: the boxes the user opened stay open while the graph has the same nodes
+export function buildPanel(fresh = true) {
   const root = $("nodes");
+  const boxes = [...root.querySelectorAll("details.node")];
+  const same = boxes.map((d) => d.dataset.node).join("\n") === ui.info.nodes.map((n) => n.id).join("\n");
+  const open = fresh || !same ? openAtStart() : new Set(boxes.filter((d) => d.open).map((d) => d.dataset.node));
   root.replaceChildren();
-  const open = openAtStart();
+  builtFor = panelKey();
   for (const node of ui.info.nodes) {
     const spec = ui.info.types[node.type];
     const box = document.createElement("details");
     box.className = "node";
+    box.dataset.node = node.id;
     box.open = open.has(node.id);
     const sum = document.createElement("summary");
     sum.innerHTML = `<b></b><span class="type"></span>`;

@@ -9,6 +9,9 @@
 // release a photo over RELEASE_PIXELS first gets one screen-sized (~1 MP) preview,
 // then the final. The server drops or cancels renders superseded by a newer seq
 // (409), and the page never shows an image older than the one shown.
+// Each render carries the id of the user action it belongs to (`action`): a drag's
+// previews and its final share one, so the server's undo history (history.js) takes
+// the whole drag back in one step.
 "use strict";
 
 import {$, api, request, showError} from "./app.js";
@@ -17,12 +20,15 @@ import {show, view} from "./view.js";
 //: pixels a preview computes while the pointer moves, at most
 const PREVIEW_PIXELS = 0.5e6;
 //: photos larger than this get a screen-sized preview on release before the final [pixels]
-const RELEASE_PIXELS = 4e6;
+export const RELEASE_PIXELS = 4e6;
 
 export const ui = {
   client: Math.random().toString(36).slice(2), seq: 0, shownSeq: 0,
   inflight: false, pending: null, info: null, scene: null,
   drag: null, renders: 0, onScene: [],
+  action: null, actions: 0,   // the user action in progress (previews sent, final to come), how many so far
+  editing: Promise.resolve(), // the last finalize that carried edits (undo waits for it)
+  restoring: 0,               // an undo whose graph's handles are still to come (history.js)
 };
 
 window.pixgraphShown = [];   // what was displayed, for tests and timing
@@ -84,9 +90,14 @@ export async function render(edits, mode, kind = "move") {
   return true;
 }
 
+// The id of a new user action (unique across the page's reloads: the client id is new each time)
+const newAction = () => `${ui.client}:${++ui.actions}`;
+
 // Previews one at a time, the newest edit waiting; a final render goes out at once.
+// The first preview of a drag opens its action; the final that ends it closes it.
 export function preview(edits) {
-  ui.pending = merge(ui.pending, edits);
+  if (!ui.action) ui.action = newAction();
+  ui.pending = merge(ui.pending, {...edits, action: ui.action});
   if (ui.inflight) return;
   const next = ui.pending;
   ui.pending = null;
@@ -99,7 +110,17 @@ export function preview(edits) {
 
 const round2 = (x) => Math.round(x * 100) / 100;
 
-export async function finalize(edits) {
+// The final render of one user action: the drag whose previews went out, or an edit of its
+// own (a param, a toggle, a type switch). Undo waits for the last one that carried edits.
+export function finalize(edits) {
+  const action = ui.action || newAction();
+  ui.action = null;
+  const done = settle({...edits, action});
+  if (Object.keys(edits).length) ui.editing = done.catch(() => false);
+  return done;
+}
+
+async function settle(edits) {
   ui.pending = null;
   // a large photo's final takes seconds: first a sharper, screen-sized preview of the same edits
   if (view.W * view.H > RELEASE_PIXELS && await render(edits, "preview", "release") === "stale") return false;
