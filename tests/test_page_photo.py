@@ -97,6 +97,18 @@ def drag(page, start, end, steps=8, hold_for_preview=False):
     wait_final(page, seq)
 
 
+def open_in_page(page, files):
+    """"open photo" with ``files["photo"]`` and ``files["cutout"]``, as a user does, until
+    the new photo's final is shown (the page's second ready)."""
+    page.click("#open")
+    page.set_input_files("#open-photo", files["photo"])
+    page.set_input_files("#open-cutout", files["cutout"])
+    seq = last_seq(page)
+    page.click("#open-go")
+    page.wait_for_selector("body[data-ready='2']", state="attached", timeout=180000)
+    wait_final(page, seq)
+
+
 def graph_params(url) -> dict:
     return {n["id"]: n["values"] for n in httpx.get(url + "/api/graph", timeout=60).json()["nodes"]}
 
@@ -429,13 +441,7 @@ def test_the_save_name_survives_a_reload(browser, tmp_path):
     with running_server(graph) as (url, _):
         page, errors = open_page(browser, url)
         assert page.input_value("#save-name") == "own_photo.yaml"      # the served graph: save over it
-        page.click("#open")
-        page.set_input_files("#open-photo", files["photo"])
-        page.set_input_files("#open-cutout", files["cutout"])
-        seq = last_seq(page)
-        page.click("#open-go")
-        page.wait_for_selector("body[data-ready='2']", state="attached", timeout=180000)
-        wait_final(page, seq)
+        open_in_page(page, files)
         assert page.input_value("#save-name") == "photo_960x720.yaml"
         page.reload()
         page.wait_for_selector("body[data-ready='1']", state="attached", timeout=180000)
@@ -504,13 +510,7 @@ def test_find_horizon_lines_start_on_a_newly_opened_photo(browser, tmp_path, off
         assert centre(page, "#finder-0-0") == pytest.approx(screen(page, 0.25 * 640, 0.95 * 480), abs=1.5)
         if off_meanwhile:
             page.click("#find-horizon")             # off again
-        page.click("#open")
-        page.set_input_files("#open-photo", files["photo"])
-        page.set_input_files("#open-cutout", files["cutout"])
-        seq = last_seq(page)
-        page.click("#open-go")
-        page.wait_for_selector("body[data-ready='2']", state="attached", timeout=180000)
-        wait_final(page, seq)
+        open_in_page(page, files)
         if off_meanwhile:
             page.click("#find-horizon")
         # read in one go in the page (a re-render for the new view may redraw the handles)
