@@ -1,4 +1,9 @@
 """Shared fixtures. The OpenCL device is opened once per test session."""
+import glob
+import os
+import shutil
+import tempfile
+
 import pytest
 
 from pixgraph.device import Device
@@ -22,3 +27,18 @@ def each_pocl(request):
                 pytest.skip(f"the {request.param} PoCL platform cannot build kernels here: {problem}")
             return Device.open(d.spec)
     pytest.skip(f"no {request.param} PoCL platform installed")
+
+
+def _upload_folders():
+    return set(glob.glob(os.path.join(tempfile.gettempdir(), "pixgraph-uploads-*")))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _no_upload_folders_left_behind():
+    """A server state made in this process (``ServeState`` without ``upload_dir``) makes
+    an upload folder that only a stopping server removes: the folders this test session
+    made are removed at its end (they piled up in /tmp, 218 MB on the dev machine)."""
+    before = _upload_folders()
+    yield
+    for d in _upload_folders() - before:
+        shutil.rmtree(d, ignore_errors=True)
