@@ -169,3 +169,13 @@ def test_readme_main_job_in_blender_matches_the_graph_file(blender_run):
     # another libjpeg could differ by a code value, which this tolerance allows)
     diff = np.abs(arrays["example"] - arrays["example_cli"])
     assert diff.mean() < 1e-4 and np.percentile(diff, 99.9) < 0.01
+
+
+def test_learned_cutout_height_in_blender_without_torch(blender_run):
+    # the panel's "Cutout height: Learned" runs the numpy network in Blender's own Python
+    # (the bpy venv has no torch): the node says it used the learned map and the shadow moves
+    report, _ = blender_run
+    assert report["learned_operator"] == ["FINISHED"]
+    assert any("learned height (confidence" in line for line in report["learned_said"]), report["learned_said"]
+    assert report["learned_shadow_change"] > 0.01
+    assert report["torch_imported"] is False

@@ -137,3 +137,20 @@ def test_build_script_makes_the_zip_the_docs_name(tmp_path):
     assert manifest["id"] == "pixgraph" and manifest["blender_version_min"] == "4.2.0"
     compile(init, "__init__.py", "exec")                       # the bpy half at least parses here
     assert f'"version": ({manifest["version"].replace(".", ", ")})' in init   # bl_info agrees with the manifest
+
+
+@pytest.mark.parametrize("method", ["learned", "auto"])
+def test_graph_with_the_learned_height_reads_the_cutouts_colour(method):
+    from pixgraph.session import Session
+
+    s = Session()
+    cam = params(width=64, height=48)
+    kw = dict(camera=cam, light={"kind": "disk", "target_mode": "pixel", "target_uv": [32.0, 40.0]},
+              template={"kind": "ground"}, samples=4, opacity=0.85, background_colorspace="srgb",
+              background_alpha="straight", cutout_colorspace="linear", cutout_alpha="premultiplied")
+    g = mapping.build_graph(s.builder(), height_method=method, **kw)
+    assert g.nodes["fg_h"].params["method"] == method
+    ref = g.nodes["fg_h"].inputs["image"]
+    assert (ref.node, ref.output) == ("cutout", "image")
+    plain = mapping.build_graph(s.builder(), **kw)
+    assert "image" not in plain.nodes["fg_h"].inputs and plain.nodes["fg_h"].params["method"] == "contact_line"

@@ -177,6 +177,17 @@ report["cancelled"] = pixgraph_blender._message(job.error) if job.error else Non
 report["rerun_after_samples"] = progress_ran
 s.samples = 32
 
+# the learned cutout height in Blender's Python (numpy network, no torch)
+contact_shadow = pixels(bpy.data.images[s.shadow_name])[..., 0]
+s.height_method = "learned"
+report["learned_operator"] = sorted(bpy.ops.pixgraph.composite())
+said = pixgraph_blender.session().last_run.said
+report["learned_said"] = [str(x) for x in said.get("fg_h", ())]
+report["learned_shadow_change"] = float(np.abs(pixels(bpy.data.images[s.shadow_name])[..., 0] - contact_shadow).max())
+report["torch_imported"] = "torch" in sys.modules
+s.height_method = "contact_line"
+bpy.ops.pixgraph.composite()                 # the images as the sections below expect them
+
 # errors are messages, not crashes: a pitched camera
 cam.rotation_euler = (math.radians(80), 0.0, 0.0)
 bpy.context.view_layer.update()

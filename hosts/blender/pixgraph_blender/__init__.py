@@ -137,7 +137,7 @@ class Job:
         sess = session()
         self.graph = mapping.build_graph(sess.builder(), camera=camera, light=light, template=template,
                                          samples=s.samples, opacity=s.opacity, tint=list(s.tint),
-                                         thickness=s.thickness,
+                                         thickness=s.thickness, height_method=s.height_method,
                                          background_colorspace=bg_space, background_alpha=bg_alpha,
                                          cutout_colorspace=cut_space, cutout_alpha=cut_alpha)
         self.bind = {"background": bg[..., :3], "cutout": cut}
@@ -323,6 +323,11 @@ class PixgraphSettings(bpy.types.PropertyGroup):
                                 description="the corner's (column, row) in pixels from the top left")
     left_slope: FloatProperty(name="Left slope", default=-0.3)
     right_slope: FloatProperty(name="Right slope", default=0.3)
+    height_method: EnumProperty(name="Cutout height", items=[
+        ("contact_line", "Contact line", "from the alpha: right for an upright object facing the camera"),
+        ("learned", "Learned", "a small network reads the cutout's colour and alpha (docs/height.md)"),
+        ("auto", "Auto", "learned, unless its confidence rule says the contact line is likely better"),
+    ], default="contact_line")
     samples: IntProperty(name="Samples", default=48, min=1, max=65536, description="light samples")
     thickness: FloatProperty(name="Thickness", default=6.0, min=0.0, max=1000.0,
                              description="occluder thickness in pixels (how deep the cutout is, for its shadow)")
@@ -352,6 +357,7 @@ class PIXGRAPH_PT_panel(bpy.types.Panel):
         col.prop(s, "template")
         for p in mapping.TEMPLATE_PARAMS[s.template]:
             col.prop(s, p)
+        col.prop(s, "height_method")
         col.prop(s, "samples")
         col.prop(s, "thickness")
         col.prop(s, "opacity")

@@ -138,7 +138,7 @@ TEMPLATE_PARAMS = {
 
 def build_graph(builder, *, camera: dict, light: dict, template: dict, samples: int, opacity: float,
                 background_colorspace: str, background_alpha: str, cutout_colorspace: str, cutout_alpha: str,
-                tint=(0.08, 0.09, 0.12), thickness: float = 6.0):
+                tint=(0.08, 0.09, 0.12), thickness: float = 6.0, height_method: str = "contact_line"):
     """The panel's graph: host inputs ``background`` and ``cutout`` (bind their arrays),
     outputs ``composite`` (linear RGB) and ``shadow`` (darkness, 1 = full shadow).
 
@@ -146,17 +146,21 @@ def build_graph(builder, *, camera: dict, light: dict, template: dict, samples: 
     pixgraph.SoftShadow's occluder thickness in pixels (6, as the example graphs:
     lab/thickness_study.py with contact-line heights). template:
     BackgroundHeight params (``kind`` and its handles, pixels of the background image).
+    height_method: pixgraph.CutoutHeight's ``method`` (``learned`` and ``auto`` read the
+    cutout's colour too; they run in numpy, so Blender's Python needs no torch).
     """
     b = builder
     b.add("pixgraph.InputImage", "background", colorspace=background_colorspace, alpha=background_alpha)
     b.add("pixgraph.InputImage", "cutout", colorspace=cutout_colorspace, alpha=cutout_alpha)
     b.add("pixgraph.Camera", "cam", **camera)
-    b.add("pixgraph.CutoutHeight", "fg_h", method="contact_line")
+    b.add("pixgraph.CutoutHeight", "fg_h", method=height_method)
     b.add("pixgraph.BackgroundHeight", "bg_h", **template)
     b.add("pixgraph.Light", "light", **light)
     b.add("pixgraph.SoftShadow", "shadow", samples=samples, thickness=thickness)
     b.add("pixgraph.Composite", "comp", opacity=opacity, tint=[float(t) for t in tint])
     b.connect("cutout.alpha", "fg_h.mask")
+    if height_method in ("learned", "auto"):
+        b.connect("cutout.image", "fg_h.image")
     b.connect("cam.camera", "bg_h.camera")
     b.connect("cam.camera", "light.camera")
     for src, dst in [("cutout.alpha", "mask"), ("fg_h.height", "fg_height"), ("bg_h.height", "bg_height"),
