@@ -77,6 +77,7 @@ function typing(el) {
 }
 
 export function wireHistory() {
+  window.pixgraphHistory = () => queue;   // for tests: settles when every step asked for is done
   ui.onScene.push(syncHistory);
   $("undo").addEventListener("click", () => historyStep("undo"));
   $("redo").addEventListener("click", () => historyStep("redo"));
