@@ -104,7 +104,7 @@ async def json_body(request: Request) -> dict:
 def apply_edits(state: ServeState, data: dict) -> None:
     """A request's node type switches, light handle drags and params, all or nothing;
     one undo step, or part of the step of its ``action`` (the page's id of one user
-    action: a drag's previews and its final carry the same)."""
+    action: a drag's previews and its final carry the same) of its ``client``."""
     def apply():
         types = data.get("types") or {}
         if not isinstance(types, dict):
@@ -116,7 +116,7 @@ def apply_edits(state: ServeState, data: dict) -> None:
         if data.get("params"):
             state.set_params(data["params"])
 
-    state.edit(apply, step=True, action=data.get("action"))
+    state.edit(apply, step=True, action=data.get("action"), client=data.get("client"))
 
 
 def edited_run(state: ServeState, work):

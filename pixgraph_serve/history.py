@@ -7,11 +7,21 @@ size of the photo the graph reads. At most ``limit`` steps are kept, the oldest
 dropped first.
 
 One *user action* is one step: an edit carries the page's id of the action it belongs
-to (``action``), and an edit with the action of the newest step continues that step
-(a drag's previews and its final), so undo takes the whole drag back. An edit without
-an action (a script's request) is a step of its own; an edit that changes nothing is
-none; a new step drops the redo steps. Undo and redo end the action: the next edit
-starts a step of its own whatever its id.
+to (``action``) and of the page that sent it (``client``), and an edit of an action
+already in the newest step continues that step (a drag's previews and its final), so
+undo takes the whole drag back. An edit without an action (a script's request) is a
+step of its own; an edit that changes nothing is none; a new step drops the redo
+steps. Undo and redo end every action: the next edit starts a step of its own
+whatever its id.
+
+**Two clients.** The graph is shared, so is the history: undo takes back the newest
+step, whichever client made it. Actions of two clients that overlap in time (two tabs
+dragging at once: their edits interleave) are one step: an edit of an action whose
+step is not the newest (another client's step came since, while this action went on)
+joins every step from its own to the newest into one, the state before the first of
+them. So no step boundary falls inside any client's drag, and undo and redo only go
+to states between actions, never to one with half a drag in it. Actions are told
+apart by client and id: two clients may use the same id.
 
 Nothing here knows node types or HTTP: ``ServeState.edit`` records, ``ServeState.undo``
 and ``redo`` move, ``app.py`` answers.
@@ -25,8 +35,11 @@ from pixgraph.graph import Graph
 
 from .errors import ServeError
 
-#: the most characters of an edit's ``action`` (the page's id of one user action)
+#: the most characters of an edit's ``action`` (the page's id of one user action) and ``client``
 MAX_ACTION = 200
+
+#: one action: (client, action id); client None for a request without one
+Key = tuple
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,31 +58,43 @@ class History:
         self.limit = max(1, int(limit))
         self.undo: list[Step] = []        # oldest first
         self.redo: list[Step] = []        # the next to redo last
-        self.action: str | None = None    # the action of the newest undo step (None: ended)
+        #: the actions of each undo step still going on (parallel to ``undo``; emptied by
+        #: an undo or redo, which ends every action)
+        self.actions: list[frozenset[Key]] = []
 
     @staticmethod
-    def check_action(action) -> None:
-        if action is not None and (not isinstance(action, str) or len(action) > MAX_ACTION):
-            raise ServeError(400, f"action must be a string of at most {MAX_ACTION} characters", field="action")
+    def check_action(action, client=None) -> None:
+        for name, v in (("action", action), ("client", client)):
+            if v is not None and (not isinstance(v, str) or len(v) > MAX_ACTION):
+                raise ServeError(400, f"{name} must be a string of at most {MAX_ACTION} characters", field=name)
 
     def save(self) -> tuple:
         """What ``restore`` puts back (an edit that fails leaves the history as it was)."""
-        return list(self.undo), list(self.redo), self.action
+        return list(self.undo), list(self.redo), list(self.actions)
 
     def restore(self, saved: tuple) -> None:
-        self.undo, self.redo, self.action = saved
+        self.undo, self.redo, self.actions = (list(x) for x in saved)
 
-    def record(self, before: Step, now: Graph, action: str | None) -> None:
-        """An edit took the graph from ``before`` to ``now``: keep ``before`` as a step,
-        unless nothing changed or ``action`` continues the newest step."""
+    def record(self, before: Step, now: Graph, action: str | None, client: str | None = None) -> None:
+        """An edit of ``client``'s ``action`` took the graph from ``before`` to ``now``: keep
+        ``before`` as a step, unless nothing changed or the action continues a step; when
+        that step is not the newest (another client's steps came since), it and the newer
+        steps become one (the module doc, "Two clients")."""
         if now == before.graph:
             return
-        if action is not None and action == self.action and self.undo:
-            return
+        key = (client, action)
+        if action is not None:
+            own = next((i for i in range(len(self.actions) - 1, -1, -1) if key in self.actions[i]), None)
+            if own is not None:
+                if own < len(self.undo) - 1:
+                    self.actions[own:] = [frozenset().union(*self.actions[own:])]
+                    del self.undo[own + 1:]
+                return
         self.undo.append(before)
+        self.actions.append(frozenset() if action is None else frozenset([key]))
         del self.undo[:-self.limit]
+        del self.actions[:-self.limit]
         self.redo.clear()
-        self.action = action
 
     def peek(self, what: str) -> Step:
         """The state an ``undo`` or ``redo`` goes to; 409 when there is none."""
@@ -84,7 +109,7 @@ class History:
         source, dest = (self.undo, self.redo) if what == "undo" else (self.redo, self.undo)
         source.pop()
         dest.append(left)
-        self.action = None
+        self.actions = [frozenset()] * len(self.undo)
 
     def counts(self) -> dict:
         """``{"undo": steps, "redo": steps, "limit": limit}``."""

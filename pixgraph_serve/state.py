@@ -9,7 +9,8 @@ the graph as it was (``edit`` is all or nothing).
 
 **Undo.** An edit made through ``edit(..., step=True)`` keeps the graph's state before
 it in the undo history (``history.py``: params, no pixels); ``undo`` and ``redo`` move
-through it. One history per server, shared by its clients as the graph is.
+through it. One history per server, shared by its clients as the graph is (two
+clients' actions that overlap in time are one step: ``history.py``).
 
 The session keeps its memory cache across requests: a light drag changes one
 param of the light node, so only the nodes downstream of it run again. Runs at a
@@ -283,7 +284,8 @@ class ServeState:
 
     # -- edits (all or nothing) ---------------------------------------------------
 
-    def edit(self, apply, keep_on: tuple = (), step: bool = False, action: str | None = None):
+    def edit(self, apply, keep_on: tuple = (), step: bool = False, action: str | None = None,
+             client: str | None = None):
         """Call ``apply()`` (any number of ``set_*`` calls, and a run of the edited graph)
         and return what it returns; if it raises, the graph, the stashed params and the
         undo history are restored and the error propagates: nothing is half-applied. An
@@ -292,22 +294,23 @@ class ServeState:
 
         step: the edit is a user's (``undo`` can take it back): when it changed the graph,
         the state before it becomes an undo step and the redo steps are dropped, unless
-        ``action`` (the page's id of one user action, e.g. a whole drag) is the action of
-        the newest step: then it continues that step."""
-        History.check_action(action)
+        ``action`` (the page's id of one user action, e.g. a whole drag) of ``client``
+        (the page that sent it) already has a step: then it continues that step (joined
+        with any newer steps of other clients: ``history.py``, "Two clients")."""
+        History.check_action(action, client)
         before, saved = Step(self.graph, dict(self._stash)), self.steps.save()
         try:
             out = apply()
         except keep_on:
             if step:
-                self.steps.record(before, self.graph, action)
+                self.steps.record(before, self.graph, action, client)
             raise
         except BaseException:
             self.graph, self._stash = before.graph, dict(before.stash)
             self.steps.restore(saved)
             raise
         if step:
-            self.steps.record(before, self.graph, action)
+            self.steps.record(before, self.graph, action, client)
         return out
 
     def history(self) -> dict:

@@ -5,6 +5,7 @@ a render a node refuses leaving no step, opening a photo undone, saved files unt
 and the same guard as every POST (token, Origin, JSON). In-process: the app behind its
 guard, driven by Starlette's test client; the page itself is in test_page_undo.py."""
 import gc
+import itertools
 import os
 import shutil
 import tracemalloc
@@ -271,3 +272,52 @@ def test_an_undo_from_the_page_supersedes_its_older_renders(tmp_path):
         bad = c.post("/api/redo", json={"client": "page", "seq": "7"})
         assert bad.status_code == 400 and bad.json()["field"] == "seq"
         assert values(c)["light"]["azimuth"] == -25
+
+
+def test_two_clients_interleaved_drags_make_no_extra_steps(tmp_path):
+    """Two pages (two tabs) drag at once: their previews and finals interleave. Each drag
+    stays whole (no undo step boundary inside it): actions that overlap in time are one
+    step, so undo goes back to the graph before both and redo forward to after both; an
+    action of one client after the other's ended is a step of its own, and the same
+    action id from two clients names two actions (the grouping is by client and action)."""
+    state = _state(tmp_path)
+    with _client(state) as c:
+        c.post("/api/params", json={"params": {"shadow.thickness": 8}})      # a step before
+        orig = values(c)
+
+        seqs = itertools.count(1)      # each tab's renders in order (one counter serves both)
+
+        def send(client, edits, mode):
+            r = c.post("/api/render", json={**edits, "mode": mode, "work": 0.25, "format": "jpeg",
+                                            "client": client, "seq": next(seqs), "action": f"{client}:1"})
+            assert r.status_code == 200, r.text
+
+        def a(tip, mode="preview"):
+            send("tabA", {"light_tip": tip}, mode)
+
+        def b(thickness, mode="preview"):
+            send("tabB", {"params": {"shadow.thickness": thickness}}, mode)
+
+        a([210, 415])              # A's drag starts
+        b(9)                       # B's starts while A's goes on
+        a([230, 410])
+        b(10)
+        a([250, 405])
+        b(11, "final")             # B's ends
+        a([270, 400], "final")     # A's ends
+        both = values(c)
+        assert both["shadow"]["thickness"] == 11 and both["light"] != orig["light"]
+        assert history(c)["undo"] == 2, history(c)         # the param before, and the two drags as one
+        c.post("/api/undo", json={})
+        assert values(c) == orig                            # before both: no half of A's drag left
+        c.post("/api/redo", json={})
+        assert values(c) == both                            # after both
+        # one after the other: each its own step, the same id from another client too
+        for client, az in (("tabA", 40), ("tabB", 50)):
+            r = c.post("/api/params", json={"params": {"light.azimuth": az}, "client": client, "action": "same"})
+            assert r.status_code == 200, r.text
+        assert history(c)["undo"] == 4
+        c.post("/api/undo", json={})
+        assert values(c)["light"]["azimuth"] == 40
+        bad = c.post("/api/params", json={"params": {"light.azimuth": 1}, "client": 7, "action": "x"})
+        assert bad.status_code == 400 and bad.json()["field"] == "client"
