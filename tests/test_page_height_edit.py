@@ -275,3 +275,46 @@ def test_the_cutouts_foot_handle_is_not_hidden_by_the_new_contact_handle(browser
             list(to_cutout(e, fu - 10, fv - 5)), abs=1.0 / k + 0.2)
         assert not errors, errors
         page.close()
+
+
+def test_the_new_contact_ring_is_grabbable_when_the_foot_is_on_the_photos_bottom_edge(browser, tmp_path):
+    """A cutout standing on the photo's bottom edge (a figure cut off by the frame) in a
+    fitted view whose height is the limit: the "new contact" ring, drawn under the foot,
+    fell below the stage and only its top few pixels could be grabbed. It is now whole on
+    the stage, clear of the foot square, and a drag from its centre adds a contact point."""
+    import yaml
+    graph = edit_graph(str(tmp_path))
+    with open(graph) as f:
+        doc = yaml.safe_load(f)
+    doc["nodes"]["place"]["params"]["foot"] = [320, 480]           # the photo is 640 x 480
+    with open(graph, "w") as f:
+        yaml.safe_dump(doc, f, sort_keys=False)
+    with running_server(graph) as (url, _):
+        page = browser.new_page(viewport={"width": 1280, "height": 560})
+        errors = []
+        page.on("pageerror", lambda err: errors.append(str(err)))
+        page.goto(url + "/")
+        page.wait_for_selector("body[data-ready='1']", state="attached", timeout=180000)
+        wait_final(page, 0)
+        stage = page.locator("#stage").bounding_box()
+        k = page.evaluate("window.pixgraphView.state.k")
+        assert k < 1                                                # fitted by its height
+        fu, fv = httpx.get(url + "/api/scene", timeout=60).json()["place"]["foot"]
+        assert fv == 480
+        _, bottom = screen(page, fu, 480)
+        assert bottom < stage["y"] + stage["height"]                 # the photo's bottom edge is shown
+        ring = page.locator("#contact-new").bounding_box()
+        assert stage["y"] <= ring["y"] and ring["y"] + ring["height"] <= stage["y"] + stage["height"], (ring, stage)
+        assert stage["x"] <= ring["x"] and ring["x"] + ring["width"] <= stage["x"] + stage["width"], (ring, stage)
+        gx, gy = centre(page, "#contact-new")
+        assert page.evaluate(f"document.elementFromPoint({gx}, {gy}).id") == "contact-new"
+        x, y = centre(page, "#foot-handle")
+        assert page.evaluate(f"document.elementFromPoint({x}, {y}).id") == "foot-handle"
+        # grabbed where it is drawn, let go on the figure: one contact point there
+        e = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        drag(page, (gx, gy), screen(page, fu - 10, fv - 40))
+        assert graph_params(url)["edit"]["contact_points"] == pytest.approx(
+            list(to_cutout(e, fu - 10, fv - 40)), abs=1.0 / k + 0.2)
+        assert graph_params(url)["place"]["foot"] == [320, 480]      # the cutout did not move
+        assert not errors, errors
+        page.close()

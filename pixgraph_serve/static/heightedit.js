@@ -20,7 +20,9 @@ import {extraHandles, handle, R, round, svgEl} from "./handles.js";
 import {finalize, ui} from "./render.js";
 import {eventToImage, toScreen, view} from "./view.js";
 
-//: how far under the cutout's foot the "new contact" ring is drawn [screen px]
+//: how far under the cutout's foot the "new contact" ring is drawn [screen px]; a fitted
+//: view leaves room for it under the photo (view.js, MARGIN_BELOW), so a foot on the
+//: photo's bottom edge keeps its ring whole on the stage
 const GHOST_BELOW = 2.6 * R;
 
 let adding = false;
