@@ -63,12 +63,16 @@ class Light(Node):
     #: names the inputs, on the node this light feeds, that hold the object's mask and
     #: pixel height; ``camera`` names this node's camera input.
     handles = {"kind": "light", "tip": "tip_uv", "top": "top_uvh", "placement": "placement",
-               "tip_placement": "shadow_tip", "elevation": "elevation", "object": ("mask", "fg_height"),
-               "camera": "camera"}
-    #: the screen geometry of those handles (ops/light_screen.py), for shells that do not import nodes
+               "tip_placement": "shadow_tip", "elevation": "elevation", "azimuth": "azimuth",
+               "object": ("mask", "fg_height"), "camera": "camera"}
+    #: the screen geometry of those handles (ops/light_screen.py), for shells that do not import nodes;
+    #: ``tip_angles`` (the light's azimuth and elevation seen from the top, for a tip) and
+    #: ``tip_at_angles`` (its inverse) keep ``azimuth``/``elevation`` true in shadow_tip placement
     object_top = staticmethod(light_screen.object_top)
     shadow_tip = staticmethod(light_screen.shadow_tip)
     tip_at_elevation = staticmethod(light_screen.tip_at_elevation)
+    tip_angles = staticmethod(lights.tip_angles)
+    tip_at_angles = staticmethod(light_screen.tip_at_angles)
 
     def infer(self, ctx, inputs, params):
         """Sizes as every node checks them, and a note when the camera's horizon does

@@ -114,7 +114,11 @@ def apply_edits(state: ServeState, data: dict) -> None:
         if "light_tip" in data or "light_elevation" in data:
             state.set_params(scene.light_edits(state, data.get("light_tip"), data.get("light_elevation")))
         if data.get("params"):
-            state.set_params(data["params"])
+            # the light's azimuth/elevation last: in the tip placement they move the tip
+            params, angles = scene.light_angle_edits(state, data["params"])
+            state.set_params(params)
+            if angles:
+                state.set_params(scene.angle_edits(state, angles))
 
     state.edit(apply, step=True, action=data.get("action"), client=data.get("client"))
 

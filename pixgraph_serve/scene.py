@@ -8,10 +8,14 @@ attribute, a dict with a ``kind``):
 - ``background``: ``params``, the template params the page draws;
 - ``light``: the light is dragged by its *shadow tip*, the ground point where the
   shadow of the object's top falls. ``tip``, ``top``, ``placement`` (set to
-  ``tip_placement`` by a drag) and ``elevation`` name its params, ``camera`` its
-  camera input, ``object`` the inputs (mask, pixel height) of the node it feeds that
-  hold the object; the type also carries the geometry (``object_top``,
-  ``shadow_tip``, ``tip_at_elevation``, ops/light_screen.py in the node pack);
+  ``tip_placement`` by a drag), ``elevation`` and (optional) ``azimuth`` name its
+  params, ``camera`` its camera input, ``object`` the inputs (mask, pixel height) of
+  the node it feeds that hold the object; the type also carries the geometry
+  (``object_top``, ``shadow_tip``, ``tip_at_elevation``, and optional ``tip_angles``
+  and ``tip_at_angles``: ops/light_screen.py and ops/lights.py in the node pack). In
+  the tip placement the light's angles are those seen from the object's top: a tip
+  edit writes them into the ``azimuth``/``elevation`` params, and an edit of those
+  params moves the tip (``light_edits``), so the params say what the light is;
 - ``height_edit``: a hand edit of a cutout's pixel height (contact points, tilt,
   lying down); ``points``, ``mode``, ``tilt``, ``elevation``, ``lying``, ``lift`` name its
   params, ``mask`` the input with the coverage in its pixels, ``output`` its output;
@@ -39,7 +43,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import weakref
-from typing import Any
+from typing import Any, Mapping
 
 from pixgraph.graph import Graph
 
@@ -223,8 +227,13 @@ def describe(state: ServeState) -> dict:
         light = next(iter(light.values()))
         controls = dict(getattr(light, "controls", ()))
         tip = light_cls.shadow_tip(a.camera, light, a.top)
+        h = state.handles(g.nodes[lid].type)
         out["light"] = {**v, "azimuth_deg": controls.get("azimuth"), "elevation_deg": controls.get("elevation"),
-                        "top_uvh": list(a.top) if a.top else None, "tip_uv": list(tip) if tip else None}
+                        "top_uvh": list(a.top) if a.top else None, "tip_uv": list(tip) if tip else None,
+                        # what the panel shows for the angle params: the light's own (in the tip
+                        # placement a graph may carry params it ignores), to 0.01 deg as written
+                        "angles": {f"{lid}.{h[k]}": round(controls[k], 2) for k in ("azimuth", "elevation")
+                                   if k in h and controls.get(k) is not None}}
     return out
 
 
@@ -268,8 +277,14 @@ def _height_edit(state: ServeState, nid: str) -> dict:
 
 # -- what a drag means -------------------------------------------------------------------
 
-def light_edits(state: ServeState, tip_uv=None, elevation=None) -> dict:
-    """Param edits for a drag of the shadow tip to ``tip_uv`` and/or an elevation [deg]."""
+def light_edits(state: ServeState, tip_uv=None, elevation=None, azimuth=None) -> dict:
+    """Param edits for a drag of the shadow tip to ``tip_uv`` and/or a light elevation and
+    azimuth [deg]. In the tip placement (or when ``tip_uv`` puts the light there) the
+    angles are those of the light seen from the object's top: the tip moves to give them
+    (the elevation alone keeps the tip's ground direction), and the light's
+    ``azimuth``/``elevation`` params are set to the angles the light then has (to 0.01
+    deg), so the graph's params, the panel and the light agree; in the controls
+    placement they are the params."""
     r = roles(state)
     if r["light"] is None:
         raise ServeError(400, "the graph has no light with a draggable handle")
@@ -284,22 +299,95 @@ def light_edits(state: ServeState, tip_uv=None, elevation=None) -> dict:
         if top is None:
             raise ServeError(400, "cannot drag the shadow tip: the object's mask is empty", field="light_tip")
         edits = {p_place: h["tip_placement"], p_tip: list(tip), p_top: list(top)}
-    if elevation is not None:
-        if isinstance(elevation, bool) or not isinstance(elevation, (int, float)) or not math.isfinite(elevation):
-            raise ServeError(400, f"light_elevation must be a number of degrees, got {elevation!r}",
-                             field="light_elevation")
+    for name, x in (("light_elevation", elevation), ("light_azimuth", azimuth)):
+        if x is not None and (isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x)):
+            raise ServeError(400, f"{name} must be a number of degrees, got {x!r}", field=name)
+    if elevation is not None or azimuth is not None:
         v = _values(state, lid)
         if edits or v[h["placement"]] == h["tip_placement"]:
             tip = edits.get(p_tip, v[h["tip"]])
             top = edits.get(p_top, v[h["top"]])
+            cam = anchors(state, r).camera
+            field = "light_azimuth" if azimuth is not None else "light_elevation"
             try:
-                new = light_cls.tip_at_elevation(anchors(state, r).camera, tip, top, float(elevation))
+                if azimuth is None or getattr(light_cls, "tip_at_angles", None) is None:
+                    new = light_cls.tip_at_elevation(cam, tip, top, float(elevation))
+                else:
+                    el = float(elevation) if elevation is not None else light_cls.tip_angles(cam, tip, top)[1]
+                    new = light_cls.tip_at_angles(cam, top, float(azimuth), el)
             except ValueError as e:
-                raise ServeError(400, f"light_elevation: {e}", field="light_elevation") from None
+                raise ServeError(400, f"{field}: {e}", field=field) from None
             edits.update({p_place: h["tip_placement"], p_top: list(top), p_tip: list(new)})
         else:
-            edits[f"{lid}.{h['elevation']}"] = float(elevation)
+            if elevation is not None:
+                edits[f"{lid}.{h['elevation']}"] = float(elevation)
+            if azimuth is not None and "azimuth" in h:
+                edits[f"{lid}.{h['azimuth']}"] = float(azimuth)
+    if edits.get(p_place) == h["tip_placement"]:
+        edits.update(_tip_angle_params(state, r, lid, h, light_cls, edits[p_tip], edits[p_top]))
     return edits
+
+
+def _tip_angle_params(state, r, lid, h, light_cls, tip, top) -> dict:
+    """The light's ``azimuth`` and ``elevation`` params set to the angles the light at
+    ``tip``/``top`` has (``tip_angles``, to 0.01 deg); none when the type has no such
+    geometry or the tip has no light (the render says why)."""
+    if getattr(light_cls, "tip_angles", None) is None:
+        return {}
+    try:
+        az, el = light_cls.tip_angles(anchors(state, r).camera, tip, top)
+    except ValueError:
+        return {}
+    out = {f"{lid}.{h['elevation']}": round(el, 2)}
+    if "azimuth" in h:
+        out[f"{lid}.{h['azimuth']}"] = round(az, 2)
+    return out
+
+
+def light_angle_edits(state: ServeState, params) -> tuple[Any, dict]:
+    """``params`` (a request's ``{"node.param": value}`` or ``{"node": {...}}``) split into
+    the rest and the light's azimuth/elevation ``{"azimuth": deg, "elevation": deg}``
+    found in it. Set the rest, then ``angle_edits`` of the angles: in the tip placement
+    an angle typed in the panel moves the tip as the slider does (the placement does not
+    read the params)."""
+    r = roles(state) if isinstance(params, Mapping) else {"light": None}
+    lid = r["light"]
+    if lid is None:
+        return params, {}
+    h = state.handles(state.graph.nodes[lid].type)
+    names = {h[k]: k for k in ("azimuth", "elevation") if k in h}
+    rest, angles = {}, {}
+    for key, value in params.items():
+        nid, _, pname = str(key).partition(".")
+        if pname and nid == lid and pname in names:
+            angles[names[pname]] = value
+        elif not pname and key == lid and isinstance(value, Mapping):
+            inner = {k: x for k, x in value.items() if k not in names}
+            angles.update({names[k]: x for k, x in value.items() if k in names})
+            if inner:
+                rest[key] = inner
+        else:
+            rest[key] = value
+    return rest, angles
+
+
+def angle_edits(state: ServeState, angles: dict) -> dict:
+    """Param edits for the light's angles split off by ``light_angle_edits``: the params
+    themselves (checked as any param, errors naming them), and in the tip placement the
+    tip that gives them."""
+    lid = roles(state)["light"]
+    h = state.handles(state.graph.nodes[lid].type)
+    plain = {f"{lid}.{h[k]}": x for k, x in angles.items()}
+    v = _values(state, lid)
+    if v[h["placement"]] != h["tip_placement"]:
+        return plain
+    state.set_params(plain)              # checked (type, range) as any param, naming it
+    v = _values(state, lid)
+    try:
+        return light_edits(state, **{k: v[h[k]] for k in angles})
+    except ServeError as e:
+        name = "azimuth" if "azimuth" in angles else "elevation"
+        raise ServeError(e.status, e.message, node=lid, field=f"params.{h[name]}") from None
 
 
 def _pair(v, name) -> tuple[float, float]:

@@ -280,8 +280,9 @@ def test_the_cutouts_foot_handle_is_not_hidden_by_the_new_contact_handle(browser
 def test_the_new_contact_ring_is_grabbable_when_the_foot_is_on_the_photos_bottom_edge(browser, tmp_path):
     """A cutout standing on the photo's bottom edge (a figure cut off by the frame) in a
     fitted view whose height is the limit: the "new contact" ring, drawn under the foot,
-    fell below the stage and only its top few pixels could be grabbed. It is now whole on
-    the stage, clear of the foot square, and a drag from its centre adds a contact point."""
+    fell below the stage and only its top few pixels could be grabbed. It now slides round
+    the foot to its side: whole on the stage, as far from the foot as under it (clear of
+    the foot square), and a drag from its centre adds a contact point."""
     import yaml
     graph = edit_graph(str(tmp_path))
     with open(graph) as f:
@@ -306,9 +307,11 @@ def test_the_new_contact_ring_is_grabbable_when_the_foot_is_on_the_photos_bottom
         ring = page.locator("#contact-new").bounding_box()
         assert stage["y"] <= ring["y"] and ring["y"] + ring["height"] <= stage["y"] + stage["height"], (ring, stage)
         assert stage["x"] <= ring["x"] and ring["x"] + ring["width"] <= stage["x"] + stage["width"], (ring, stage)
+        keep(page, "height_edit_ring_on_the_bottom_edge.png")
         gx, gy = centre(page, "#contact-new")
         assert page.evaluate(f"document.elementFromPoint({gx}, {gy}).id") == "contact-new"
         x, y = centre(page, "#foot-handle")
+        assert np.hypot(gx - x, gy - y) == pytest.approx(2.6 * 7, abs=1.0)     # as far from the foot as ever
         assert page.evaluate(f"document.elementFromPoint({x}, {y}).id") == "foot-handle"
         # grabbed where it is drawn, let go on the figure: one contact point there
         e = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]

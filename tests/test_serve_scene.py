@@ -45,6 +45,28 @@ def test_shadow_tip_inverts_from_shadow_tip(kind, distance):
         assert LS.shadow_tip(CAM, light, top) == pytest.approx(tip, abs=1e-6)
 
 
+def test_tip_angles_and_tip_at_angles_are_inverse_and_those_of_the_light():
+    """``tip_angles`` are the angles of the light ``from_shadow_tip`` makes (seen from the
+    top); ``tip_at_angles`` gives back the tip, and the light it makes has those angles."""
+    top = (260.0, 180.0, 150.0)
+    for tip in [(150.0, 420.0), (400.0, 300.0), (255.0, 500.0), (300.0, 160.0)]:
+        az, el = L.tip_angles(CAM, tip, top)
+        controls = dict(L.from_shadow_tip(CAM, tip, top, distance=3.0, kind="disk", radius=0.2).controls)
+        assert (az, el) == (controls["azimuth"], controls["elevation"])
+        assert LS.tip_at_angles(CAM, top, az, el) == pytest.approx(tip, abs=1e-6)
+    for az, el in [(-30.0, 35.0), (120.0, 60.0), (180.0, 20.0), (0.0, 80.0)]:
+        tip = LS.tip_at_angles(CAM, top, az, el)
+        assert L.tip_angles(CAM, tip, top) == pytest.approx((az, el), abs=1e-6)
+    # azimuth 0 is the camera's side: the shadow falls back, up the image from the foot
+    assert LS.tip_at_angles(CAM, top, 0.0, 45.0)[1] < top[1] + top[2]
+    with pytest.raises(ValueError, match="0.5, 90"):
+        LS.tip_at_angles(CAM, top, 0.0, 0.2)
+    with pytest.raises(ValueError, match="ground in view"):
+        LS.tip_at_angles(CAM, top, 180.0, 5.0)        # a low light behind: the tip behind the camera
+    with pytest.raises(ValueError, match="height"):
+        LS.tip_at_angles(CAM, (260.0, 180.0, 0.0), 0.0, 45.0)
+
+
 def test_tip_at_elevation_gives_that_elevation_on_the_same_ground_direction():
     top, tip = (260.0, 180.0, 150.0), (150.0, 420.0)
     P, _ = CAM.back_project(*top)
@@ -120,6 +142,47 @@ def test_elevation_edit_keeps_the_tip_direction(state):
     foot = np.array([before["top_uvh"][0], before["top_uvh"][1] + before["top_uvh"][2]])
     # a lower light: a longer shadow, the tip farther from the top's foot
     assert np.linalg.norm(np.subtract(after["tip_uv"], foot)) > np.linalg.norm(np.subtract(before["tip_uv"], foot)) + 20
+
+
+def test_in_the_tip_placement_the_angle_params_are_the_lights(state):
+    """A tip drag writes the light's own angles (seen from the top) into its azimuth and
+    elevation params; an edit of those params (the panel's fields) moves the tip to give
+    them, as the slider does; in the controls placement they are plain params."""
+    def light():
+        return scene.describe(state)["light"]
+
+    state.set_params({"light.kind": "disk", "light.placement": "controls", "light.elevation": 35.0,
+                      "light.azimuth": -25.0})
+    serve_app.apply_edits(state, {"params": {"light.elevation": 40}})
+    assert light()["elevation_deg"] == 40 and light()["placement"] == "controls"
+    serve_app.apply_edits(state, {"light_tip": [230, 400]})
+    got = light()
+    assert got["placement"] == "shadow_tip" and abs(got["elevation_deg"] - 40) > 5
+    assert got["elevation"] == round(got["elevation_deg"], 2) and got["azimuth"] == round(got["azimuth_deg"], 2)
+    assert got["angles"] == {"light.azimuth": got["azimuth"], "light.elevation": got["elevation"]}
+    # the panel's elevation: the tip slides along its direction; its azimuth: the tip turns
+    serve_app.apply_edits(state, {"params": {"light.elevation": 30}})
+    got2 = light()
+    assert got2["elevation_deg"] == pytest.approx(30, abs=1e-6) and got2["elevation"] == 30
+    assert got2["azimuth_deg"] == pytest.approx(got["azimuth_deg"], abs=1e-6)
+    assert got2["tip_uv"] != pytest.approx(got["tip_uv"], abs=1)
+    serve_app.apply_edits(state, {"params": {"light": {"azimuth": 100, "radius": 0.5}}})    # the nested form
+    got3 = light()
+    assert (got3["azimuth_deg"], got3["elevation_deg"]) == pytest.approx((100, 30), abs=1e-6)
+    assert got3["radius"] == 0.5 and got3["azimuth"] == 100
+    assert LS.shadow_tip(scene.anchors(state, scene.roles(state)).camera,
+                         L.from_shadow_tip(scene.anchors(state, scene.roles(state)).camera, got3["tip_uv"],
+                                           got3["top_uvh"]), got3["top_uvh"]) == pytest.approx(got3["tip_uv"])
+    # an elevation the tip cannot give, or out of the param's range: refused, naming the field
+    before = state.yaml()
+    for bad, msg in ((0.2, "0.5, 90"), (95, "maximum")):
+        with pytest.raises(ServeError, match=msg) as e:
+            serve_app.apply_edits(state, {"params": {"light.elevation": bad}})
+        assert e.value.where["field"] == "params.elevation" and e.value.where["node"] == "light"
+    assert state.yaml() == before
+    # back to controls: the params it reads are the light's last angles
+    serve_app.apply_edits(state, {"params": {"light.placement": "controls"}})
+    assert (light()["azimuth_deg"], light()["elevation_deg"]) == (100, 30)
 
 
 def _drag(state, tip, mode="preview"):

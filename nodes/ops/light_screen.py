@@ -10,6 +10,8 @@ functions here are the rest of that geometry, in image pixels (``u`` right,
   top's shadow at;
 - ``tip_at_elevation``: the tip on the same ground direction from the top's foot
   at which the light, seen from the top, has a given elevation.
+- ``tip_at_angles``: the tip at which the light, seen from the top, has a given
+  azimuth and elevation (the inverse of ``lights.tip_angles``).
 
 Plain functions of a ``Camera`` and a ``Light`` (``pixgraph.Light`` exposes them
 to shells such as ``pixgraph serve`` without their importing this package).
@@ -86,4 +88,26 @@ def tip_at_elevation(camera, tip_uv, top_uvh, elevation_deg: float) -> tuple[flo
     uvh, D = camera.project(new)
     if not (D > 0 and np.all(np.isfinite(uvh))):
         raise ValueError(f"at elevation {elevation_deg} the shadow tip leaves the ground in view")
+    return float(uvh[0]), float(uvh[1])
+
+
+def tip_at_angles(camera, top_uvh, azimuth_deg: float, elevation_deg: float) -> tuple[float, float]:
+    """The ground point (u, v) [px] where a light at ``azimuth_deg`` and ``elevation_deg``
+    seen from the top point (``lights.from_controls``' angles: azimuth 0 toward the
+    camera, 90 to the right) casts the top's shadow: ``lights.tip_angles`` of it gives
+    those angles back.
+
+    Raises ValueError for an elevation outside [0.5, 90) degrees, a top above the
+    horizon or without height, or a tip that would leave the ground in view."""
+    if not 0.5 <= elevation_deg < 90.0:
+        raise ValueError(f"elevation must be in [0.5, 90) degrees, got {elevation_deg}")
+    P, ok = camera.back_project(*top_uvh)
+    if not ok or top_uvh[2] <= 0:
+        raise ValueError("the object's top needs a height > 0 and its foot below the horizon")
+    az = math.radians(azimuth_deg)
+    reach = P[1] / math.tan(math.radians(elevation_deg))      # from the top's foot, away from the light
+    new = np.array([P[0] - reach * math.sin(az), 0.0, P[2] - reach * math.cos(az)])
+    uvh, D = camera.project(new)
+    if not (D > 0 and np.all(np.isfinite(uvh))):
+        raise ValueError(f"at azimuth {azimuth_deg}, elevation {elevation_deg} the shadow tip leaves the ground in view")
     return float(uvh[0]), float(uvh[1])

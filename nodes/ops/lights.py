@@ -202,6 +202,22 @@ def from_shadow_tip(camera: Camera, tip_uv, top_uvh, distance: float = math.inf,
     measured from the top point along it (``inf``: directional).
     Raises ValueError when either point cannot be reconstructed.
     """
+    P, az, el = _tip_top(camera, tip_uv, top_uvh)
+    light = from_controls(P, az, el, distance, kind, radius, angular_radius_deg, facing)
+    return dataclasses.replace(light, controls=light.controls + (
+        ("tip_u", float(tip_uv[0])), ("tip_v", float(tip_uv[1])),
+        ("top_u", float(top_uvh[0])), ("top_v", float(top_uvh[1])), ("top_h", float(top_uvh[2]))))
+
+
+def tip_angles(camera: Camera, tip_uv, top_uvh) -> tuple[float, float]:
+    """(azimuth, elevation) [deg] of the light ``from_shadow_tip`` makes: its direction
+    seen from the object's top (``from_controls``' angles around the top). Raises
+    ValueError as ``from_shadow_tip`` does."""
+    return _tip_top(camera, tip_uv, top_uvh)[1:]
+
+
+def _tip_top(camera: Camera, tip_uv, top_uvh):
+    """The top's 3D point and the (azimuth, elevation) [deg] of the ray from the tip through it."""
     (P, okp) = camera.back_project(top_uvh[0], top_uvh[1], top_uvh[2])
     (T, okt) = camera.back_project(tip_uv[0], tip_uv[1], 0.0)
     if not okt:
@@ -210,12 +226,7 @@ def from_shadow_tip(camera: Camera, tip_uv, top_uvh, distance: float = math.inf,
         raise ValueError(f"object top {tuple(top_uvh)} needs h > 0 and its foot below the horizon")
     d = _unit(P - T)
     horiz = math.hypot(d[0], d[2])
-    az = math.degrees(math.atan2(d[0], d[2]))
-    el = math.degrees(math.atan2(d[1], horiz))
-    light = from_controls(P, az, el, distance, kind, radius, angular_radius_deg, facing)
-    return dataclasses.replace(light, controls=light.controls + (
-        ("tip_u", float(tip_uv[0])), ("tip_v", float(tip_uv[1])),
-        ("top_u", float(top_uvh[0])), ("top_v", float(top_uvh[1])), ("top_h", float(top_uvh[2]))))
+    return P, math.degrees(math.atan2(d[0], d[2])), math.degrees(math.atan2(d[1], horiz))
 
 
 def _lift_above_ground(p: np.ndarray, floor: float = 1e-3) -> tuple[np.ndarray, bool]:

@@ -20,9 +20,7 @@ import {extraHandles, handle, R, round, svgEl} from "./handles.js";
 import {finalize, ui} from "./render.js";
 import {eventToImage, toScreen, view} from "./view.js";
 
-//: how far under the cutout's foot the "new contact" ring is drawn [screen px]; a fitted
-//: view leaves room for it under the photo (view.js, MARGIN_BELOW), so a foot on the
-//: photo's bottom edge keeps its ring whole on the stage
+//: how far under the cutout's foot the "new contact" ring is drawn [screen px]
 const GHOST_BELOW = 2.6 * R;
 
 let adding = false;
@@ -84,6 +82,21 @@ function heightHandle(e, cls, id, [u, v, h], shape, value) {
   }, shape);
 }
 
+// Where the "new contact" ring goes [image px]: GHOST_BELOW screen px under the foot, or,
+// when that is off the stage's bottom edge (a foot on the photo's bottom edge, a view
+// panned down to the foot), slid round the foot on the same circle until the whole ring
+// (radius R, stroke 2.5) is on the stage: still clear of the foot square, toward the
+// stage's middle.
+function ghostAt([fu, fv]) {
+  const [x, y] = toScreen(fu, fv);
+  const box = $("handles").getBoundingClientRect();
+  const lowest = box.height - R - 2;                  // the ring's lowest centre on the stage
+  if (y + GHOST_BELOW <= lowest) return [fu, fv + GHOST_BELOW / view.k];
+  const dy = Math.max(-GHOST_BELOW, lowest - y);
+  const dx = Math.sqrt(GHOST_BELOW ** 2 - dy ** 2) * (x > box.width / 2 ? -1 : 1);
+  return [fu + dx / view.k, fv + dy / view.k];
+}
+
 function drawHeightEdit(s) {
   const e = s.height_edit;
   if (!e) return;
@@ -99,8 +112,7 @@ function drawHeightEdit(s) {
     // square, which moves the cutout): dragged from there, a new contact point where it is
     // let go (the first replaces the input's implicit contact, the lowest row; more: a
     // line, several feet)
-    const [fu, fv] = toCanvas(e, e.foot);
-    const el = handle("contact ghost", "contact-new", [fu, fv + GHOST_BELOW / view.k], (p) =>
+    const el = handle("contact ghost", "contact-new", ghostAt(toCanvas(e, e.foot)), (p) =>
       ({edits: param(e, "points", [...(vals.points || []), ...toCutout(e, p)]), at: p}));
     el.setAttribute("title", "drag from the cutout's foot to where it touches the ground: a contact point");
   }

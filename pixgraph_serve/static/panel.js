@@ -31,6 +31,12 @@ export function syncControls() {
       if (el && document.activeElement !== el) setField(el, value);
     }
   }
+  // the light's azimuth and elevation as the light has them (the slider's value too): in
+  // the shadow_tip placement the tip places the light, and a graph may carry params it ignores
+  for (const [key, value] of Object.entries((light && light.angles) || {})) {
+    const el = document.querySelector(`[data-param="${key}"]`);
+    if (el && document.activeElement !== el) setField(el, value);
+  }
 }
 
 function setField(el, value) {

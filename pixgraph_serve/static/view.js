@@ -1,8 +1,7 @@
 // The image in the window. The canvas and the handle layer both cover the stage
 // (the part of the window left of the panel); the image is drawn at
 // screen = offset + image * k. "fit" shows all of it (never enlarged past 1:1);
-// with a margin for the handles on its edges (a wider one under it: the "new contact"
-// ring under a foot on the photo's bottom edge); the wheel, a trackpad pinch or two fingers zoom about the pointer, a drag on
+// with a margin for the handles on its edges; the wheel, a trackpad pinch or two fingers zoom about the pointer, a drag on
 // the image (not on a handle) pans, and the toolbar's buttons fit, show 1:1 and zoom.
 "use strict";
 
@@ -40,17 +39,12 @@ export function setImageSize(W, H) {
 }
 
 export const MARGIN = 16;   // [screen px] around the fitted image: room for the handles on its edges
-//: [screen px] under the fitted image: the "new contact" ring drawn under a cutout's foot
-//: (heightedit.js, its centre GHOST_BELOW = 18.2 px under the foot, radius 7 + stroke) is
-//: whole on the stage when the foot is on the photo's bottom edge
-export const MARGIN_BELOW = 30;
 
 export function fit() {
   const [sw, sh] = stageSize();
-  view.k = Math.min(1, (sw - 2 * MARGIN) / view.W, (sh - MARGIN - MARGIN_BELOW) / view.H);
+  view.k = Math.min(1, (sw - 2 * MARGIN) / view.W, (sh - 2 * MARGIN) / view.H);
   view.ox = (sw - view.W * view.k) / 2;
-  // centred, but at least MARGIN_BELOW under it
-  view.oy = Math.min((sh - view.H * view.k) / 2, sh - MARGIN_BELOW - view.H * view.k);
+  view.oy = (sh - view.H * view.k) / 2;
   view.fitted = true;
   changed();
 }
