@@ -115,10 +115,10 @@ def apply_edits(state: ServeState, data: dict) -> None:
             state.set_params(scene.light_edits(state, data.get("light_tip"), data.get("light_elevation")))
         if data.get("params"):
             # the light's azimuth/elevation last: in the tip placement they move the tip
-            params, angles = scene.light_angle_edits(state, data["params"])
+            params, angles, touched = scene.light_angle_edits(state, data["params"])
             state.set_params(params)
-            if angles:
-                state.set_params(scene.angle_edits(state, angles))
+            if angles or touched:
+                state.set_params(scene.angle_edits(state, angles, touched))
 
     state.edit(apply, step=True, action=data.get("action"), client=data.get("client"))
 

@@ -344,16 +344,16 @@ def _tip_angle_params(state, r, lid, h, light_cls, tip, top) -> dict:
     return out
 
 
-def light_angle_edits(state: ServeState, params) -> tuple[Any, dict]:
+def light_angle_edits(state: ServeState, params) -> tuple[Any, dict, bool]:
     """``params`` (a request's ``{"node.param": value}`` or ``{"node": {...}}``) split into
-    the rest and the light's azimuth/elevation ``{"azimuth": deg, "elevation": deg}``
-    found in it. Set the rest, then ``angle_edits`` of the angles: in the tip placement
-    an angle typed in the panel moves the tip as the slider does (the placement does not
-    read the params)."""
+    the rest, the light's azimuth/elevation ``{"azimuth": deg, "elevation": deg}`` found
+    in it, and whether the rest edits the light. Set the rest, then ``angle_edits``: in
+    the tip placement an angle typed in the panel moves the tip as the slider does (the
+    placement does not read the params)."""
     r = roles(state) if isinstance(params, Mapping) else {"light": None}
     lid = r["light"]
     if lid is None:
-        return params, {}
+        return params, {}, False
     h = state.handles(state.graph.nodes[lid].type)
     names = {h[k]: k for k in ("azimuth", "elevation") if k in h}
     rest, angles = {}, {}
@@ -368,25 +368,37 @@ def light_angle_edits(state: ServeState, params) -> tuple[Any, dict]:
                 rest[key] = inner
         else:
             rest[key] = value
-    return rest, angles
+    touched = any(str(key) == lid or str(key).startswith(f"{lid}.") for key in rest)
+    return rest, angles, touched
 
 
-def angle_edits(state: ServeState, angles: dict) -> dict:
+def angle_edits(state: ServeState, angles: dict, touched: bool = False) -> dict:
     """Param edits for the light's angles split off by ``light_angle_edits``: the params
     themselves (checked as any param, errors naming them), and in the tip placement the
-    tip that gives them."""
-    lid = roles(state)["light"]
+    tip that gives them; with no angles but other params of the light edited
+    (``touched``: its tip, top or placement typed in the panel), in the tip placement the
+    angles the light now has."""
+    r = roles(state)
+    lid = r["light"]
+    if lid is None:
+        return {}
     h = state.handles(state.graph.nodes[lid].type)
+    light_cls = state.registry.get(state.graph.nodes[lid].type).cls
     plain = {f"{lid}.{h[k]}": x for k, x in angles.items()}
     v = _values(state, lid)
     if v[h["placement"]] != h["tip_placement"]:
         return plain
+    if not angles:
+        return _tip_angle_params(state, r, lid, h, light_cls, v[h["tip"]], v[h["top"]]) if touched else {}
     state.set_params(plain)              # checked (type, range) as any param, naming it
     v = _values(state, lid)
+    name = "azimuth" if "azimuth" in angles else "elevation"
     try:
+        if name == "azimuth" and getattr(light_cls, "tip_at_angles", None) is None:
+            raise ServeError(400, "this light type cannot be turned by its azimuth in its tip placement: "
+                                  "drag its shadow tip")
         return light_edits(state, **{k: v[h[k]] for k in angles})
     except ServeError as e:
-        name = "azimuth" if "azimuth" in angles else "elevation"
         raise ServeError(e.status, e.message, node=lid, field=f"params.{h[name]}") from None
 
 

@@ -183,6 +183,11 @@ def test_in_the_tip_placement_the_angle_params_are_the_lights(state):
     # back to controls: the params it reads are the light's last angles
     serve_app.apply_edits(state, {"params": {"light.placement": "controls"}})
     assert (light()["azimuth_deg"], light()["elevation_deg"]) == (100, 30)
+    # the tip typed in the panel: the angles follow it too
+    serve_app.apply_edits(state, {"params": {"light.placement": "shadow_tip", "light.tip_uv": [300, 470]}})
+    got4 = light()
+    assert abs(got4["elevation_deg"] - 30) > 1 and got4["elevation"] == round(got4["elevation_deg"], 2)
+    assert got4["azimuth"] == round(got4["azimuth_deg"], 2)
 
 
 def _drag(state, tip, mode="preview"):
