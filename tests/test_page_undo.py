@@ -2,7 +2,8 @@
 (many previews) is one step; Ctrl+Z brings back the param, the image the page draws (its
 pixels) and the handle's place, Ctrl+Shift+Z the drag again; Ctrl+Z in a text field is
 the field's own; the toolbar's buttons are disabled with nothing to undo or redo and
-undo a toggle; a shadow method switch undone brings back the old type's param panel. The own-photo graph with the hand edit (test_page_height_edit.py's)."""
+undo a toggle; a shadow method switch undone brings back the old type's param panel; two tabs
+dragging at once make one step. The own-photo graph with the hand edit (test_page_height_edit.py's)."""
 import time
 
 import httpx
@@ -155,3 +156,44 @@ def test_undo_a_drag_on_a_20mp_photo(browser, tmp_path):
         assert shown(page).shape == (480, 640, 3) and "edit" not in graph_params(url)
         assert not errors, errors
         page.close()
+
+
+def test_two_tabs_dragging_at_once_make_one_step(browser, tmp_path):
+    """Two tabs on one server: tab A drags the tilt handle, and while its pointer is down
+    (previews sent) tab B changes a param (its final done); then A drags on and lets go.
+    Their edits interleave in the server's history; before, A's drag became several steps
+    and an undo went to a graph with half of A's drag in it. Now the two overlapping
+    actions are one step: Ctrl+Z in A goes back to the graph before both."""
+    graph = edit_graph(str(tmp_path))
+    with running_server(graph) as (url, _):
+        a, errors_a = open_page(browser, url)
+        b, errors_b = open_page(browser, url)
+        before = graph_params(url)
+        start = centre(a, "#tilt-handle")
+        seq = last_seq(a)
+        a.mouse.move(*start)
+        a.mouse.down()
+        a.mouse.move(start[0], start[1] + 20, steps=4)
+        a.wait_for_function(f"window.pixgraphShown.some(s => s.mode === 'preview' && s.seq > {seq})", timeout=180000)
+        a.wait_for_function("(q => !q.inflight && !q.pending)(window.pixgraphQueue())", timeout=180000)
+        half = graph_params(url)["edit"]["tilt"]
+        assert half != before["edit"]["tilt"]                       # A's first half is in the graph
+        seq_b = last_seq(b)
+        b.fill('[data-param="light.radius"]', "0.55")
+        b.press('[data-param="light.radius"]', "Enter")
+        wait_final(b, seq_b)
+        assert graph_params(url)["light"]["radius"] == 0.55
+        a.mouse.move(start[0], start[1] + 40, steps=4)               # A's drag goes on, then ends
+        a.mouse.up()
+        wait_final(a, seq)
+        both = graph_params(url)
+        assert both["edit"]["tilt"] != half and both["light"]["radius"] == 0.55
+        assert history(url)["undo"] == 1, history(url)
+        seq = last_seq(a)
+        a.locator("#stage").click(position={"x": 5, "y": 5})
+        a.keyboard.press("Control+z")
+        wait_final(a, seq)
+        assert graph_params(url) == before                          # no half drag left
+        assert not errors_a and not errors_b, (errors_a, errors_b)
+        a.close()
+        b.close()
