@@ -23,6 +23,12 @@ them. So no step boundary falls inside any client's drag, and undo and redo only
 to states between actions, never to one with half a drag in it. Actions are told
 apart by client and id: two clients may use the same id.
 
+A step keeps at most ``MAX_STEP_ACTIONS`` actions (those that continued it last): a
+client sending a new id with every edit while another's drag goes on cannot grow the
+history past ``limit`` steps of that many ids. An action dropped so is one that has
+not continued the step for that many others' actions; its next edit (if any) starts a
+step of its own.
+
 Nothing here knows node types or HTTP: ``ServeState.edit`` records, ``ServeState.undo``
 and ``redo`` move, ``app.py`` answers.
 """
@@ -37,6 +43,10 @@ from .errors import ServeError
 
 #: the most characters of an edit's ``action`` (the page's id of one user action) and ``client``
 MAX_ACTION = 200
+
+#: the most actions one undo step keeps (the newest to continue it): bounds the
+#: history's ids however many actions join one step
+MAX_STEP_ACTIONS = 32
 
 #: one action: (client, action id); client None for a request without one
 Key = tuple
@@ -58,9 +68,10 @@ class History:
         self.limit = max(1, int(limit))
         self.undo: list[Step] = []        # oldest first
         self.redo: list[Step] = []        # the next to redo last
-        #: the actions of each undo step still going on (parallel to ``undo``; emptied by
-        #: an undo or redo, which ends every action)
-        self.actions: list[frozenset[Key]] = []
+        #: the actions of each undo step still going on, the newest to continue it last
+        #: (parallel to ``undo``, at most ``MAX_STEP_ACTIONS`` each; emptied by an undo or
+        #: redo, which ends every action)
+        self.actions: list[tuple[Key, ...]] = []
 
     @staticmethod
     def check_action(action, client=None) -> None:
@@ -86,12 +97,14 @@ class History:
         if action is not None:
             own = next((i for i in range(len(self.actions) - 1, -1, -1) if key in self.actions[i]), None)
             if own is not None:
-                if own < len(self.undo) - 1:
-                    self.actions[own:] = [frozenset().union(*self.actions[own:])]
-                    del self.undo[own + 1:]
+                # this action continues its step: it and the newer steps are one now, with
+                # this action the newest of its actions
+                joined = [k for keys in self.actions[own:] for k in keys if k != key] + [key]
+                self.actions[own:] = [tuple(joined[-MAX_STEP_ACTIONS:])]
+                del self.undo[own + 1:]
                 return
         self.undo.append(before)
-        self.actions.append(frozenset() if action is None else frozenset([key]))
+        self.actions.append(() if action is None else (key,))
         del self.undo[:-self.limit]
         del self.actions[:-self.limit]
         self.redo.clear()
@@ -109,7 +122,7 @@ class History:
         source, dest = (self.undo, self.redo) if what == "undo" else (self.redo, self.undo)
         source.pop()
         dest.append(left)
-        self.actions = [frozenset()] * len(self.undo)
+        self.actions = [()] * len(self.undo)
 
     def counts(self) -> dict:
         """``{"undo": steps, "redo": steps, "limit": limit}``."""

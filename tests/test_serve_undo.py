@@ -321,3 +321,28 @@ def test_two_clients_interleaved_drags_make_no_extra_steps(tmp_path):
         assert values(c)["light"]["azimuth"] == 40
         bad = c.post("/api/params", json={"params": {"light.azimuth": 1}, "client": 7, "action": "x"})
         assert bad.status_code == 400 and bad.json()["field"] == "client"
+
+
+def test_many_action_ids_joined_into_one_step_keep_the_history_bounded(tmp_path):
+    """An attacker (or a buggy page) keeps one drag going while another client sends a new
+    action id with every edit: each of those joins the drag's step, and the ids it keeps
+    to tell the actions apart must stay bounded (``history.MAX_STEP_ACTIONS`` per step),
+    while the drag that goes on stays one step that undo takes back whole."""
+    from pixgraph_serve import history as H
+    MAX_STEP_ACTIONS = getattr(H, "MAX_STEP_ACTIONS", 32)
+    state = _state(tmp_path)
+    orig = dict(state.graph.nodes["light"].params)
+
+    def edit(client, action, params):
+        state.edit(lambda: state.set_params(params), step=True, action=action, client=client)
+
+    n = 4 * MAX_STEP_ACTIONS + 10
+    for i in range(n):
+        edit("tabA", "drag", {"light.azimuth": float(i % 300)})               # the drag goes on
+        edit("tabB", f"x{i}" * 50, {"shadow.thickness": 1.0 + (i % 20)})    # a new action each time
+    edit("tabA", "drag", {"light.azimuth": 301.0})                            # and its last edit
+    kept = sum(len(keys) for keys in state.steps.actions)
+    assert state.history()["undo"] == 1
+    assert kept <= MAX_STEP_ACTIONS, kept                  # not n + 1
+    state.undo()
+    assert dict(state.graph.nodes["light"].params) == orig
