@@ -308,15 +308,25 @@ def light_edits(state: ServeState, tip_uv=None, elevation=None, azimuth=None) ->
             tip = edits.get(p_tip, v[h["tip"]])
             top = edits.get(p_top, v[h["top"]])
             cam = anchors(state, r).camera
-            field = "light_azimuth" if azimuth is not None else "light_elevation"
-            try:
-                if azimuth is None or getattr(light_cls, "tip_at_angles", None) is None:
-                    new = light_cls.tip_at_elevation(cam, tip, top, float(elevation))
-                else:
-                    el = float(elevation) if elevation is not None else light_cls.tip_angles(cam, tip, top)[1]
-                    new = light_cls.tip_at_angles(cam, top, float(azimuth), el)
-            except ValueError as e:
-                raise ServeError(400, f"{field}: {e}", field=field) from None
+            if azimuth is None or getattr(light_cls, "tip_at_angles", None) is None:
+                new = _tip_for(lambda: light_cls.tip_at_elevation(cam, tip, top, float(elevation)),
+                               "light_elevation")
+            else:
+                now = _tip_for(lambda: light_cls.tip_angles(cam, tip, top), "light_azimuth")
+                if elevation is None and now[1] >= 90.0:
+                    raise ServeError(400, "light_azimuth: the light is straight above the object's top (its "
+                                          "shadow tip at the top's foot): its azimuth turns nothing; lower its "
+                                          "elevation first", field="light_azimuth")
+                el = float(elevation) if elevation is not None else now[1]
+                # both typed and refused: the elevation's fault when it fails at the light's
+                # present azimuth too, else the azimuth's
+                blame = "light_azimuth"
+                if elevation is not None:
+                    try:
+                        light_cls.tip_at_angles(cam, top, now[0], el)
+                    except ValueError:
+                        blame = "light_elevation"
+                new = _tip_for(lambda: light_cls.tip_at_angles(cam, top, float(azimuth), el), blame)
             edits.update({p_place: h["tip_placement"], p_top: list(top), p_tip: list(new)})
         else:
             if elevation is not None:
@@ -326,6 +336,14 @@ def light_edits(state: ServeState, tip_uv=None, elevation=None, azimuth=None) ->
     if edits.get(p_place) == h["tip_placement"]:
         edits.update(_tip_angle_params(state, r, lid, h, light_cls, edits[p_tip], edits[p_top]))
     return edits
+
+
+def _tip_for(geometry, field: str):
+    """``geometry()`` (the light type's tip geometry); its ValueError as a 400 naming ``field``."""
+    try:
+        return geometry()
+    except ValueError as e:
+        raise ServeError(400, f"{field}: {e}", field=field) from None
 
 
 def _tip_angle_params(state, r, lid, h, light_cls, tip, top) -> dict:
@@ -392,14 +410,18 @@ def angle_edits(state: ServeState, angles: dict, touched: bool = False) -> dict:
         return _tip_angle_params(state, r, lid, h, light_cls, v[h["tip"]], v[h["top"]]) if touched else {}
     state.set_params(plain)              # checked (type, range) as any param, naming it
     v = _values(state, lid)
-    name = "azimuth" if "azimuth" in angles else "elevation"
+    if "azimuth" in angles and getattr(light_cls, "tip_at_angles", None) is None:
+        raise ServeError(400, f"{h['azimuth']}: this light type cannot be turned by its azimuth in its tip "
+                              "placement: drag its shadow tip", node=lid, field=f"params.{h['azimuth']}")
     try:
-        if name == "azimuth" and getattr(light_cls, "tip_at_angles", None) is None:
-            raise ServeError(400, "this light type cannot be turned by its azimuth in its tip placement: "
-                                  "drag its shadow tip")
         return light_edits(state, **{k: v[h[k]] for k in angles})
     except ServeError as e:
-        raise ServeError(e.status, e.message, node=lid, field=f"params.{h[name]}") from None
+        # light_edits names the request's light_azimuth/light_elevation: here the param typed
+        field = str(e.where.get("field", ""))
+        name = field.removeprefix("light_") if field.removeprefix("light_") in angles else next(iter(angles))
+        message = e.message.removeprefix(f"{field}: ")
+        raise ServeError(e.status, f"{h[name]} {v[h[name]]:g}: {message}", node=lid,
+                         field=f"params.{h[name]}") from None
 
 
 def _pair(v, name) -> tuple[float, float]:

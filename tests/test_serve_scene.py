@@ -190,6 +190,34 @@ def test_in_the_tip_placement_the_angle_params_are_the_lights(state):
     assert got4["azimuth"] == round(got4["azimuth_deg"], 2)
 
 
+def test_a_refused_angle_edit_in_the_tip_placement_names_the_angle_at_fault(tmp_path):
+    """Azimuth and elevation typed together: the 400 names the one the tip cannot give
+    (an elevation of 90, straight above: params.elevation; an azimuth that turns a low
+    light's tip behind the camera: params.azimuth), and a light straight above the top
+    (the tip at its foot) says its azimuth turns nothing; the message names the param,
+    not a request field the panel never sent."""
+    st = ServeState(copy_scene(str(tmp_path)))
+    serve_app.apply_edits(st, {"light_tip": [230, 400]})
+    before = st.yaml()
+    for params, field in (({"light.azimuth": 30, "light.elevation": 90}, "params.elevation"),
+                          ({"light.azimuth": 180, "light.elevation": 5}, "params.azimuth"),
+                          ({"light": {"elevation": 90, "azimuth": 10}}, "params.elevation")):
+        with pytest.raises(ServeError) as e:
+            serve_app.apply_edits(st, {"params": params})
+        assert e.value.where == {"node": "light", "field": field}, (params, e.value.where, e.value.message)
+        assert "light_" not in e.value.message and field.split(".")[1] in e.value.message
+        assert st.yaml() == before
+    # the elevation alone is fine there: the fault was the pair
+    serve_app.apply_edits(st, {"params": {"light.elevation": 5}})
+    assert scene.describe(st)["light"]["elevation_deg"] == pytest.approx(5, abs=1e-6)
+    top = scene.describe(st)["light"]["top_uvh"]
+    serve_app.apply_edits(st, {"light_tip": [top[0], top[1] + top[2]]})      # straight above
+    assert scene.describe(st)["light"]["elevation_deg"] == 90
+    with pytest.raises(ServeError, match="straight above") as e:
+        serve_app.apply_edits(st, {"params": {"light.azimuth": 45}})
+    assert e.value.where == {"node": "light", "field": "params.azimuth"}
+
+
 def _drag(state, tip, mode="preview"):
     """What POST /api/render does for a drag step; returns the number of graph runs."""
     def work():
