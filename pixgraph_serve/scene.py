@@ -170,6 +170,18 @@ def anchors(state: ServeState, r: dict) -> Anchors:
     return state.anchors
 
 
+def _camera(state: ServeState, r: dict):
+    """The light's camera: the anchors' when they are fresh, else from a run of the camera
+    node alone (a horizon drag need not run the object's mask and heights for it)."""
+    g = state.graph
+    refs = _refs(state, g, r)
+    if refs is None:
+        return anchors(state, r).camera          # says why there is none
+    if state.anchors is not None and state.anchors.upstream == _upstream(g, [_node_of(x) for x in refs]):
+        return state.anchors.camera
+    return state.run(refs[:1])[refs[0]]
+
+
 # -- what the page draws -------------------------------------------------------------------
 
 def _bbox(coverage) -> list[float] | None:
@@ -353,7 +365,7 @@ def _tip_angle_params(state, r, lid, h, light_cls, tip, top) -> dict:
     if getattr(light_cls, "tip_angles", None) is None:
         return {}
     try:
-        az, el = light_cls.tip_angles(anchors(state, r).camera, tip, top)
+        az, el = light_cls.tip_angles(_camera(state, r), tip, top)
     except ValueError:
         return {}
     out = {f"{lid}.{h['elevation']}": round(el, 2)}
@@ -365,7 +377,7 @@ def _tip_angle_params(state, r, lid, h, light_cls, tip, top) -> dict:
 def light_angle_edits(state: ServeState, params) -> tuple[Any, dict, bool]:
     """``params`` (a request's ``{"node.param": value}`` or ``{"node": {...}}``) split into
     the rest, the light's azimuth/elevation ``{"azimuth": deg, "elevation": deg}`` found
-    in it, and whether the rest edits the light. Set the rest, then ``angle_edits``: in
+    in it, and whether the rest edits the light or its camera. Set the rest, then ``angle_edits``: in
     the tip placement an angle typed in the panel moves the tip as the slider does (the
     placement does not read the params)."""
     r = roles(state) if isinstance(params, Mapping) else {"light": None}
@@ -386,16 +398,20 @@ def light_angle_edits(state: ServeState, params) -> tuple[Any, dict, bool]:
                 rest[key] = inner
         else:
             rest[key] = value
-    touched = any(str(key) == lid or str(key).startswith(f"{lid}.") for key in rest)
+    # the light's own params, or its camera's (the horizon, the field of view: they turn
+    # the light the tip makes, seen from the top)
+    cam = state.graph.nodes[lid].inputs.get(h.get("camera", "camera"))
+    moves = {lid, *(_upstream(state.graph, [_node_of(str(cam))]) if cam is not None else ())}
+    touched = any(str(key).partition(".")[0] in moves for key in rest)
     return rest, angles, touched
 
 
 def angle_edits(state: ServeState, angles: dict, touched: bool = False) -> dict:
     """Param edits for the light's angles split off by ``light_angle_edits``: the params
     themselves (checked as any param, errors naming them), and in the tip placement the
-    tip that gives them; with no angles but other params of the light edited
-    (``touched``: its tip, top or placement typed in the panel), in the tip placement the
-    angles the light now has."""
+    tip that gives them; with no angles but other params of the light or its camera
+    edited (``touched``: its tip, top or placement typed in the panel, the horizon
+    dragged), in the tip placement the angles the light now has."""
     r = roles(state)
     lid = r["light"]
     if lid is None:

@@ -218,6 +218,27 @@ def test_a_refused_angle_edit_in_the_tip_placement_names_the_angle_at_fault(tmp_
     assert e.value.where == {"node": "light", "field": "params.azimuth"}
 
 
+def test_a_camera_edit_in_the_tip_placement_keeps_the_angle_params_the_lights(tmp_path):
+    """Moving the horizon (or the field of view) turns the light the tip makes, seen from
+    the top, without a light edit: the params must follow (a saved graph carries the
+    light's angles, and switched to controls the light keeps its direction)."""
+    st = ServeState(copy_scene(str(tmp_path)))
+    serve_app.apply_edits(st, {"light_tip": [230, 400]})
+    before = scene.describe(st)["light"]["angles"]
+    cam = scene.roles(st)["camera"]
+    for edit in ({f"{cam}.horizon": st.graph.nodes[cam].params["horizon"] - 60}, {cam: {"hfov": 65.0}}):
+        serve_app.apply_edits(st, {"params": edit})
+        got = scene.describe(st)["light"]
+        assert got["angles"] != before and got["placement"] == "shadow_tip"
+        assert (got["azimuth"], got["elevation"]) == (got["angles"]["light.azimuth"],
+                                                        got["angles"]["light.elevation"])
+        before = got["angles"]
+    az, el = scene.describe(st)["light"]["azimuth_deg"], scene.describe(st)["light"]["elevation_deg"]
+    serve_app.apply_edits(st, {"params": {"light.placement": "controls"}})
+    assert (scene.describe(st)["light"]["azimuth_deg"], scene.describe(st)["light"]["elevation_deg"]) == \
+        pytest.approx((az, el), abs=0.006)
+
+
 def _drag(state, tip, mode="preview"):
     """What POST /api/render does for a drag step; returns the number of graph runs."""
     def work():
