@@ -41,6 +41,7 @@ from . import files, scene
 from .encode import encode_exr, encode_jpeg, encode_png
 from .errors import STATUS, RunTimeout, ServeError, serve_error
 from .guard import COOKIE, Guard, media_type
+from .history import History
 from .runs import Encoded, Renders, Runs
 from .state import ServeState, check_depth
 
@@ -306,8 +307,7 @@ async def render(request: Request):
     tracked = client is not None
     renders: Renders = request.app.state.renders
     if tracked:
-        if not isinstance(client, str) or isinstance(seq, bool) or not isinstance(seq, int):
-            raise ServeError(400, "client must be a string and seq an integer", field="seq")
+        _check_client(client, seq)
         if not renders.claim(client, seq):
             return _stale(renders, seq)
     async with request.app.state.lock:
@@ -349,6 +349,14 @@ async def render(request: Request):
         "X-Pixgraph-Runs": str(runs), "X-Pixgraph-Seconds": f"{time.perf_counter() - t0:.4f}"})
 
 
+def _check_client(client, seq) -> None:
+    """A page's ``client`` (a string of at most ``history.MAX_ACTION`` characters, as its
+    edits' ``action``: checked before the server keeps it) and its render's ``seq``."""
+    History.check_action(None, client)
+    if isinstance(seq, bool) or not isinstance(seq, int):
+        raise ServeError(400, f"seq must be an integer, got {seq!r}", field="seq")
+
+
 async def undo(request: Request):
     """Back to the graph before the newest step (``ServeState.undo``); 409 with nothing to undo."""
     return await _history_move(request, "undo")
@@ -375,8 +383,7 @@ async def _history_move(request: Request, which: str):
     if client is not None:
         # the page's client and a new seq: its render still running (of the state being left)
         # is cancelled rather than waited for, as a newer render would cancel it
-        if not isinstance(client, str) or isinstance(seq, bool) or not isinstance(seq, int):
-            raise ServeError(400, "client must be a string and seq an integer", field="seq")
+        _check_client(client, seq)
         if state.history()[which]:    # nothing to move: leave its render alone (the answer is a 409)
             request.app.state.renders.claim(client, seq)
 

@@ -346,3 +346,21 @@ def test_many_action_ids_joined_into_one_step_keep_the_history_bounded(tmp_path)
     assert kept <= MAX_STEP_ACTIONS, kept                  # not n + 1
     state.undo()
     assert dict(state.graph.nodes["light"].params) == orig
+
+
+def test_a_bad_client_is_refused_naming_client_before_it_is_kept(tmp_path):
+    """``client`` groups a page's edits into its actions (and supersedes its renders): a
+    client that is not a string of at most 200 characters is a 400 naming ``client`` in
+    /api/render, /api/undo and /api/params alike, and is never kept in the server's
+    per-client table (one huge id per request would grow it)."""
+    state = _state(tmp_path)
+    with _client(state) as c:
+        renders = c.app.app.state.renders
+        for bad in (7, ["a"], "x" * 201):
+            for path, body in (("/api/render", {"mode": "preview", "work": 0.25, "format": "jpeg"}),
+                               ("/api/undo", {}), ("/api/params", {"params": {"shadow.thickness": 3}})):
+                r = c.post(path, json={**body, "client": bad, "seq": 1})
+                assert r.status_code == 400 and r.json()["field"] == "client", (path, bad, r.text)
+        assert not any(len(k) > 200 for k in renders.latest), [len(k) for k in renders.latest]
+        r = c.post("/api/render", json={"mode": "preview", "work": 0.25, "format": "jpeg", "client": "ok", "seq": "1"})
+        assert r.status_code == 400 and r.json()["field"] == "seq"
