@@ -46,3 +46,31 @@ def test_unpack_check_finds_a_changed_array(tmp_path):
     _cache(src / "cache_train_8.npz", 4, seed=7)      # the original changed after packing
     with pytest.raises(SystemExit, match="array x differs"):
         pack_cache.unpack(str(pack), str(tmp_path / "dst"), check=str(src))
+
+
+def test_unpack_into_a_folder_with_the_samples_keeps_them_and_refuses_unsafe_names(tmp_path):
+    """Unpacked into the folder the caches came from (the real samples there), the
+    placeholders must not truncate the samples; a name in a pack that is not a sample
+    file name (``load_split`` reads only ``NNNNN.npz``) is refused before anything is
+    written: a name like ``../x`` would truncate a file outside the data folder."""
+    src, pack = tmp_path / "src", tmp_path / "pack"
+    (src / "train").mkdir(parents=True)
+    _cache(src / "cache_train_8.npz", 3)
+    for i in range(3):
+        (src / "train" / f"{i * 2:05d}.npz").write_bytes(b"a real sample")
+    pack_cache.pack(str(src), ["train"], 8, str(pack))
+    pack_cache.unpack(str(pack), str(src), check=str(src))
+    assert [(src / "train" / f"{i * 2:05d}.npz").read_bytes() for i in range(3)] == [b"a real sample"] * 3
+
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    outside = tmp_path / "outside.npz"
+    outside.write_bytes(b"keep me")
+    rng = np.random.default_rng(0)
+    np.savez(bad / "cache_train_8.npz", x=rng.random((1, 6, 8, 8)).astype(np.float16), n=1,
+             meta=json.dumps([{}]), names=np.array(["../../outside.npz"]))
+    pack_cache.pack(str(bad), ["train"], 8, str(tmp_path / "badpack"))
+    with pytest.raises(SystemExit, match="outside.npz"):
+        pack_cache.unpack(str(tmp_path / "badpack"), str(tmp_path / "dst"))
+    assert outside.read_bytes() == b"keep me"
+    assert not (tmp_path / "dst" / "cache_train_8.npz").exists()

@@ -6,8 +6,8 @@ The caches hold float16 crops; their two bytes are split into two planes
 ("byte shuffle": the high bytes of neighbouring pixels are alike) and each
 plane is LZMA-compressed, about 7.5x smaller than the cache. ``unpack`` writes
 the cache file back unchanged and an empty placeholder per sample file
-(``SPLIT/00000.npz`` ...), which is all ``load_split`` looks at when its cache
-matches. ``unpack --check`` compares every array with the original caches.
+(``SPLIT/00000.npz`` ...) where no file of that name is (a real sample stays),
+which is all ``load_split`` looks at when its cache matches. ``unpack --check`` compares every array with the original caches.
 
     python -m pixgraph_lab.height.pack_cache pack --data data/hsnap --splits train,train_organic,val,val_organic --size 64 --out PACKDIR
     python -m pixgraph_lab.height.pack_cache unpack --pack PACKDIR --data DATA [--check data/hsnap]
@@ -18,10 +18,13 @@ import argparse
 import json
 import lzma
 import os
+import re
 
 import numpy as np
 
 KEYS = ("x", "t", "w", "bh", "n", "meta", "names")
+#: the sample file names ``train.load_split`` reads (``SPLIT/NNNNN.npz``)
+SAMPLE = re.compile(r"[0-9]{5}\.npz")
 
 
 def _pack_array(a: np.ndarray) -> dict:
@@ -68,11 +71,17 @@ def unpack(pack_dir: str, data: str, check: str | None = None) -> None:
         with np.load(os.path.join(pack_dir, name), allow_pickle=False) as z:
             specs = json.loads(str(z["spec"]))
             arrays = {k: _unpack_array(specs[k], z[k]) for k in specs}
-        os.makedirs(os.path.join(data, split), exist_ok=True)
         names = [str(s) for s in arrays["names"]] if "names" in arrays else \
             [f"{i:05d}.npz" for i in range(int(arrays["n"]))]
+        bad = [nm for nm in names if not SAMPLE.fullmatch(nm)]
+        if bad:     # load_split reads only NNNNN.npz; a path such as ../x would land elsewhere
+            raise SystemExit(f"{name}: sample names {bad[:3]} are not NNNNN.npz: nothing unpacked")
+        os.makedirs(os.path.join(data, split), exist_ok=True)
         for nm in names:
-            open(os.path.join(data, split, nm), "wb").close()
+            try:    # a placeholder only where no file is: a real sample there stays as it is
+                open(os.path.join(data, split, nm), "xb").close()
+            except FileExistsError:
+                pass
         dst = os.path.join(data, f"cache_{split}_{size}.npz")
         np.savez(dst, **{k: arrays[k] for k in KEYS if k in arrays})
         if check:
