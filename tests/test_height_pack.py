@@ -74,3 +74,18 @@ def test_unpack_into_a_folder_with_the_samples_keeps_them_and_refuses_unsafe_nam
         pack_cache.unpack(str(tmp_path / "badpack"), str(tmp_path / "dst"))
     assert outside.read_bytes() == b"keep me"
     assert not (tmp_path / "dst" / "cache_train_8.npz").exists()
+
+
+def test_every_array_of_a_cache_travels(tmp_path):
+    """A cache with an array the packer does not know by name (a later train.py's) comes
+    back with it: the round trip is of the whole file, and ``--check`` would say so."""
+    src, pack, dst = tmp_path / "src", tmp_path / "pack", tmp_path / "dst"
+    src.mkdir()
+    _cache(src / "cache_train_8.npz", 2)
+    with np.load(src / "cache_train_8.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    np.savez(src / "cache_train_8.npz", **arrays, box=np.arange(8, dtype=np.int32).reshape(2, 4))
+    pack_cache.pack(str(src), ["train"], 8, str(pack))
+    pack_cache.unpack(str(pack), str(dst), check=str(src))
+    with np.load(dst / "cache_train_8.npz") as b:
+        assert b["box"].tolist() == [[0, 1, 2, 3], [4, 5, 6, 7]] and b["box"].dtype == np.int32

@@ -22,7 +22,6 @@ import re
 
 import numpy as np
 
-KEYS = ("x", "t", "w", "bh", "n", "meta", "names")
 #: the sample file names ``train.load_split`` reads (``SPLIT/NNNNN.npz``)
 SAMPLE = re.compile(r"[0-9]{5}\.npz")
 
@@ -53,11 +52,12 @@ def pack(data: str, splits, size: int, out: str) -> None:
         src = os.path.join(data, f"cache_{split}_{size}.npz")
         with np.load(src, allow_pickle=False) as z:
             specs, arrays = {}, {}
-            for k in KEYS:
-                if k in z.files:
-                    p = _pack_array(z[k])
-                    arrays[k] = p.pop("data")
-                    specs[k] = p
+            if "spec" in z.files:
+                raise SystemExit(f"{src}: an array named 'spec' (the pack's own) cannot travel")
+            for k in z.files:           # every array: train.load_split's x t w bh n meta names, and any other
+                p = _pack_array(z[k])
+                arrays[k] = p.pop("data")
+                specs[k] = p
         np.savez(os.path.join(out, f"{split}_{size}.npz"), spec=json.dumps(specs), **arrays)
         print(f"{split}: {os.path.getsize(src) / 1e6:.1f} MB -> "
               f"{os.path.getsize(os.path.join(out, f'{split}_{size}.npz')) / 1e6:.1f} MB", flush=True)
@@ -83,9 +83,11 @@ def unpack(pack_dir: str, data: str, check: str | None = None) -> None:
             except FileExistsError:
                 pass
         dst = os.path.join(data, f"cache_{split}_{size}.npz")
-        np.savez(dst, **{k: arrays[k] for k in KEYS if k in arrays})
+        np.savez(dst, **arrays)
         if check:
             with np.load(os.path.join(check, f"cache_{split}_{size}.npz"), allow_pickle=False) as z0:
+                if sorted(z0.files) != sorted(arrays):
+                    raise SystemExit(f"{name}: arrays {sorted(arrays)} differ from {check}'s {sorted(z0.files)}")
                 for k in z0.files:
                     a0, a1 = z0[k], arrays[k]
                     if a0.dtype != a1.dtype or a0.shape != a1.shape or a0.tobytes() != a1.tobytes():
