@@ -243,9 +243,11 @@ def describe(state: ServeState) -> dict:
         out["light"] = {**v, "azimuth_deg": controls.get("azimuth"), "elevation_deg": controls.get("elevation"),
                         "top_uvh": list(a.top) if a.top else None, "tip_uv": list(tip) if tip else None,
                         # what the panel shows for the angle params: the light's own (in the tip
-                        # placement a graph may carry params it ignores), to 0.01 deg as written
+                        # placement a graph may carry params it ignores), to 0.01 deg as a light
+                        # edit writes them there; in the controls placement they are the params
                         "angles": {f"{lid}.{h[k]}": round(controls[k], 2) for k in ("azimuth", "elevation")
-                                   if k in h and controls.get(k) is not None}}
+                                   if k in h and controls.get(k) is not None}
+                        if v.get(h["placement"]) == h["tip_placement"] else {}}
     return out
 
 

@@ -239,6 +239,18 @@ def test_a_camera_edit_in_the_tip_placement_keeps_the_angle_params_the_lights(tm
         pytest.approx((az, el), abs=0.006)
 
 
+def test_in_the_controls_placement_the_panel_is_told_the_params_as_they_are(tmp_path):
+    """In the controls placement the light's angles are its params: what the page is told
+    to show for them (``angles``) must be those params, not rounded to 0.01 deg (a typed
+    20.004 shown as 20.0 is a value the graph does not have)."""
+    st = ServeState(copy_scene(str(tmp_path)))
+    serve_app.apply_edits(st, {"params": {"light.placement": "controls", "light.azimuth": 20.004,
+                                          "light.elevation": 33.337}})
+    got = scene.describe(st)["light"]
+    for key, value in got["angles"].items():
+        assert value == {"light.azimuth": 20.004, "light.elevation": 33.337}[key], got["angles"]
+
+
 def _drag(state, tip, mode="preview"):
     """What POST /api/render does for a drag step; returns the number of graph runs."""
     def work():
