@@ -325,22 +325,22 @@ def light_edits(state: ServeState, tip_uv=None, elevation=None, azimuth=None) ->
             if azimuth is None or getattr(light_cls, "tip_at_angles", None) is None:
                 new = _tip_for(lambda: light_cls.tip_at_elevation(cam, tip, top, float(elevation)),
                                "light_elevation")
-            else:
-                now = _tip_for(lambda: light_cls.tip_angles(cam, tip, top), "light_azimuth")
-                if elevation is None and now[1] >= 90.0:
+            elif elevation is None:      # the azimuth alone: the light keeps its elevation
+                el = _tip_for(lambda: light_cls.tip_angles(cam, tip, top), "light_azimuth")[1]
+                if el >= 90.0:
                     raise ServeError(400, "light_azimuth: the light is straight above the object's top (its "
                                           "shadow tip at the top's foot): its azimuth turns nothing; lower its "
                                           "elevation first", field="light_azimuth")
-                el = float(elevation) if elevation is not None else now[1]
-                # both typed and refused: the elevation's fault when it fails at the light's
-                # present azimuth too, else the azimuth's
-                blame = "light_azimuth"
-                if elevation is not None:
-                    try:
-                        light_cls.tip_at_angles(cam, top, now[0], el)
-                    except ValueError:
-                        blame = "light_elevation"
-                new = _tip_for(lambda: light_cls.tip_at_angles(cam, top, float(azimuth), el), blame)
+                new = _tip_for(lambda: light_cls.tip_at_angles(cam, top, float(azimuth), el), "light_azimuth")
+            else:                        # both: the top alone places the light
+                # refused: the elevation's fault when it fails at azimuth 0 too (the tip falls
+                # back, away from the camera), else the azimuth's (it turns the tip out of view)
+                try:
+                    light_cls.tip_at_angles(cam, top, 0.0, float(elevation))
+                    blame = "light_azimuth"
+                except ValueError:
+                    blame = "light_elevation"
+                new = _tip_for(lambda: light_cls.tip_at_angles(cam, top, float(azimuth), float(elevation)), blame)
             edits.update({p_place: h["tip_placement"], p_top: list(top), p_tip: list(new)})
         else:
             if elevation is not None:

@@ -207,6 +207,14 @@ def test_a_refused_angle_edit_in_the_tip_placement_names_the_angle_at_fault(tmp_
         assert e.value.where == {"node": "light", "field": field}, (params, e.value.where, e.value.message)
         assert "light_" not in e.value.message and field.split(".")[1] in e.value.message
         assert st.yaml() == before
+    # both typed place the light by the top alone: a tip the horizon has passed does not matter
+    cam = scene.roles(st)["camera"]
+    horizon = st.graph.nodes[cam].params["horizon"]
+    serve_app.apply_edits(st, {"params": {f"{cam}.horizon": 420}})      # above the foot, below the tip
+    serve_app.apply_edits(st, {"params": {"light.azimuth": 30, "light.elevation": 40}})
+    assert (scene.describe(st)["light"]["azimuth_deg"], scene.describe(st)["light"]["elevation_deg"]) == \
+        pytest.approx((30, 40), abs=1e-6)
+    serve_app.apply_edits(st, {"params": {f"{cam}.horizon": horizon}})
     # the elevation alone is fine there: the fault was the pair
     serve_app.apply_edits(st, {"params": {"light.elevation": 5}})
     assert scene.describe(st)["light"]["elevation_deg"] == pytest.approx(5, abs=1e-6)
