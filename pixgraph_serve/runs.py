@@ -88,18 +88,26 @@ class Encoded:
 class Renders:
     """Per-client newest sequence number and the token of its running render: a render
     that a newer one of the same client superseded is dropped before it starts and
-    cancelled while it runs, so drags never queue work."""
+    cancelled while it runs, so drags never queue work. At most ``max_clients`` clients
+    are remembered (the most recently seen; one with a render running is never
+    forgotten), so requests under ever new client ids cannot grow it without bound; a
+    forgotten client's next render simply counts as its first."""
 
-    def __init__(self):
-        self.latest: dict[str, int] = {}
+    def __init__(self, max_clients: int = 256):
+        self.latest: collections.OrderedDict[str, int] = collections.OrderedDict()
         self.tokens: dict[str, CancelToken] = {}
         self.dropped = 0
+        self.max_clients = max_clients
 
     def claim(self, client: str, seq: int) -> bool:
         """Record ``seq`` as the client's newest; False when a newer one came first."""
         if seq <= self.latest.get(client, -1):
             return False
         self.latest[client] = seq
+        self.latest.move_to_end(client)
+        if len(self.latest) > self.max_clients:
+            for old in [c for c in self.latest if c not in self.tokens][:len(self.latest) - self.max_clients]:
+                del self.latest[old]
         token = self.tokens.get(client)
         if token is not None:
             token.cancel()  # its result would be stale: stop it

@@ -173,3 +173,17 @@ def test_deadlines_cancel_only_runs_past_theirs():
     e_last = d.add(last, 0.6)
     assert e_last.wait(30) and e_first.is_set()
     assert first.cancelled and last.cancelled and not removed.cancelled and not never.cancelled
+
+
+def test_renders_remember_a_bounded_number_of_clients():
+    from pixgraph.events import CancelToken
+    from pixgraph_serve.runs import Renders
+    r = Renders(max_clients=8)
+    r.claim("busy", 1)
+    r.tokens["busy"] = CancelToken()            # a client whose render is running
+    for i in range(1000):                        # a script inventing a client id per request
+        assert r.claim(f"c{i}", 1)
+    assert len(r.latest) <= 9, len(r.latest)
+    assert "busy" in r.latest and r.current("busy", 1)   # never forgotten while it renders
+    assert not r.claim("c999", 1)                # the newest clients are remembered: a stale seq is refused
+    assert r.claim("c0", 1)                      # a forgotten one starts again
