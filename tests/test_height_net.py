@@ -124,7 +124,8 @@ def test_npz_is_the_shipped_checkpoint():
         assert str(z["__source_sha256__"]) == hn.pt_digest(lh.WEIGHTS)
     prov = json.loads(lh.WEIGHTS.with_suffix(".json").read_text())["numpy_weights"]
     assert prov["source_sha256"] == hn.pt_digest(lh.WEIGHTS) and prov["bytes"] == NPZ.stat().st_size
-    assert NPZ.stat().st_size < 5e6                                 # float16, like the .pt
+    # float16, like the .pt: the two together within the 20 MB for the weights
+    assert NPZ.stat().st_size + lh.WEIGHTS.stat().st_size < 20e6
 
 
 def test_a_stale_npz_is_refused(tmp_path):

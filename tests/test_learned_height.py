@@ -175,7 +175,7 @@ def test_importing_the_node_does_not_import_torch():
 
 def test_shipped_weights_are_small_and_documented():
     w = pathlib.Path(lh.WEIGHTS)
-    assert w.stat().st_size < 5e6
+    assert w.stat().st_size + w.with_suffix(".npz").stat().st_size < 20e6   # issue 24: weights <= 20 MB
     prov = json.loads(w.with_suffix(".json").read_text())
     for k in ("command", "seed", "data", "steps", "seconds", "best_val_mae_px"):
         assert k in prov, k
@@ -348,7 +348,9 @@ def test_the_node_builds_the_cutouts_colour_on_its_covered_box_only(monkeypatch,
     # RGBA of the whole canvas (cutout_rgba: 0.6 s at 20 MP for a 400-px object) before the
     # predictor cut it to the covered box. Now it cuts first (from an even row and column,
     # as the predictor does), with the same heights as the predictor on the whole canvas
-    s = heldout(REAL)[1]
+    # a held-out cutout auto takes the learned map for (its choice depends on the cutout, not where it is)
+    s = next(s for s in heldout(REAL)
+             if ch.learned_predictor().predict_full(ch.cutout_rgba(s["alpha"], s["image"]))["use_learned"])
     h, w = s["alpha"].shape
     H, W = h + 90, w + 130
     alpha = np.zeros((H, W), np.float32)
