@@ -344,6 +344,9 @@ class ServeState:
                 edits += [(str(name), k, v) for k, v in value.items()]
             else:
                 nid, _, pname = str(name).partition(".")
+                if not nid or not pname:     # the engine says so too, but names no field
+                    raise ServeError(400, f"param override {str(name)!r} must be 'node.param' or "
+                                          "{node: {param: value}}", field=f"params.{name}")
                 edits.append((nid, pname, value))
         self._paths_first(self.graph.base_dir, [(nid, self.graph.nodes[nid].type, {pname: v})
                                                 for nid, pname, v in edits if nid in self.graph.nodes])

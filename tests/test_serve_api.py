@@ -333,3 +333,11 @@ def test_bad_render_requests_and_posted_graphs(api):
     _error(api.get("/api/outputs/final.gif"), 404)
     _error(api.get("/api/outputs/final.png?scale=0"), 400)
     _error(api.get("/static/../state.py"), 404)
+
+
+def test_a_param_override_without_a_param_name_is_refused_naming_it(api):
+    # {"light": 5}: neither "node.param" nor {node: {param: value}}; the answer named no field
+    for key, value in (("light", 5), ("light", [1]), ("light.", 3), (".elevation", 3)):
+        err = _error(api.post("/api/params", json={"params": {key: value}}), 400)
+        assert err.get("field") == f"params.{key}", err
+        assert "must be 'node.param'" in err["error"], err
