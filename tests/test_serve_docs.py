@@ -43,3 +43,12 @@ def test_server_md_names_every_option():
     add_arguments(parser)
     options = {o for a in parser._actions for o in a.option_strings if o.startswith("--")} - {"--help"}
     assert len(options) == 8 and options <= set(re.findall(r"`(--[a-z][a-z-]+)", start)), options
+
+
+def test_server_md_limits_are_the_codes():
+    # numbers the docs repeat from the code: a changed limit must change the docs too
+    from pixgraph_serve import history
+    from pixgraph_serve.runs import Renders
+    text = open(DOC).read()
+    assert f"at most {history.MAX_STEP_ACTIONS} actions" in text
+    assert f"at most {Renders().max_clients} clients" in text
