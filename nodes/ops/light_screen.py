@@ -74,21 +74,15 @@ def tip_at_elevation(camera, tip_uv, top_uvh, elevation_deg: float) -> tuple[flo
 
     Raises ValueError for an elevation outside [0.5, 90) degrees, a tip or top above
     the horizon, or a tip that would leave the ground in view."""
-    if not 0.5 <= elevation_deg < 90.0:
-        raise ValueError(f"elevation must be in [0.5, 90) degrees, got {elevation_deg}")
+    _check_elevation(elevation_deg)
     P, okp = camera.back_project(*top_uvh)
     T, okt = camera.back_project(tip_uv[0], tip_uv[1], 0.0)
     if not (okp and okt):
         raise ValueError("the shadow tip or the object's top is above the horizon")
-    foot = np.array([P[0], 0.0, P[2]])
-    d = T - foot
+    d = T - np.array([P[0], 0.0, P[2]])
     n = math.hypot(d[0], d[2])
     d = d / n if n > 1e-9 else np.array([0.0, 0.0, -1.0])
-    new = foot + d * (P[1] / math.tan(math.radians(elevation_deg)))
-    uvh, D = camera.project(new)
-    if not (D > 0 and np.all(np.isfinite(uvh))):
-        raise ValueError(f"at elevation {elevation_deg} the shadow tip leaves the ground in view")
-    return float(uvh[0]), float(uvh[1])
+    return _tip_along(camera, P, d, elevation_deg, f"at elevation {elevation_deg}")
 
 
 def tip_at_angles(camera, top_uvh, azimuth_deg: float, elevation_deg: float) -> tuple[float, float]:
@@ -99,15 +93,26 @@ def tip_at_angles(camera, top_uvh, azimuth_deg: float, elevation_deg: float) -> 
 
     Raises ValueError for an elevation outside [0.5, 90) degrees, a top above the
     horizon or without height, or a tip that would leave the ground in view."""
-    if not 0.5 <= elevation_deg < 90.0:
-        raise ValueError(f"elevation must be in [0.5, 90) degrees, got {elevation_deg}")
+    _check_elevation(elevation_deg)
     P, ok = camera.back_project(*top_uvh)
     if not ok or top_uvh[2] <= 0:
         raise ValueError("the object's top needs a height > 0 and its foot below the horizon")
     az = math.radians(azimuth_deg)
-    reach = P[1] / math.tan(math.radians(elevation_deg))      # from the top's foot, away from the light
-    new = np.array([P[0] - reach * math.sin(az), 0.0, P[2] - reach * math.cos(az)])
+    d = np.array([-math.sin(az), 0.0, -math.cos(az)])         # from the top's foot, away from the light
+    return _tip_along(camera, P, d, elevation_deg, f"at azimuth {azimuth_deg}, elevation {elevation_deg}")
+
+
+def _check_elevation(elevation_deg: float) -> None:
+    if not 0.5 <= elevation_deg < 90.0:
+        raise ValueError(f"elevation must be in [0.5, 90) degrees, got {elevation_deg}")
+
+
+def _tip_along(camera, P, d, elevation_deg: float, what: str) -> tuple[float, float]:
+    """The image point of the ground point ``P[1] / tan(elevation)`` along the unit ground
+    direction ``d`` from the foot of the 3D top ``P``: where the top is seen at that
+    elevation. ValueError (starting with ``what``) when it leaves the ground in view."""
+    new = np.array([P[0], 0.0, P[2]]) + d * (P[1] / math.tan(math.radians(elevation_deg)))
     uvh, D = camera.project(new)
     if not (D > 0 and np.all(np.isfinite(uvh))):
-        raise ValueError(f"at azimuth {azimuth_deg}, elevation {elevation_deg} the shadow tip leaves the ground in view")
+        raise ValueError(f"{what} the shadow tip leaves the ground in view")
     return float(uvh[0]), float(uvh[1])
