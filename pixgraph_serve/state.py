@@ -32,7 +32,7 @@ from typing import Any, Mapping
 
 from pixgraph import fileio
 from pixgraph.events import Cancelled, CancelToken
-from pixgraph.graph import Graph, GraphError, NodeInstance, validate
+from pixgraph.graph import Graph, GraphError, NodeInstance, split_param, validate
 from pixgraph.paths import PathError
 from pixgraph.session import Session
 
@@ -343,10 +343,10 @@ class ServeState:
             if isinstance(value, Mapping) and "." not in str(name):
                 edits += [(str(name), k, v) for k, v in value.items()]
             else:
-                nid, _, pname = str(name).partition(".")
-                if not nid or not pname:     # the engine says so too, but names no field
-                    raise ServeError(400, f"param override {str(name)!r} must be 'node.param' or "
-                                          "{node: {param: value}}", field=f"params.{name}")
+                try:                         # the engine's parser; its error named no field
+                    nid, pname = split_param(name, "param override")
+                except GraphError as e:
+                    raise ServeError(400, e.message, field=f"params.{name}") from None
                 edits.append((nid, pname, value))
         self._paths_first(self.graph.base_dir, [(nid, self.graph.nodes[nid].type, {pname: v})
                                                 for nid, pname, v in edits if nid in self.graph.nodes])
