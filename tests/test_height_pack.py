@@ -89,3 +89,17 @@ def test_every_array_of_a_cache_travels(tmp_path):
     pack_cache.unpack(str(pack), str(dst), check=str(src))
     with np.load(dst / "cache_train_8.npz") as b:
         assert b["box"].tolist() == [[0, 1, 2, 3], [4, 5, 6, 7]] and b["box"].dtype == np.int32
+
+
+def test_unpack_over_the_checked_caches_still_compares_with_the_originals(tmp_path):
+    # --data and --check the same folder: the check must read the caches before they are
+    # overwritten (else it compares the unpacked arrays with themselves and always passes)
+    src, pack = tmp_path / "src", tmp_path / "pack"
+    src.mkdir()
+    _cache(src / "cache_train_8.npz", 4, seed=3)
+    pack_cache.pack(str(src), ["train"], 8, str(pack))
+    _cache(src / "cache_train_8.npz", 4, seed=9)      # the caches changed after packing
+    before = (src / "cache_train_8.npz").read_bytes()
+    with pytest.raises(SystemExit, match="differs"):
+        pack_cache.unpack(str(pack), str(src), check=str(src))
+    assert (src / "cache_train_8.npz").read_bytes() == before       # and nothing written over them

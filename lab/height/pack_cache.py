@@ -82,9 +82,7 @@ def unpack(pack_dir: str, data: str, check: str | None = None) -> None:
                 open(os.path.join(data, split, nm), "xb").close()
             except FileExistsError:
                 pass
-        dst = os.path.join(data, f"cache_{split}_{size}.npz")
-        np.savez(dst, **arrays)
-        if check:
+        if check:       # before writing: unpacked over the checked caches, it would compare them with themselves
             with np.load(os.path.join(check, f"cache_{split}_{size}.npz"), allow_pickle=False) as z0:
                 if sorted(z0.files) != sorted(arrays):
                     raise SystemExit(f"{name}: arrays {sorted(arrays)} differ from {check}'s {sorted(z0.files)}")
@@ -92,6 +90,7 @@ def unpack(pack_dir: str, data: str, check: str | None = None) -> None:
                     a0, a1 = z0[k], arrays[k]
                     if a0.dtype != a1.dtype or a0.shape != a1.shape or a0.tobytes() != a1.tobytes():
                         raise SystemExit(f"{name}: array {k} differs from {check}")
+        np.savez(os.path.join(data, f"cache_{split}_{size}.npz"), **arrays)
         print(f"{split}: {len(names)} samples{' (checked: identical)' if check else ''}", flush=True)
 
 
