@@ -43,6 +43,12 @@ from .learned_height import crop_box, pin_contact, snap_feet
 from .resample import nonzero_box, shrink_part
 from .upsample import masked_resize
 
+#: how the full-size pixels with no work-size pixel of their own (a part thinner than a
+#: work-size pixel: ``upsample.masked_resize``'s ``lost``) get their height
+#: (``fill_thin``; docs/height.md, "Measured: thin parts")
+THIN_FILLS = ("none", "contact", "attached", "attached_ground")
+THIN_FILL = "none"
+
 #: the largest square crop [px] the predictor runs at (the validation renders are
 #: 256 x 256, crop sides 74-245 px, 5th-95th percentile; 256 was the first
 #: candidate, which missed its rule)
@@ -68,22 +74,83 @@ def shrink_cutout(rgba: np.ndarray, shape) -> np.ndarray:
     return shrink_part(np.asarray(rgba[r0:r1, c0:c1], np.float32), (r0, c0), rgba.shape[:2], shape)
 
 
+def fill_thin(height: np.ndarray, mask: np.ndarray, lost: np.ndarray, heuristic: np.ndarray,
+              how: str = "attached") -> np.ndarray:
+    """``height`` [px] (H, W) with its ``lost`` pixels (inside ``mask``, no work-size
+    pixel of their own) filled by ``how`` (``THIN_FILLS``), in place; the others untouched.
+
+    ``contact``: the contact line ``heuristic`` [px]. ``attached``: each 8-connected
+    component of lost pixels is taken to be an upright part standing where what it
+    is attached to stands: the covered mask pixels 8-adjacent to it imply a contact
+    row ``row + height`` each; their mean ``v`` gives the part ``max(0, v - row)``;
+    a component with no covered neighbour takes ``heuristic``. ``attached_ground``:
+    the same, but a component reaching the silhouette's two lowest rows stands on
+    the ground itself: 0 at its lowest pixel's bottom edge, +1 px per row up."""
+    if how == "none" or not lost.any():
+        return height
+    if how == "contact":
+        lr, lc = np.nonzero(lost)
+        height[lr, lc] = heuristic[lr, lc]
+        return height
+    if how not in ("attached", "attached_ground"):
+        raise ValueError(f"unknown thin fill {how!r}; known: {', '.join(THIN_FILLS)}")
+    from scipy import ndimage
+    H, W = mask.shape
+    r0, r1, c0, c1 = nonzero_box(lost)
+    lo = lost[r0:r1, c0:c1]
+    lab, n = ndimage.label(lo, structure=np.ones((3, 3), bool))
+    lr, lc = np.nonzero(lo)
+    lr, lc = lr + r0, lc + c0                           # the lost pixels (full-size rows, columns)
+    kl = lab[lr - r0, lc - c0]
+    # their covered 8-neighbours, each counted once per component
+    nb_k, nb_i = [], []
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            rr, cc = lr + dr, lc + dc
+            ok = (rr >= 0) & (rr < H) & (cc >= 0) & (cc < W)
+            rr, cc, k = rr[ok], cc[ok], kl[ok]
+            ok = mask[rr, cc] & ~lost[rr, cc]
+            nb_k.append(k[ok])
+            nb_i.append(rr[ok] * W + cc[ok])
+    pairs = np.unique(np.stack([np.concatenate(nb_k), np.concatenate(nb_i)]).astype(np.int64), axis=1)
+    k, idx = pairs
+    implied = (idx // W).astype(np.float64) + height.reshape(-1)[idx]      # the contact row they imply
+    cnt = np.bincount(k, minlength=n + 1)
+    level = np.bincount(k, weights=implied, minlength=n + 1) / np.maximum(cnt, 1)
+    row = lr.astype(np.float64)
+    val = level[kl] - row
+    if how == "attached_ground":
+        low = np.array([-1] + [sl[0].stop - 1 + r0 for sl in ndimage.find_objects(lab)], np.float64)
+        bottom = float(np.nonzero(mask.any(1))[0].max())
+        own = low[kl] >= bottom - 1
+        val = np.where(own, low[kl] + 0.5 - row, val)
+        cnt[1:][low[1:] >= bottom - 1] = 1       # standing on the ground: no fall back to the contact line
+    val = np.where(cnt[kl] > 0, val, heuristic[lr, lc])
+    height[lr, lc] = np.maximum(val, 0.0)
+    return height
+
+
 def enlarge_prediction(out: dict, f: float, mask: np.ndarray, mask_small: np.ndarray, contact: str,
-                       lift: float, pin_fade, foot_snap) -> dict:
+                       lift: float, pin_fade, foot_snap, thin_fill: str | None = None) -> dict:
     """``predict_full``'s result at the work size -> at full size (module doc).
 
     ``mask`` / ``mask_small``: the cutout (alpha > threshold) at full and work
-    size; ``lift`` [full-size px]; ``pin_fade``, ``foot_snap``: the predictor's."""
+    size; ``lift`` [full-size px]; ``pin_fade``, ``foot_snap``: the predictor's;
+    ``thin_fill``: ``fill_thin``'s ``how`` (None: ``THIN_FILL``)."""
     H, W = mask.shape
     res = dict(out)
     box = nonzero_box(mask)
+    thin_fill = THIN_FILL if thin_fill is None else thin_fill
+    heur = contact_line_height(mask).astype(np.float32)
 
     def up(h_small):
         full = np.zeros((H, W), np.float32)
         if box is not None:
             r0, r1, c0, c1 = box
-            part = masked_resize(np.asarray(h_small, np.float32) * f, mask_small.astype(np.float32),
-                                 mask, (H, W), box=box)
+            part, lost = masked_resize(np.asarray(h_small, np.float32) * f, mask_small.astype(np.float32),
+                                       mask, (H, W), box=box, return_lost=True)
+            if thin_fill != "none" and lost.any():      # (on the box: rows are only compared)
+                part = fill_thin(part, mask[r0:r1, c0:c1], lost, heur[r0:r1, c0:c1], thin_fill)
             full[r0:r1, c0:c1] = part
         full = np.where(mask, np.maximum(full, 0.0), 0.0).astype(np.float32)
         if contact != "free":
@@ -93,7 +160,6 @@ def enlarge_prediction(out: dict, f: float, mask: np.ndarray, mask_small: np.nda
         return full
 
     res["height"] = up(out["height"])
-    heur = contact_line_height(mask).astype(np.float32)
     res["heuristic"] = pin_contact(heur, mask, lift) if contact != "free" else heur
     for k in ("est_mae_learned", "est_mae_heuristic"):
         if res.get(k) is not None:
@@ -104,7 +170,8 @@ def enlarge_prediction(out: dict, f: float, mask: np.ndarray, mask_small: np.nda
 
 
 def predict_at_work_size(predictor, rgba: np.ndarray, threshold: float = 0.5, contact: str = "ground",
-                         lift: float = 0.0, work_side: int = WORK_SIDE, signals: bool = False) -> dict:
+                         lift: float = 0.0, work_side: int = WORK_SIDE, signals: bool = False,
+                         thin_fill: str | None = None) -> dict:
     """``predictor.predict_at_own_size(rgba, ...)`` (``LearnedHeightPredictor``), a
     cutout whose square crop is larger than ``work_side`` predicted at that size
     (module doc; ``work_scale`` in the result).
@@ -112,10 +179,11 @@ def predict_at_work_size(predictor, rgba: np.ndarray, threshold: float = 0.5, co
     The input is first cut to its covered pixels (alpha > 0) and the maps pasted
     back: a cutout delivered on a canvas much larger than itself (a matte at the
     photo's size) costs what the cutout costs and gets the same heights as the
-    tight cutout (``_on_covered_box``)."""
+    tight cutout (``_on_covered_box``). ``thin_fill``: ``fill_thin``'s ``how`` (None:
+    ``THIN_FILL``)."""
     rgba = np.asarray(rgba, np.float32)
     return _on_covered_box(rgba, lambda part: _predict(predictor, part, threshold, contact, lift, work_side,
-                                                       signals))
+                                                       signals, thin_fill))
 
 
 def covered_box(alpha: np.ndarray):
@@ -164,7 +232,7 @@ def _on_covered_box(rgba: np.ndarray, fn) -> dict:
     return paste_maps(fn(np.ascontiguousarray(rgba[r0:r1, c0:c1])), box, rgba.shape[:2])
 
 
-def _predict(predictor, rgba, threshold, contact, lift, work_side, signals) -> dict:
+def _predict(predictor, rgba, threshold, contact, lift, work_side, signals, thin_fill=None) -> dict:
     mask = np.clip(rgba[..., 3], 0.0, 1.0) > threshold
     box = crop_box(mask)
     f, shape = work_shape(*mask.shape, box[6], work_side) if box else (1.0, None)
@@ -179,4 +247,5 @@ def _predict(predictor, rgba, threshold, contact, lift, work_side, signals) -> d
         return predictor.predict_at_own_size(rgba, threshold, contact, lift, signals)
     lv = float(lift) if contact == "lifted" else 0.0
     out = predictor.predict_at_own_size(small, threshold, contact, lv / f, signals)
-    return enlarge_prediction(out, f, mask, mask_small, contact, lv, predictor.pin_fade, predictor.foot_snap)
+    return enlarge_prediction(out, f, mask, mask_small, contact, lv, predictor.pin_fade, predictor.foot_snap,
+                              thin_fill)

@@ -42,7 +42,7 @@ MIN_PROXY_THICKNESS = 1.0
 
 
 def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shape, band: int = 256,
-                  box=None) -> np.ndarray:
+                  box=None, return_lost: bool = False):
     """Resize ``lo`` (h, w) to ``shape`` (H, W), not mixing across the cutout's outline.
 
     mask_lo (h, w) and mask_hi (H, W): the cutout (> 0.5) at both resolutions.
@@ -56,6 +56,10 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
     the output is made ``band`` rows at a time, so besides the result only a
     band's temporaries are held at full resolution (a 4096^2 output no longer
     needs a dozen full-size float arrays).
+
+    ``return_lost``: returns ``(out, lost)``, ``lost`` (bool, out's shape) the pixels
+    inside ``mask_hi`` with no ``lo`` pixel inside ``mask_lo`` within reach (those
+    given the plain bilinear value: a part of the cutout thinner than a ``lo`` pixel).
     """
     lo = np.asarray(lo, np.float32)
     H, W = (int(s) for s in shape)
@@ -82,6 +86,7 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
         cidx, cwt = cidx[c0b:c1b], cwt[c0b:c1b]
         cols = [np.einsum("rot,ot->ro", p_[:, cidx], cwt) for p_ in planes]      # (q1 - q0, c1 - c0) each
     out = np.empty((r1b - r0b, c1b - c0b), np.float32)
+    lost = np.zeros(out.shape, bool) if return_lost else None
 
     def band_rows(r0, r1):
         ix, wt = idx[r0:r1], wts[r0:r1]
@@ -97,9 +102,13 @@ def masked_resize(lo: np.ndarray, mask_lo: np.ndarray, mask_hi: np.ndarray, shap
             den, num = rows(cols[1 + 2 * k]), rows(cols[2 + 2 * k])
             ok = side_hi & (den > 1e-3)
             res[ok] = num[ok] / den[ok]
+            if lost is not None and side is inside_lo:
+                lost[r0 - r0b:r1 - r0b] = side_hi & ~ok
+        if lost is not None and not any(side is inside_lo for side in sides):
+            lost[r0 - r0b:r1 - r0b] = inside_hi
         out[r0 - r0b:r1 - r0b] = res
     for_bands(band_rows, r0b, r1b, band)        # on the machine's cores (ops/bands.py)
-    return out
+    return (out, lost) if return_lost else out
 
 
 def support_box(active_lo: np.ndarray, shape, pad: int = 2):

@@ -1,0 +1,308 @@
+"""Thin parts of large cutouts: the learned height's fill for the pixels the work
+size loses (docs/height.md, "Rules fixed before measuring: thin parts of large
+cutouts" and "Measured: thin parts").
+
+    nice -n 10 python -m pixgraph_lab.height.thin_study generate --n 30 --out data/thin
+    nice -n 10 python -m pixgraph_lab.height.thin_study measure --heights data/thin --out runs/thin_study
+
+``generate`` (resumable: existing files are kept) renders ``make_thin_sample(i)``:
+an object of the validation split's procedural categories (person, animal,
+furniture, product, vehicle; ``categories.make_object``) standing upright, 0.6-0.9
+of a 3072^2 image high, with 1-3 thin rods added before rendering (``ROD_KINDS``:
+*held*, *antenna*, *stand*), each 1.5-4 px across at its depth, rendered with the
+generator's looks and matting (``real.render_real``); heights exact (float32),
+sample ``i`` from ``default_rng([seed, 24, i])``; plus ``stick_figure()`` (the
+review's case, procedural, exact heights). ``measure`` runs ``predict_full``'s
+work-size path with each fill of ``height_work_size.THIN_FILLS`` and reports per
+sample and pooled the MAE over the lost pixels and over the whole cutout, the
+paired bootstrap bounds against ``none`` and the time ratio (the rule's verdict).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import time
+
+import numpy as np
+
+CATS = ("person", "animal", "furniture", "product", "vehicle")
+ROD_KINDS = ("held", "antenna", "stand")
+RES = 3072
+
+
+def _rod_ends(kind: str, V: np.ndarray, rng):
+    """(p, q): a thin rod of ``kind`` in the object's frame (y up, resting on 0; module doc)."""
+    ht = float(V[:, 1].max())
+    y = V[:, 1] / ht
+    if kind == "held":
+        cand = np.nonzero((y >= 0.3) & (y <= 0.8))[0]
+        ang, length = math.radians(rng.uniform(0, 30)), rng.uniform(0.2, 0.5) * ht
+    elif kind == "antenna":
+        cand = np.nonzero(y >= 0.9)[0]
+        ang, length = math.radians(rng.uniform(0, 15)), rng.uniform(0.1, 0.4) * ht
+    else:                                         # stand: from the object down to the ground
+        cand = np.nonzero((y >= 0.2) & (y <= 0.6))[0]
+        ang, length = 0.0, 0.0
+    if len(cand) == 0:
+        cand = np.arange(len(V))
+    p = V[cand[rng.integers(len(cand))]].copy()
+    az = rng.uniform(0, 2 * math.pi)
+    if kind == "stand":
+        off = rng.uniform(0, 0.1) * ht
+        q = p + np.array([off * math.cos(az), -p[1], off * math.sin(az)])
+    else:
+        q = p + length * np.array([math.sin(ang) * math.cos(az), math.cos(ang), math.sin(ang) * math.sin(az)])
+    return p, q
+
+
+def _place_large(camera, V, rng, frac=(0.6, 0.9)):
+    """``generate._place`` with the object ``frac`` of the image high."""
+    import dataclasses
+    W, H, f = camera.width, camera.height, camera.focal
+    ht = float(V[:, 1].max())
+    for _ in range(50):
+        D = f * ht / (rng.uniform(*frac) * H)
+        D = max(D, 0.3 + float(np.abs(V[:, [0, 2]]).max()))
+        x = (rng.uniform(0.4, 0.6) * W - W / 2) * D / f
+        v_foot = rng.uniform(0.93, 0.98) * H
+        cam = dataclasses.replace(camera, horizon=float(v_foot - f * camera.cam_height / D))
+        P = V + np.array([x, 0.0, -D])
+        uvh, depth = cam.project(P)
+        if (depth > 0.1).all() and uvh[:, 0].min() > 3 and uvh[:, 0].max() < W - 3 \
+                and uvh[:, 1].min() > 3 and uvh[:, 1].max() < H - 3:
+            return cam, P, x, D
+    return None
+
+
+def make_thin_sample(index: int, seed: int = 24, res: int = RES):
+    """One sample (arrays, meta): module doc."""
+    from pixgraph_lab.datagen.categories import cylinder, make_object
+    from pixgraph_nodes.ops.camera import Camera
+
+    from .real import pose_real, render_real
+    rng = np.random.default_rng([seed, 24, index])
+    t0 = time.perf_counter()
+    for tries in range(1, 100):
+        cat = str(rng.choice(CATS))
+        V0, F0, slots0, names, kind = make_object(cat, rng)
+        V = pose_real(V0, "upright", rng)
+        kinds = [str(k) for k in rng.choice(ROD_KINDS, size=int(rng.integers(1, 4)))]
+        ends = [_rod_ends(k, V, rng) for k in kinds]
+        diam = rng.uniform(1.5, 4.0, len(kinds))           # [px] at the rod's depth
+        allv = np.concatenate([V] + [np.stack(e) for e in ends])
+        cam = Camera(res, res, hfov=float(rng.uniform(30, 70)), horizon=0.0,
+                     cam_height=float(np.exp(rng.uniform(np.log(0.3), np.log(3.0)))))
+        placed = _place_large(cam, allv, rng)
+        if placed is None:
+            continue
+        cam, _, x, D = placed
+        Vs, Fs, Ss, off = [V], [F0], [slots0], len(V)
+        slot = len(names)
+        for (p, q), dp in zip(ends, diam):
+            depth = D - 0.5 * (p[2] + q[2])
+            m = cylinder(p, q, 0.5 * dp * depth / cam.focal, 8)
+            Vs.append(np.asarray(m.vertices, np.float64))
+            Fs.append(np.asarray(m.faces, np.int64) + off)
+            Ss.append(np.full(len(m.faces), slot, np.int64))
+            off += len(m.vertices)
+        PV = np.concatenate(Vs) + np.array([x, 0.0, -D])
+        rgb, alpha, mask, height = render_real(cam, PV, np.concatenate(Fs), np.concatenate(Ss),
+                                               list(names) + ["rod"], rng)
+        if (alpha[0] > 0).any() or (alpha[-1] > 0).any() or (alpha[:, 0] > 0).any() or (alpha[:, -1] > 0).any():
+            continue
+        from .generate import srgb_encode
+        srgb8 = np.round(srgb_encode(rgb) * 255).astype(np.uint8)
+        meta = {"index": index, "rng": [seed, 24, index], "category": cat, "object": kind, "rods": kinds,
+                "rod_px": [float(d) for d in diam], "camera": cam.to_dict(), "mask_px": int(mask.sum()),
+                "tries": tries, "seconds": time.perf_counter() - t0}
+        return {"rgb": srgb8, "alpha": np.round(alpha * 255).astype(np.uint8), "mask": mask,
+                "height": height.astype(np.float32)}, meta
+    raise RuntimeError(f"thin sample {index}: no valid scene in 100 tries")
+
+
+def stick_figure(H: int = 2600, W: int = 1600, fig: int = 2400, stick: int = 1000, width: int = 3):
+    """The review's case: a flat upright figure ``fig`` px tall standing on row H - 40, holding
+    a ``width``-px vertical stick at its side that rises ``stick`` px above the hand.
+
+    Returns (premultiplied linear RGBA float32 (H, W, 4), true height [px] float32, mask,
+    the stick's mask): everything upright in one plane on the ground, so the true pixel
+    height is the contact line's, ``v_contact - v`` with ``v_contact = H - 40`` (the bottom
+    edge of the lowest row) and ``v = row + 0.5``."""
+    r_foot = H - 40                                # the first row below the figure
+    top = r_foot - fig
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32) + 0.5
+    cx = W / 2
+    s = fig / 2400.0
+    head = (xx - cx) ** 2 + (yy - (top + 160 * s)) ** 2 <= (160 * s) ** 2
+    body = (np.abs(xx - cx) <= 260 * s) & (yy >= top + 300 * s) & (yy <= top + 1300 * s)
+    legs = ((np.abs(xx - (cx - 140 * s)) <= 90 * s) | (np.abs(xx - (cx + 140 * s)) <= 90 * s)) \
+        & (yy >= top + 1300 * s) & (yy < r_foot)
+    arm = (xx >= cx + 260 * s) & (xx <= cx + 520 * s) & (np.abs(yy - (top + 800 * s)) <= 50 * s)
+    hand_x = int(cx + 520 * s) - 4
+    hand_r = int(top + 800 * s)
+    stk = (xx >= hand_x) & (xx < hand_x + width) & (yy >= hand_r - stick) & (yy <= hand_r)
+    mask = head | body | legs | arm | stk
+    true = np.where(mask, r_foot - yy, 0.0).astype(np.float32)
+    shade = 0.25 + 0.35 * (yy / H) + 0.1 * np.cos(xx / 90.0)
+    rgb = np.stack([shade * 0.8, shade * 0.6, shade * 0.5], -1) * mask[..., None]
+    rgba = np.concatenate([rgb, mask[..., None].astype(np.float32)], -1).astype(np.float32)
+    return rgba, true, mask, stk & ~(head | body | legs | arm)
+
+
+def _save(path, arrays, meta):
+    tmp = path + ".tmp.npz"
+    np.savez_compressed(tmp, meta=np.array(json.dumps(meta)), **arrays)
+    os.replace(tmp, path)
+
+
+def generate(n: int, out: str, seed: int = 24, res: int = RES, start: int = 0) -> None:
+    os.makedirs(out, exist_ok=True)
+    for i in range(start, n):
+        path = os.path.join(out, f"{i:05d}.npz")
+        if os.path.exists(path):
+            continue
+        arrays, meta = make_thin_sample(i, seed, res)
+        _save(path, arrays, meta)
+        print(f"{path}: {meta['object']} rods {meta['rods']} {['%.1f' % d for d in meta['rod_px']]} px, "
+              f"{meta['seconds']:.1f} s", flush=True)
+
+
+def lost_pixels(rgba: np.ndarray, threshold: float = 0.5, work_side: int | None = None) -> np.ndarray:
+    """The full-size pixels of ``rgba``'s cutout that ``predict_at_work_size`` finds no
+    work-size mask pixel for (``masked_resize``'s ``lost``), bool (H, W); all False when
+    the cutout is predicted at its own size."""
+    from pixgraph_nodes.ops.height_work_size import (WORK_SIDE, covered_box, shrink_cutout,
+                                                     work_shape)
+    from pixgraph_nodes.ops.learned_height import crop_box
+    from pixgraph_nodes.ops.upsample import masked_resize
+    out = np.zeros(rgba.shape[:2], bool)
+    cut = covered_box(rgba[..., 3])
+    r0, r1, c0, c1 = cut if cut is not None else (0, rgba.shape[0], 0, rgba.shape[1])
+    part = np.ascontiguousarray(rgba[r0:r1, c0:c1], np.float32)
+    mask = np.clip(part[..., 3], 0.0, 1.0) > threshold
+    box = crop_box(mask)
+    if box is None:
+        return out
+    f, shape = work_shape(*mask.shape, box[6], work_side or WORK_SIDE)
+    if f <= 1.0:
+        return out
+    small = shrink_cutout(part, shape)
+    mask_small = np.clip(small[..., 3], 0.0, 1.0) > threshold
+    if not mask_small.any():
+        return out
+    b0, b1, b2, b3 = box[:4]
+    _, lost = masked_resize(np.zeros(shape, np.float32), mask_small.astype(np.float32), mask, mask.shape,
+                            box=(b0, b1, b2, b3), return_lost=True)
+    out[r0 + b0:r0 + b1, c0 + b2:c0 + b3] = lost
+    return out
+
+
+def _samples(folders):
+    """(name, rgba, true height, true mask, meta) of every sample of ``folders`` and the stick figure."""
+    from .evaluate import height_files, read_height_sample
+    for d in folders:
+        for f in height_files(d):
+            meta, rgba, true, mask = read_height_sample(f)
+            yield f"{os.path.basename(d.rstrip('/'))}/{meta['index']:05d}", rgba, true, mask.astype(bool), meta
+    rgba, true, mask, _ = stick_figure()
+    yield "stick_figure", rgba, true, mask, {"object": "stick figure", "rods": ["held"], "rod_px": [3.0]}
+
+
+def measure(folders, out: str, weights: str | None = None, min_lost: int = 50) -> list[str]:
+    """The rule's numbers (module doc); writes ``out/thin.csv`` and ``out/thin_study.md``."""
+    import torch
+    torch.set_num_threads(1)
+    from pixgraph_nodes.ops.height_work_size import THIN_FILLS, predict_at_work_size
+    from pixgraph_nodes.ops.learned_height import WEIGHTS, LearnedHeightPredictor
+
+    from .evaluate import _write, write_report
+    from .scale_study import upper_bound
+    pred = LearnedHeightPredictor(weights or WEIGHTS)
+    rows = []
+    for n, (name, rgba, true, tmask, meta) in enumerate(_samples(folders)):
+        lost = lost_pixels(rgba, 0.5, pred.work_side) & tmask
+        if n == 0:                     # warm up (first-call costs) before anything is timed
+            predict_at_work_size(pred, rgba, 0.5, "ground", 0.0, pred.work_side, False, "none")
+        row = {"sample": name, "object": meta.get("object"), "rods": "+".join(meta.get("rods", [])),
+               "rod_px": "/".join(f"{d:.1f}" for d in meta.get("rod_px", [])),
+               "side": int(max(np.ptp(np.nonzero(tmask)[0]), np.ptp(np.nonzero(tmask)[1])) + 1),
+               "cutout_px": int(tmask.sum()), "lost_px": int(lost.sum())}
+        maps = {}
+        order = list(THIN_FILLS[n % len(THIN_FILLS):]) + list(THIN_FILLS[:n % len(THIN_FILLS)])
+        for how in order:
+            t0, c0 = time.perf_counter(), time.process_time()
+            r = predict_at_work_size(pred, rgba, 0.5, "ground", 0.0, pred.work_side, False, how)
+            row[f"s_{how}"] = time.perf_counter() - t0
+            row[f"cpu_{how}"] = time.process_time() - c0
+            h = r["height"]
+            maps[how] = h
+            row[f"mae_{how}"] = float(np.abs(h[tmask] - true[tmask]).mean())
+            row[f"lost_mae_{how}"] = float(np.abs(h[lost] - true[lost]).mean()) if lost.any() else float("nan")
+            row["work_scale"] = float(r.get("work_scale", 1.0))
+        row["identical"] = int(all(np.array_equal(maps[h], maps["none"]) for h in THIN_FILLS))
+        rows.append(row)
+        print(name, {k: (round(v, 3) if isinstance(v, float) else v) for k, v in row.items()}, flush=True)
+    os.makedirs(out, exist_ok=True)
+    _write(os.path.join(out, "thin.csv"), rows)
+    use = [r for r in rows if r["lost_px"] >= min_lost]
+    free = [r for r in rows if r["lost_px"] == 0]
+    lines = [f"load average at the end {os.getloadavg()[0]:.2f} (times are wall seconds; CPU seconds in "
+             "thin.csv)", "", f"weights {weights or WEIGHTS}; {len(rows)} samples ({', '.join(folders)} + the stick figure); "
+             f"{len(use)} with at least {min_lost} lost pixels; {len(free)} with none (maps identical for every "
+             f"fill: {sum(r['identical'] for r in free)} of {len(free)})", "",
+             "| fill | MAE lost px | diff vs none [95 % bound] | MAE whole cutout | diff vs none [95 % bound] | "
+             "median time ratio | met |", "|---|---|---|---|---|---|---|"]
+    base_whole = float(np.mean([r["mae_none"] for r in use]))
+    best, verdicts = None, {}
+    for how in THIN_FILLS:
+        lm = float(np.mean([r[f"lost_mae_{how}"] for r in use]))
+        wm = float(np.mean([r[f"mae_{how}"] for r in use]))
+        dl = [r[f"lost_mae_{how}"] - r["lost_mae_none"] for r in use]
+        dw = [r[f"mae_{how}"] - r["mae_none"] for r in use]
+        ubl, ubw = upper_bound(dl), upper_bound(dw)
+        tr = float(np.median([r[f"s_{how}"] / r["s_none"] for r in use]))
+        met = how != "none" and ubl < 0 and ubw <= 0.005 * base_whole and tr <= 1.10
+        verdicts[how] = met
+        if met and (best is None or lm < best[1]):
+            best = (how, lm)
+        lines.append(f"| {how} | {lm:.1f} | {np.mean(dl):+.1f} [{ubl:+.1f}] | {wm:.2f} | {np.mean(dw):+.3f} "
+                     f"[{ubw:+.3f}; margin {0.005 * base_whole:.3f}] | {tr:.3f} | "
+                     f"{'-' if how == 'none' else ('yes' if met else 'no')} |")
+    lines += ["", "Per sample (MAE over the lost pixels [px]; none / contact / attached / attached_ground):", "",
+              "| sample | object | rods (px across) | side px | f | lost px | none | contact | attached | "
+              "attached_ground |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['sample']} | {r['object']} | {r['rods']} ({r['rod_px']}) | {r['side']} | "
+                     f"{r['work_scale']:.2f} | {r['lost_px']} | "
+                     + " | ".join(f"{r[f'lost_mae_{h}']:.1f}" for h in THIN_FILLS) + " |")
+    lines += ["", f"**ships: {best[0]}**" if best else "**nothing ships**"]
+    write_report(out, "thin_study.md", lines)
+    return lines
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m pixgraph_lab.height.thin_study", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    g = sub.add_parser("generate")
+    g.add_argument("--n", type=int, required=True)
+    g.add_argument("--start", type=int, default=0)
+    g.add_argument("--seed", type=int, default=24)
+    g.add_argument("--res", type=int, default=RES)
+    g.add_argument("--out", required=True)
+    m = sub.add_parser("measure")
+    m.add_argument("--heights", nargs="+", required=True)
+    m.add_argument("--weights", default=None)
+    m.add_argument("--out", required=True)
+    a = ap.parse_args(argv)
+    if a.cmd == "generate":
+        generate(a.n, a.out, a.seed, a.res, a.start)
+    else:
+        measure(a.heights, a.out, a.weights)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

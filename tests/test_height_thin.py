@@ -1,0 +1,90 @@
+"""Thin parts of large cutouts (issue 24, seventh session; docs/height.md, "Measured:
+thin parts"): a part thinner than a work-size pixel has no work-size pixel of its
+own, and ``masked_resize`` used to give it the plain bilinear value there, about 0
+(a 3-px stick held up by a 2,400-px figure: 13 px where it stands 1,000-2,000 px
+high). ``fill_thin`` gives those *lost* pixels a height."""
+import numpy as np
+import pytest
+
+from pixgraph_nodes.ops import height_work_size as hw
+from pixgraph_nodes.ops.heightmaps import contact_line_height
+from pixgraph_nodes.ops.resample import resize
+from pixgraph_nodes.ops.upsample import masked_resize
+
+
+def test_masked_resize_reports_the_pixels_with_no_inside_pixel_within_reach():
+    rng = np.random.default_rng(3)
+    H, W, h, w = 240, 200, 30, 25
+    mask_hi = np.zeros((H, W), bool)
+    mask_hi[60:200, 40:120] = True            # a body: 8 work pixels wide
+    mask_hi[10:60, 150:152] = True            # a 2-px stick: 1/4 of a work pixel
+    mask_hi[100:104, 120:150] = True          # the arm holding it
+    mask_lo = resize(mask_hi.astype(np.float32), (h, w)) > 0.5
+    lo = rng.uniform(0, 50, (h, w)).astype(np.float32)
+    plain = masked_resize(lo, mask_lo.astype(np.float32), mask_hi, (H, W))
+    out, lost = masked_resize(lo, mask_lo.astype(np.float32), mask_hi, (H, W), return_lost=True)
+    assert np.array_equal(out, plain)                     # the map itself is unchanged
+    den = resize(mask_lo.astype(np.float32), (H, W))      # the inside weight a pixel gets
+    assert np.array_equal(lost, mask_hi & (den <= 1e-3))
+    assert lost[10:60, 150:152].mean() > 0.9 and not lost[60:200, 40:120].any()
+    # banded and boxed the same
+    box = (5, 210, 30, 170)
+    o2, l2 = masked_resize(lo, mask_lo.astype(np.float32), mask_hi, (H, W), band=17, box=box, return_lost=True)
+    assert np.array_equal(o2, out[5:210, 30:170]) and np.array_equal(l2, lost[5:210, 30:170])
+
+
+def _figure():
+    """A flat upright figure standing on row 200 (its last row 199) with a 1-px stick held at
+    its side: every pixel's true height is the contact line's, 199.5 - row."""
+    m = np.zeros((220, 200), bool)
+    m[100:200, 50:150] = True                 # body and legs
+    m[110:115, 150:160] = True                # arm
+    m[30:110, 158] = True                     # the stick, above the hand
+    rows = np.arange(220, dtype=np.float32)[:, None] + np.zeros((1, 200), np.float32)
+    true = np.where(m, 199.5 - rows, 0.0).astype(np.float32)
+    lost = np.zeros_like(m)
+    lost[30:110, 158] = True
+    return m, true, lost
+
+
+@pytest.mark.parametrize("lift", [0.0, 30.0])
+def test_an_attached_lost_part_stands_where_what_holds_it_stands(lift):
+    # the covered pixels' heights (the work size's map) put the figure `lift` px above the
+    # ground; the lost stick takes the level of the arm it is attached to, + 1 px per row up
+    m, true, lost = _figure()
+    h = np.where(m & ~lost, true + lift, 0.0).astype(np.float32)
+    heur = contact_line_height(m)
+    for how in ("attached", "attached_ground"):
+        out = hw.fill_thin(h.copy(), m, lost, heur, how)
+        np.testing.assert_allclose(out[lost], true[lost] + lift, atol=1e-4)
+        assert np.array_equal(out[~lost], h[~lost])
+    # the contact line is the figure's, whatever the map says
+    out = hw.fill_thin(h.copy(), m, lost, heur, "contact")
+    np.testing.assert_allclose(out[lost], true[lost], atol=1e-4)
+
+
+def test_a_lost_part_standing_on_the_ground_or_alone():
+    m, true, _ = _figure()
+    m[150:200, 170] = True                    # a 1-px leg standing on the ground, attached to nothing
+    m[10:20, 20] = True                       # a speck floating alone
+    lost = np.zeros_like(m)
+    lost[150:200, 170] = lost[10:20, 20] = True
+    h = np.where(m & ~lost, 40.0, 0.0).astype(np.float32)   # a wrong, flat map elsewhere
+    heur = contact_line_height(m)
+    rows = np.arange(220, dtype=np.float32)[:, None] + np.zeros((1, 200), np.float32)
+    # attached: no covered neighbour -> the contact line
+    out = hw.fill_thin(h.copy(), m, lost, heur, "attached")
+    np.testing.assert_allclose(out[lost], heur[lost])
+    # attached_ground: the leg reaching the silhouette's lowest rows stands there itself
+    out = hw.fill_thin(h.copy(), m, lost, heur, "attached_ground")
+    np.testing.assert_allclose(out[150:200, 170], 199.5 - rows[150:200, 170], atol=1e-4)
+    np.testing.assert_allclose(out[10:20, 20], heur[10:20, 20])
+
+
+def test_no_lost_pixel_no_change():
+    m, true, _ = _figure()
+    h = true.copy()
+    for how in hw.THIN_FILLS:
+        assert hw.fill_thin(h, m, np.zeros_like(m), contact_line_height(m), how) is h
+    with pytest.raises(ValueError, match="unknown thin fill"):
+        hw.fill_thin(h.copy(), m, m.copy(), contact_line_height(m), "nearest")
