@@ -118,10 +118,11 @@ class CutoutHeight(Node):
         confidence: T.Scalar = port(doc="learned / auto: the estimated chance (0-1) that the learned height "
                                         "beats the contact line; NaN when the network did not run")
 
-    impl_version = "7+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence; 4: foot snap,
+    impl_version = "8+" + _weights_version()  # 2: method learned; 3: auto, contact, confidence; 4: foot snap,
     # confidence rule; 5: auto's fallback pins the contact line's contact like the learned map's; 6: a cutout
     # whose crop is larger than 512 px is predicted at 512 px, the confidence signals in 256-px units; 7: one
-    # thinner than a 512-px work pixel everywhere is predicted at its own size (it was 0 everywhere)
+    # thinner than a 512-px work pixel everywhere is predicted at its own size (it was 0 everywhere); 8: a thin
+    # part of a large cutout (no work-size pixel of its own) takes the contact line's height (it was about 0)
 
     def compute(self, ctx, inputs, params):
         mask = np.asarray(inputs.mask, dtype=np.float32)

@@ -16,6 +16,11 @@ review's case, procedural, exact heights). ``measure`` runs ``predict_full``'s
 work-size path with each fill of ``height_work_size.THIN_FILLS`` and reports per
 sample and pooled the MAE over the lost pixels and over the whole cutout, the
 paired bootstrap bounds against ``none`` and the time ratio (the rule's verdict).
+``ordinary`` (not the rule's) checks the shipped fill on cutouts without added thin
+parts: 256^2 samples enlarged 4x and 8x as ``scale_study`` does.
+
+    nice -n 10 python -m pixgraph_lab.height.thin_study ordinary \\
+        --heights /work/wt/height/data/hreal/val_fresh --limit 60 --out runs/thin_ordinary
 """
 from __future__ import annotations
 
@@ -282,6 +287,47 @@ def measure(folders, out: str, weights: str | None = None, min_lost: int = 50) -
     return lines
 
 
+def ordinary(folder: str, out: str, scales=(4, 8), limit: int = 60, weights: str | None = None) -> list[str]:
+    """Not the rule's: cutouts without added thin parts (``folder``'s 256^2 samples enlarged
+    k times as ``scale_study.enlarge`` does: bilinear RGBA and heights, nearest mask),
+    the shipped fill against ``none``: how many pixels are lost, and the MAE over the
+    whole cutout [px / k]."""
+    import torch
+    torch.set_num_threads(1)
+    from pixgraph_nodes.ops.height_work_size import THIN_FILL, predict_at_work_size
+    from pixgraph_nodes.ops.learned_height import WEIGHTS, LearnedHeightPredictor
+
+    from .evaluate import _write, height_files, read_height_sample, write_report
+    from .scale_study import enlarge, upper_bound
+    pred = LearnedHeightPredictor(weights or WEIGHTS)
+    rows = []
+    for f in height_files(folder, limit):
+        meta, rgba, true, mask = read_height_sample(f)
+        for k in scales:
+            big, tb, mb = enlarge(rgba, true, mask, k)
+            lost = lost_pixels(big, 0.5, pred.work_side)
+            row = {"index": meta["index"], "k": k, "lost_px": int(lost.sum()), "lost_in_true": int((lost & mb).sum())}
+            for how in ("none", THIN_FILL):
+                h = predict_at_work_size(pred, big, 0.5, "ground", 0.0, pred.work_side, False, how)["height"]
+                row[f"mae_{how}"] = float(np.abs(h[mb] - tb[mb]).mean()) / k
+            rows.append(row)
+    os.makedirs(out, exist_ok=True)
+    _write(os.path.join(out, "ordinary.csv"), rows)
+    lines = [f"{len(rows) // len(scales)} samples of {folder} enlarged {', '.join(f'{k}x' for k in scales)}; "
+             f"fill {THIN_FILL} vs none; MAE over the cutout in px / k", "",
+             "| scale | samples with lost px | lost px (median, max) | MAE none | MAE fill | mean diff [95 % bound] |",
+             "|---|---|---|---|---|---|"]
+    for k in scales:
+        rs = [r for r in rows if r["k"] == k]
+        d = [r[f"mae_{THIN_FILL}"] - r["mae_none"] for r in rs]
+        lp = [r["lost_px"] for r in rs]
+        lines.append(f"| {k}x | {sum(x > 0 for x in lp)} of {len(rs)} | {np.median(lp):.0f}, {max(lp)} | "
+                     f"{np.mean([r['mae_none'] for r in rs]):.4f} | {np.mean([r[f'mae_{THIN_FILL}'] for r in rs]):.4f} | "
+                     f"{np.mean(d):+.4f} [{upper_bound(d):+.4f}] |")
+    write_report(out, "ordinary.md", lines)
+    return lines
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m pixgraph_lab.height.thin_study", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -296,9 +342,17 @@ def main(argv=None) -> int:
     m.add_argument("--heights", nargs="+", required=True)
     m.add_argument("--weights", default=None)
     m.add_argument("--out", required=True)
+    o = sub.add_parser("ordinary")
+    o.add_argument("--heights", required=True)
+    o.add_argument("--scales", type=int, nargs="+", default=[4, 8])
+    o.add_argument("--limit", type=int, default=60)
+    o.add_argument("--weights", default=None)
+    o.add_argument("--out", required=True)
     a = ap.parse_args(argv)
     if a.cmd == "generate":
         generate(a.n, a.out, a.seed, a.res, a.start)
+    elif a.cmd == "ordinary":
+        ordinary(a.heights, a.out, a.scales, a.limit, a.weights)
     else:
         measure(a.heights, a.out, a.weights)
     return 0
