@@ -63,20 +63,21 @@ def _rod_ends(kind: str, V: np.ndarray, rng):
 
 
 def _place_large(camera, V, rng, frac=(0.6, 0.9)):
-    """``generate._place`` with the object ``frac`` of the image high."""
+    """(camera, P, x, D) with the object ``V`` ``frac`` of the image high (like
+    ``generate._place``: a depth ``D``, a lateral offset ``x`` and the horizon from
+    where its foot lands), or None when 50 tries do not fit it in the image."""
     import dataclasses
     W, H, f = camera.width, camera.height, camera.focal
-    ht = float(V[:, 1].max())
+    ht, reach = float(V[:, 1].max()), 0.3 + float(np.abs(V[:, [0, 2]]).max())
     for _ in range(50):
-        D = f * ht / (rng.uniform(*frac) * H)
-        D = max(D, 0.3 + float(np.abs(V[:, [0, 2]]).max()))
-        x = (rng.uniform(0.4, 0.6) * W - W / 2) * D / f
-        v_foot = rng.uniform(0.93, 0.98) * H
-        cam = dataclasses.replace(camera, horizon=float(v_foot - f * camera.cam_height / D))
+        share, across, foot = rng.uniform((frac[0], 0.4, 0.93), (frac[1], 0.6, 0.98))
+        D = max(f * ht / (share * H), reach)
+        x = (across * W - W / 2) * D / f
+        cam = dataclasses.replace(camera, horizon=float(foot * H - f * camera.cam_height / D))
         P = V + np.array([x, 0.0, -D])
         uvh, depth = cam.project(P)
-        if (depth > 0.1).all() and uvh[:, 0].min() > 3 and uvh[:, 0].max() < W - 3 \
-                and uvh[:, 1].min() > 3 and uvh[:, 1].max() < H - 3:
+        u, v = uvh[:, 0], uvh[:, 1]
+        if min(depth.min() - 0.1, u.min() - 3, W - 3 - u.max(), v.min() - 3, H - 3 - v.max()) > 0:
             return cam, P, x, D
     return None
 
