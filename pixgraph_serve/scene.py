@@ -240,6 +240,9 @@ def describe(state: ServeState) -> dict:
         controls = dict(getattr(light, "controls", ()))
         tip = light_cls.shadow_tip(a.camera, light, a.top)
         h = state.handles(g.nodes[lid].type)
+        if v.get(h["placement"]) == h["tip_placement"] and "azimuth" in h and controls.get("azimuth") is not None:
+            # the light's azimuth as the turn of it its param has (350, not -10: ``_azimuth_near``)
+            controls["azimuth"] = _azimuth_near(state, lid, h, controls["azimuth"])
         out["light"] = {**v, "azimuth_deg": controls.get("azimuth"), "elevation_deg": controls.get("elevation"),
                         "top_uvh": list(a.top) if a.top else None, "tip_uv": list(tip) if tip else None,
                         # what the panel shows for the angle params: the light's own (in the tip
@@ -372,8 +375,27 @@ def _tip_angle_params(state, r, lid, h, light_cls, tip, top) -> dict:
         return {}
     out = {f"{lid}.{h['elevation']}": round(el, 2)}
     if "azimuth" in h:
-        out[f"{lid}.{h['azimuth']}"] = round(az, 2)
+        out[f"{lid}.{h['azimuth']}"] = round(_azimuth_near(state, lid, h, az), 2)
     return out
+
+
+def _azimuth_near(state: ServeState, lid: str, h: dict, az: float) -> float:
+    """The azimuth ``az`` [deg] as the turn of it (``az + 360 k``) nearest the light's
+    ``azimuth`` param, within the param's declared min/max when a turn fits there: the
+    geometry gives (-180, 180], and a light typed as 350 deg (or dragged across 0/360)
+    keeps 350-ish, not -10."""
+    spec = state.registry.get(state.graph.nodes[lid].type).param(h["azimuth"])
+    prev = _values(state, lid).get(h["azimuth"])
+    prev = float(prev) if isinstance(prev, (int, float)) and math.isfinite(prev) else float(az)
+    lo = -math.inf if spec is None or spec.min is None else spec.min
+    hi = math.inf if spec is None or spec.max is None else spec.max
+    k = round((prev - az) / 360.0)
+    turns = [az + 360.0 * j for j in (k - 1, k, k + 1)]
+    inside = [a for a in turns if lo <= a <= hi]
+    if not inside and math.isfinite(lo) and math.isfinite(hi):   # the nearest turn is out: any that fits
+        first = az + 360.0 * math.ceil((lo - az) / 360.0)
+        inside = [first] if first <= hi else []
+    return min(inside or turns, key=lambda a: abs(a - prev))
 
 
 def light_angle_edits(state: ServeState, params) -> tuple[Any, dict, bool]:
