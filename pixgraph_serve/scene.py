@@ -12,7 +12,9 @@ attribute, a dict with a ``kind``):
   params, ``camera`` its camera input, ``object`` the inputs (mask, pixel height) of
   the node it feeds that hold the object; the type also carries the geometry
   (``object_top``, ``shadow_tip``, ``tip_at_elevation``, and optional ``tip_angles``
-  and ``tip_at_angles``: ops/light_screen.py and ops/lights.py in the node pack). In
+  and ``tip_at_angles``: ops/light_screen.py and ops/lights.py in the node pack;
+  ``tip_at_elevation.elevation_range``, optional, the [lo, hi) degrees it accepts,
+  narrows the page's elevation slider in the tip placement). In
   the tip placement the light's angles are those seen from the object's top: a tip
   edit writes them into the ``azimuth``/``elevation`` params, and an edit of those
   params moves the tip (``light_edits``), so the params say what the light is;
@@ -250,8 +252,24 @@ def describe(state: ServeState) -> dict:
                         # edit writes them there; in the controls placement they are the params
                         "angles": {f"{lid}.{h[k]}": round(controls[k], 2) for k in ("azimuth", "elevation")
                                    if k in h and controls.get(k) is not None}
-                        if v.get(h["placement"]) == h["tip_placement"] else {}}
+                        if v.get(h["placement"]) == h["tip_placement"] else {},
+                        "elevation_range": _elevation_range(state, lid, h, light_cls,
+                                                            v.get(h["placement"]) == h["tip_placement"])}
     return out
+
+
+def _elevation_range(state: ServeState, lid: str, h: dict, light_cls, tip: bool) -> list:
+    """[min, max] [deg] of the page's elevation slider: the ``elevation`` param's declared
+    range (None where it declares none); in the tip placement narrowed to the elevations
+    the tip geometry gives (``tip_at_elevation.elevation_range``, [lo, hi): the max is
+    0.01 deg, the step the angles are written to, under its hi)."""
+    spec = state.registry.get(state.graph.nodes[lid].type).param(h["elevation"])
+    lo, hi = (spec.min, spec.max) if spec is not None else (None, None)
+    geometry = getattr(getattr(light_cls, "tip_at_elevation", None), "elevation_range", None)
+    if tip and geometry is not None:
+        lo = geometry[0] if lo is None else max(lo, geometry[0])
+        hi = round(geometry[1] - 0.01, 2) if hi is None else min(hi, round(geometry[1] - 0.01, 2))
+    return [lo, hi]
 
 
 def _height_edit(state: ServeState, nid: str) -> dict:
