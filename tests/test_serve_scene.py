@@ -286,6 +286,26 @@ def test_an_azimuth_written_back_is_the_turn_nearest_the_param(tmp_path):
     assert light()["azimuth"] == pytest.approx(-355, abs=0.006)
 
 
+def test_the_elevation_sliders_range_is_the_params_and_in_the_tip_placement_the_tips(tmp_path):
+    """``/api/scene``'s ``light.elevation_range``: the elevation param's declared min/max
+    in the controls placement; in the tip placement the part of it the tip geometry gives
+    ([0.5, 90): 89.99 at most, the 0.01 deg the angles are written to), and each end is
+    an elevation the tip takes."""
+    st = ServeState(copy_scene(str(tmp_path)))
+    spec = st.registry.get(st.graph.nodes["light"].type).param("elevation")
+    serve_app.apply_edits(st, {"params": {"light.placement": "controls"}})
+    assert scene.describe(st)["light"]["elevation_range"] == [spec.min, spec.max] == [-90.0, 90.0]
+    serve_app.apply_edits(st, {"light_tip": [230, 400]})
+    lo, hi = scene.describe(st)["light"]["elevation_range"]
+    assert (lo, hi) == (LS.TIP_ELEVATION_RANGE[0], 89.99)
+    serve_app.apply_edits(st, {"light_elevation": hi})
+    assert scene.describe(st)["light"]["elevation_deg"] == pytest.approx(hi, abs=1e-6)
+    with pytest.raises(ServeError, match="0.5, 90"):
+        serve_app.apply_edits(st, {"light_elevation": hi + 0.01})
+    with pytest.raises(ServeError, match="0.5, 90"):
+        serve_app.apply_edits(st, {"light_elevation": lo - 0.01})
+
+
 def test_in_the_controls_placement_the_panel_is_told_the_params_as_they_are(tmp_path):
     """In the controls placement the light's angles are its params: what the page is told
     to show for them (``angles``) must be those params, not rounded to 0.01 deg (a typed
