@@ -154,3 +154,27 @@ def test_the_elevation_slider_reaches_the_params_declared_ends(browser, tmp_path
         assert page.locator("#error").is_hidden()
         assert not errors, errors
         page.close()
+
+
+def test_an_azimuth_typed_as_350_stays_350_in_the_page(browser, tmp_path):
+    """In the shadow_tip placement an azimuth typed as 350 stays 350 in the panel and the
+    graph (the tip's geometry says -10: the same light; before, the page wrote -10 back),
+    and a drag of the tip then keeps it on that side of 0/360; the panel's field shows
+    the dragged light's azimuth (before, the field typed in kept the focus through the
+    drag, and with it the typed value)."""
+    graph = edit_graph(str(tmp_path))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        fu, fv = httpx.get(url + "/api/scene", timeout=60).json()["place"]["foot"]
+        drag(page, centre(page, "#light-handle"), screen(page, fu - 60, fv - 30))
+        assert graph_params(url)["light"]["placement"] == "shadow_tip"
+        type_param(page, "light.elevation", 40)
+        type_param(page, "light.azimuth", 350)
+        light = check_one_value(page, url)
+        assert light["azimuth_deg"] == pytest.approx(350, abs=1e-6) and graph_params(url)["light"]["azimuth"] == 350
+        tip = light["tip_uv"]
+        drag(page, screen(page, *tip), screen(page, tip[0] + 15, tip[1]))
+        light = check_one_value(page, url)
+        assert 300 < light["azimuth_deg"] < 360 and light["azimuth_deg"] != pytest.approx(350, abs=0.5), light
+        assert not errors, errors
+        page.close()
