@@ -243,7 +243,7 @@ def describe(state: ServeState) -> dict:
         tip = light_cls.shadow_tip(a.camera, light, a.top)
         h = state.handles(g.nodes[lid].type)
         if v.get(h["placement"]) == h["tip_placement"] and "azimuth" in h and controls.get("azimuth") is not None:
-            # the light's azimuth as the turn of it its param has (350, not -10: ``_azimuth_near``)
+            # the light's azimuth in its param's convention (350, not -10: ``_azimuth_near``)
             controls["azimuth"] = _azimuth_near(state, lid, h, controls["azimuth"])
         out["light"] = {**v, "azimuth_deg": controls.get("azimuth"), "elevation_deg": controls.get("elevation"),
                         "top_uvh": list(a.top) if a.top else None, "tip_uv": list(tip) if tip else None,
@@ -398,22 +398,23 @@ def _tip_angle_params(state, r, lid, h, light_cls, tip, top) -> dict:
 
 
 def _azimuth_near(state: ServeState, lid: str, h: dict, az: float) -> float:
-    """The azimuth ``az`` [deg] as the turn of it (``az + 360 k``) nearest the light's
-    ``azimuth`` param, within the param's declared min/max when a turn fits there: the
-    geometry gives (-180, 180], and a light typed as 350 deg (or dragged across 0/360)
-    keeps 350-ish, not -10."""
+    """The azimuth ``az`` [deg] (the geometry gives (-180, 180]) written in the
+    convention of the light's ``azimuth`` param: in [-180, 180) while the param is
+    there, in [0, 360) once it is 180 or more, in [-360, 0) below -180, and within
+    the param's declared min/max (the nearest turn that fits when that window's does
+    not). A light typed as 350 deg keeps 350-ish, not -10; a drag across 0 then reads
+    359.5, and jumps of the tip never walk the number round and round."""
     spec = state.registry.get(state.graph.nodes[lid].type).param(h["azimuth"])
     prev = _values(state, lid).get(h["azimuth"])
-    prev = float(prev) if isinstance(prev, (int, float)) and math.isfinite(prev) else float(az)
+    prev = float(prev) if isinstance(prev, (int, float)) and math.isfinite(prev) else 0.0
+    base = -180.0 if -180.0 <= prev < 180.0 else (0.0 if prev >= 180.0 else -360.0)
+    a = base + (float(az) - base) % 360.0
     lo = -math.inf if spec is None or spec.min is None else spec.min
     hi = math.inf if spec is None or spec.max is None else spec.max
-    k = round((prev - az) / 360.0)
-    turns = [az + 360.0 * j for j in (k - 1, k, k + 1)]
-    inside = [a for a in turns if lo <= a <= hi]
-    if not inside and math.isfinite(lo) and math.isfinite(hi):   # the nearest turn is out: any that fits
-        first = az + 360.0 * math.ceil((lo - az) / 360.0)
-        inside = [first] if first <= hi else []
-    return min(inside or turns, key=lambda a: abs(a - prev))
+    if lo <= a <= hi:
+        return a
+    fits = [t for t in (a - 360.0, a + 360.0) if lo <= t <= hi]
+    return min(fits, key=lambda t: abs(t - prev)) if fits else a
 
 
 def light_angle_edits(state: ServeState, params) -> tuple[Any, dict, bool]:

@@ -247,11 +247,11 @@ def test_a_camera_edit_in_the_tip_placement_keeps_the_angle_params_the_lights(tm
         pytest.approx((az, el), abs=0.006)
 
 
-def test_an_azimuth_written_back_is_the_turn_nearest_the_param(tmp_path):
+def test_an_azimuth_written_back_keeps_the_params_convention(tmp_path):
     """In the tip placement the geometry gives azimuths in (-180, 180]; the param written
-    back (a typed angle, a tip drag, a camera edit) is the turn of it nearest the param's
-    value inside its declared range: a typed 350 stays 350 (not -10), a drag across 0/360
-    does not jump to the other side, and past the declared max (360) the turn that fits."""
+    back (a typed angle, a tip drag, a camera edit) keeps the param's convention inside
+    its declared range: a typed 350 stays 350 (not -10), a drag across 0/360 reads 359.5,
+    past the declared max (360) the turn that fits, and jumps never walk it round."""
     st = ServeState(copy_scene(str(tmp_path)))
 
     def light():
@@ -284,6 +284,12 @@ def test_an_azimuth_written_back_is_the_turn_nearest_the_param(tmp_path):
     assert light()["azimuth"] == -350 and light()["azimuth_deg"] == pytest.approx(-350, abs=1e-6)
     serve_app.apply_edits(st, {"light_tip": tip_at(5)})
     assert light()["azimuth"] == pytest.approx(-355, abs=0.006)
+    # from the example's -30, jumps of the tip stay in [-180, 180): the number does not
+    # walk round (nearest-turn unwrapping read a jump to 170 as -190, and kept counting)
+    serve_app.apply_edits(st, {"params": {"light.azimuth": -30}})
+    for az in (170.0, -170.0, 100.0, -100.0, 175.0):
+        serve_app.apply_edits(st, {"light_tip": tip_at(az)})
+        assert light()["azimuth"] == pytest.approx(az, abs=0.006), az
 
 
 def test_the_elevation_sliders_range_is_the_params_and_in_the_tip_placement_the_tips(tmp_path):
