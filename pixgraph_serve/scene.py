@@ -260,11 +260,14 @@ def describe(state: ServeState) -> dict:
 
 def _elevation_range(state: ServeState, lid: str, h: dict, light_cls, tip: bool) -> list:
     """[min, max] [deg] of the page's elevation slider: the ``elevation`` param's declared
-    range (None where it declares none); in the tip placement narrowed to the elevations
+    range (None where it declares none), from the handles' ``elevation_min`` up (a light
+    placed by its angles is raised to that); in the tip placement narrowed to the elevations
     the tip geometry gives (``tip_at_elevation.elevation_range``, [lo, hi): the max is
     0.01 deg, the step the angles are written to, under its hi)."""
     spec = state.registry.get(state.graph.nodes[lid].type).param(h["elevation"])
     lo, hi = (spec.min, spec.max) if spec is not None else (None, None)
+    if not tip and h.get("elevation_min") is not None:   # below it the light is raised to it
+        lo = h["elevation_min"] if lo is None else max(lo, h["elevation_min"])
     geometry = getattr(getattr(light_cls, "tip_at_elevation", None), "elevation_range", None)
     if tip and geometry is not None:
         lo = geometry[0] if lo is None else max(lo, geometry[0])

@@ -8,6 +8,8 @@ import httpx
 import pytest
 import yaml
 
+from pixgraph_nodes.ops.lights import MIN_ELEVATION_DEG
+
 from serve_helpers import chromium_browser, running_server
 from test_page_height_edit import edit_graph
 from test_page_photo import centre, drag, graph_params, last_seq, open_page, screen, wait_final
@@ -120,20 +122,22 @@ def type_param(page, key, value):
 
 
 def test_the_elevation_slider_reaches_the_params_declared_ends(browser, tmp_path):
-    """The slider's range is the elevation param's declared min/max (the panel's field
-    takes those): typed at either end the slider shows it, dragged to its end the param
-    is the max. In the shadow_tip placement the range is what the tip can give. Before,
+    """The slider's range is the elevation param's declared max down to the lowest
+    elevation that has an effect (1 deg: below, the light is raised to it): typed at
+    either end the slider shows it, dragged to its end the param is the max. In the shadow_tip placement the range is what the tip can give. Before,
     the slider was fixed to 1..89: a typed 90 showed as 89, -90 as 1, and its end set 89."""
     graph = edit_graph(str(tmp_path))
     with running_server(graph) as (url, _):
         spec = next(p for t in httpx.get(url + "/api/nodes", timeout=60).json()["types"]
                     if t["type"] == "pixgraph.Light" for p in t["params"] if p["name"] == "elevation")
-        lo, hi = spec["min"], spec["max"]
-        assert (lo, hi) == (-90.0, 90.0)
+        assert (spec["min"], spec["max"]) == (-90.0, 90.0)
+        # below 1 deg a light placed by its angles is raised to 1 (with a warning): the
+        # slider starts there
+        lo, hi = MIN_ELEVATION_DEG, spec["max"]
         page, errors = open_page(browser, url)
         assert graph_params(url)["light"]["placement"] == "controls"
-        assert (slider(page)["min"], slider(page)["max"]) == (lo, hi)
-        for value in (hi, lo, 0.5):
+        assert (slider(page)["min"], slider(page)["max"]) == (lo, hi) == (1.0, 90.0)
+        for value in (hi, lo, 37.4):
             type_param(page, "light.elevation", value)
             assert graph_params(url)["light"]["elevation"] == value
             assert slider(page)["value"] == value, (value, slider(page))

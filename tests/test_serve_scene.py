@@ -10,6 +10,7 @@ import pytest
 
 from pixgraph_nodes.ops import light_screen as LS
 from pixgraph_nodes.ops import lights as L
+from pixgraph_nodes.ops.lights import MIN_ELEVATION_DEG
 from pixgraph_nodes.ops.camera import Camera
 from pixgraph_serve import app as serve_app
 from pixgraph_serve import scene
@@ -294,13 +295,15 @@ def test_an_azimuth_written_back_keeps_the_params_convention(tmp_path):
 
 def test_the_elevation_sliders_range_is_the_params_and_in_the_tip_placement_the_tips(tmp_path):
     """``/api/scene``'s ``light.elevation_range``: the elevation param's declared min/max
-    in the controls placement; in the tip placement the part of it the tip geometry gives
+    in the controls placement, from the light's ``elevation_min`` handle up; in the tip placement the part of it the tip geometry gives
     ([0.5, 90): 89.99 at most, the 0.01 deg the angles are written to), and each end is
     an elevation the tip takes."""
     st = ServeState(copy_scene(str(tmp_path)))
     spec = st.registry.get(st.graph.nodes["light"].type).param("elevation")
     serve_app.apply_edits(st, {"params": {"light.placement": "controls"}})
-    assert scene.describe(st)["light"]["elevation_range"] == [spec.min, spec.max] == [-90.0, 90.0]
+    # from the lowest elevation that does something (a light below it is raised to it)
+    assert (spec.min, spec.max) == (-90.0, 90.0)
+    assert scene.describe(st)["light"]["elevation_range"] == [MIN_ELEVATION_DEG, spec.max] == [1.0, 90.0]
     serve_app.apply_edits(st, {"light_tip": [230, 400]})
     lo, hi = scene.describe(st)["light"]["elevation_range"]
     assert (lo, hi) == (LS.TIP_ELEVATION_RANGE[0], 89.99)
