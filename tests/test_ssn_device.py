@@ -73,13 +73,15 @@ def test_the_cpu_path_is_the_default_here(monkeypatch):
     assert 0.0 < float(auto.mean()) < 1.0
 
 
-def test_a_bad_device_is_bad_input(monkeypatch, capsys):
-    """The node reports a bad PIXGRAPH_TORCH_DEVICE as bad input (exit 2), not a crash."""
+@pytest.mark.parametrize("variable, value", [(ssn.DEVICE_ENV, "gpu"), (ssn.THREADS_ENV, "many")])
+def test_a_bad_host_setting_is_bad_input(monkeypatch, capsys, variable, value):
+    """The node reports a bad PIXGRAPH_TORCH_DEVICE or PIXGRAPH_TORCH_THREADS as bad
+    input (exit 2) naming the variable, not a crash."""
     from pixgraph.cli import main
 
-    monkeypatch.setenv(ssn.DEVICE_ENV, "gpu")
+    monkeypatch.setenv(variable, value)
     graph = os.path.join(os.path.dirname(__file__), "..", "graphs", "ssn_wall_corner.yaml")
     code = main(["run", graph, "--no-disk-cache", "-q"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
-    assert "node 'shadow' (pixgraph.SoftShadowSSN)" in err[0] and ssn.DEVICE_ENV in err[0]
+    assert "node 'shadow' (pixgraph.SoftShadowSSN)" in err[0] and variable in err[0]
