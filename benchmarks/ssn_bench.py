@@ -82,8 +82,11 @@ def main(argv=None) -> int:
     buffers = buffer_channels(dev, mask, fg, bg, lp, le)
     x = torch.from_numpy(ssn.stack_channels(buffers, model.config.channels))[None]
     soft = torch.tensor([ssn.softness_of(light, cam, mask, fg)])
+    tdev = ssn.inference_device()           # the node's: PIXGRAPH_TORCH_DEVICE, else CUDA when torch has it
+    net, xd, sd = ssn.model_on(model, tdev), x.to(tdev), soft.to(tdev)
     cases = {
-        "network alone (torch)": lambda: model(x, soft),
+        # .cpu(): the result back on the host, as the node needs it (and a CUDA run waits for it)
+        "network alone (torch)": lambda: net(xd, sd).cpu(),
         "buffer channels (OpenCL)": lambda: buffer_channels(dev, mask, fg, bg, lp, le),
         "whole SSN++ prediction": lambda: ssn.predict(model, buffer_channels(dev, mask, fg, bg, lp, le), float(soft)),
     }
@@ -99,11 +102,17 @@ def main(argv=None) -> int:
                 fn()
                 times[name].append((time.perf_counter() - t) * 1000)
     rows = [(name, statistics.median(ts), min(ts)) for name, ts in times.items()]
-    print(f"device: {dev.name}")
+    print(f"device: {dev.name}; torch: {tdev}")
     print(f"{'256^2':30s} {'median ms':>10s} {'min ms':>8s}")
     for name, med, mn in rows:
         print(f"{name:30s} {med:10.1f} {mn:8.1f}")
     return 0
+
+
+def _torch_device() -> str:
+    """Where SSN++ runs its network (``PIXGRAPH_TORCH_DEVICE``, default CUDA when torch has it)."""
+    from pixgraph_nodes.ops import ssn
+    return str(ssn.inference_device())
 
 
 def time_methods(a) -> int:
@@ -119,7 +128,7 @@ def time_methods(a) -> int:
     methods = [Method(spec) for spec in a.method]
     samples = [prepared_sample(f, device) for f in sample_files(a.data)[:a.limit]]
     print(machine())
-    print(f"device: {device.name}; {len(samples)} samples of {a.data}, {a.runs} runs each")
+    print(f"device: {device.name}; torch: {_torch_device()}; {len(samples)} samples of {a.data}, {a.runs} runs each")
     times = {m.spec: [] for m in methods}
     for m in methods:                       # build programs, load weights
         m.predict(samples[0])
@@ -130,7 +139,7 @@ def time_methods(a) -> int:
                 m.predict(s)
                 times[m.spec].append((time.perf_counter() - t) * 1000)
     print(f"{'method':50s} {'median ms':>10s} {'p10 ms':>8s} {'p90 ms':>8s}")
-    result = {"machine": machine(), "device": device.name, "data": a.data, "samples": len(samples),
+    result = {"machine": machine(), "device": device.name, "torch_device": _torch_device(), "data": a.data, "samples": len(samples),
               "runs": a.runs, "ms": {}}
     for spec, ts in times.items():
         q = np.percentile(ts, [10, 50, 90])

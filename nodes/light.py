@@ -59,12 +59,16 @@ class Light(Node):
 
     #: what a shell's page draws and drags (read by pixgraph_serve): the light is moved
     #: by its shadow tip, the ground point where the shadow of the object's top falls.
-    #: ``tip``/``top``/``placement``/``elevation`` name this node's params; ``object``
+    #: ``tip``/``top``/``placement``/``elevation`` name this node's params (``elevation_min``:
+    #: the lowest elevation that has an effect in the controls placement); ``object``
     #: names the inputs, on the node this light feeds, that hold the object's mask and
     #: pixel height; ``camera`` names this node's camera input.
     handles = {"kind": "light", "tip": "tip_uv", "top": "top_uvh", "placement": "placement",
                "tip_placement": "shadow_tip", "elevation": "elevation", "azimuth": "azimuth",
-               "object": ("mask", "fg_height"), "camera": "camera"}
+               "object": ("mask", "fg_height"), "camera": "camera",
+               # placed by azimuth/elevation, a light below this is raised to it (a shell's
+               # elevation slider starts here: below, it would move nothing)
+               "elevation_min": lights.MIN_ELEVATION_DEG}
     #: the screen geometry of those handles (ops/light_screen.py), for shells that do not import nodes;
     #: ``tip_angles`` (the light's azimuth and elevation seen from the top, for a tip) and
     #: ``tip_at_angles`` (its inverse) keep ``azimuth``/``elevation`` true in shadow_tip placement

@@ -47,14 +47,15 @@ def load_shipped(name: str):
 class SoftShadowSSN(Node):
     """Soft shadow from SSN++: the 3D-aware buffer channels (cutout pixel height,
     background gradient, hard and sparse hard shadows, relative distance) and the
-    light's softness run through a small trained U-Net on the CPU. Same ports as
+    light's softness run through a small trained U-Net (on CUDA when torch has it, else the CPU). Same ports as
     pixgraph.SoftShadow; its cost does not grow with the light's size.
 
     All inputs share the camera's size; pixel heights must be finite and >= 0
     (the cutout's inside its mask), else the node stops with an input error. An
     empty mask casts no shadow (darkness 0). Torch runs with
     ``PIXGRAPH_TORCH_THREADS`` intra-op threads (default: 1 per 4 CPUs, 1 to
-    4), restored afterwards. Progress is reported after the buffer channels
+    4), restored afterwards, on the device ``PIXGRAPH_TORCH_DEVICE`` names (auto,
+    cpu, cuda, cuda:N; default auto: CUDA when torch has it). Progress is reported after the buffer channels
     (banded, cancellable) and after the network.
 
     Any image size: the network runs on a window around the cutout and its shadow,
@@ -96,21 +97,21 @@ class SoftShadowSSN(Node):
         except ValueError as e:
             raise InputError(f"input 'fg_height': {e}") from None
         try:
-            threads = ssn.inference_threads()
+            threads, torch_device = ssn.inference_threads(), ssn.inference_device()
         except ValueError as e:  # the host's setting, not the node's fault
             raise InputError(str(e)) from None
         model = load_shipped(params.model)
         from .ops import ssn_crop
         darkness, info = ssn_crop.render(ctx.device, model, inputs.mask, inputs.fg_height, inputs.bg_height,
                                          light_point(light, cam), disk_extremes(light, cam), softness,
-                                         params.thickness, threads=threads,
+                                         params.thickness, threads=threads, torch_device=torch_device,
                                          progress=lambda f, m="": ctx.progress(0.5 * f, m),
                                          check_cancelled=ctx.check_cancelled)
         if info.clamped:
             lo, hi = ssn_crop.SOFTNESS_RANGE
             ctx.log(f"warning: light softness (radius / distance) {softness:.3g} is outside the trained "
                     f"range {lo:g}-{hi:g}: the network was run at {info.softness:g}")
-        ctx.log(info.describe())
+        ctx.log(f"{info.describe()}; network on torch's {torch_device}")
         finite_outputs(darkness=darkness)
         ctx.progress(1.0, "SSN++")
         return {"lit": 1.0 - darkness, "darkness": darkness}

@@ -12,7 +12,9 @@ attribute, a dict with a ``kind``):
   params, ``camera`` its camera input, ``object`` the inputs (mask, pixel height) of
   the node it feeds that hold the object; the type also carries the geometry
   (``object_top``, ``shadow_tip``, ``tip_at_elevation``, and optional ``tip_angles``
-  and ``tip_at_angles``: ops/light_screen.py and ops/lights.py in the node pack). In
+  and ``tip_at_angles``: ops/light_screen.py and ops/lights.py in the node pack;
+  ``tip_at_elevation.elevation_range``, optional, the [lo, hi) degrees it accepts,
+  narrows the page's elevation slider in the tip placement). In
   the tip placement the light's angles are those seen from the object's top: a tip
   edit writes them into the ``azimuth``/``elevation`` params, and an edit of those
   params moves the tip (``light_edits``), so the params say what the light is;
@@ -240,6 +242,9 @@ def describe(state: ServeState) -> dict:
         controls = dict(getattr(light, "controls", ()))
         tip = light_cls.shadow_tip(a.camera, light, a.top)
         h = state.handles(g.nodes[lid].type)
+        if v.get(h["placement"]) == h["tip_placement"] and "azimuth" in h and controls.get("azimuth") is not None:
+            # the light's azimuth in its param's convention (350, not -10: ``_azimuth_near``)
+            controls["azimuth"] = _azimuth_near(state, lid, h, controls["azimuth"])
         out["light"] = {**v, "azimuth_deg": controls.get("azimuth"), "elevation_deg": controls.get("elevation"),
                         "top_uvh": list(a.top) if a.top else None, "tip_uv": list(tip) if tip else None,
                         # what the panel shows for the angle params: the light's own (in the tip
@@ -247,8 +252,27 @@ def describe(state: ServeState) -> dict:
                         # edit writes them there; in the controls placement they are the params
                         "angles": {f"{lid}.{h[k]}": round(controls[k], 2) for k in ("azimuth", "elevation")
                                    if k in h and controls.get(k) is not None}
-                        if v.get(h["placement"]) == h["tip_placement"] else {}}
+                        if v.get(h["placement"]) == h["tip_placement"] else {},
+                        "elevation_range": _elevation_range(state, lid, h, light_cls,
+                                                            v.get(h["placement"]) == h["tip_placement"])}
     return out
+
+
+def _elevation_range(state: ServeState, lid: str, h: dict, light_cls, tip: bool) -> list:
+    """[min, max] [deg] of the page's elevation slider: the ``elevation`` param's declared
+    range (None where it declares none), from the handles' ``elevation_min`` up (a light
+    placed by its angles is raised to that); in the tip placement narrowed to the elevations
+    the tip geometry gives (``tip_at_elevation.elevation_range``, [lo, hi): the max is
+    0.01 deg, the step the angles are written to, under its hi)."""
+    spec = state.registry.get(state.graph.nodes[lid].type).param(h["elevation"])
+    lo, hi = (spec.min, spec.max) if spec is not None else (None, None)
+    if not tip and h.get("elevation_min") is not None:   # below it the light is raised to it
+        lo = h["elevation_min"] if lo is None else max(lo, h["elevation_min"])
+    geometry = getattr(getattr(light_cls, "tip_at_elevation", None), "elevation_range", None)
+    if tip and geometry is not None:
+        lo = geometry[0] if lo is None else max(lo, geometry[0])
+        hi = round(geometry[1] - 0.01, 2) if hi is None else min(hi, round(geometry[1] - 0.01, 2))
+    return [lo, hi]
 
 
 def _height_edit(state: ServeState, nid: str) -> dict:
@@ -372,8 +396,28 @@ def _tip_angle_params(state, r, lid, h, light_cls, tip, top) -> dict:
         return {}
     out = {f"{lid}.{h['elevation']}": round(el, 2)}
     if "azimuth" in h:
-        out[f"{lid}.{h['azimuth']}"] = round(az, 2)
+        out[f"{lid}.{h['azimuth']}"] = round(_azimuth_near(state, lid, h, az), 2)
     return out
+
+
+def _azimuth_near(state: ServeState, lid: str, h: dict, az: float) -> float:
+    """The azimuth ``az`` [deg] (the geometry gives (-180, 180]) written in the
+    convention of the light's ``azimuth`` param: in [-180, 180) while the param is
+    there, in [0, 360) once it is 180 or more, in [-360, 0) below -180, and within
+    the param's declared min/max (the nearest turn that fits when that window's does
+    not). A light typed as 350 deg keeps 350-ish, not -10; a drag across 0 then reads
+    359.5, and jumps of the tip never walk the number round and round."""
+    spec = state.registry.get(state.graph.nodes[lid].type).param(h["azimuth"])
+    prev = _values(state, lid).get(h["azimuth"])
+    prev = float(prev) if isinstance(prev, (int, float)) and math.isfinite(prev) else 0.0
+    base = -180.0 if -180.0 <= prev < 180.0 else (0.0 if prev >= 180.0 else -360.0)
+    a = base + (float(az) - base) % 360.0
+    lo = -math.inf if spec is None or spec.min is None else spec.min
+    hi = math.inf if spec is None or spec.max is None else spec.max
+    if lo <= a <= hi:
+        return a
+    fits = [t for t in (a - 360.0, a + 360.0) if lo <= t <= hi]
+    return min(fits, key=lambda t: abs(t - prev)) if fits else a
 
 
 def light_angle_edits(state: ServeState, params) -> tuple[Any, dict, bool]:

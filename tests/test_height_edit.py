@@ -400,3 +400,25 @@ def test_the_simulated_users_plans_moved_to_the_lab_unchanged():
     assert out["depth"] == {"foot_depth": pytest.approx(10.1)}
     assert out["1 contact + depth + top"]["foot_depth"] == pytest.approx(10.6)
     assert out["other method"] == {}
+
+
+def test_true_contacts_options_give_real_photos_old_plans():
+    """``true_contacts`` also makes real_photos.py's old plans' points (which had a near-copy
+    of it): with no pixel below 1 px it falls back to the mask's lowest ``fallback_rows``
+    rows, and ``v_at`` puts the point on the pixel's bottom edge. Analytic: a mask whose
+    lowest row is 79 for columns 10-19 and 78 for columns 20-49, heights never below 1 px."""
+    from pixgraph_lab.height.edit_plans import true_contacts
+    mask = np.zeros((100, 60), bool)
+    mask[20:79, 10:50] = True
+    mask[79, 10:20] = True
+    mask[60:75, 50:55] = True                       # an arm: lowest in its own column bin, rows 60-74
+    true_h = np.where(mask, 5.0, 0.0)
+    # the whole mask: the lowest pixel of each third of columns 10-54
+    assert true_contacts(true_h, mask, 3) == [(10.5, 79.5), (25.5, 78.5), (40.5, 78.5)]
+    # the two lowest rows only (78, 79): the arm's columns drop out, bins of columns 10-49
+    assert true_contacts(true_h, mask, 3, fallback_rows=2) == [(10.5, 79.5), (24.5, 78.5), (37.5, 78.5)]
+    assert true_contacts(true_h, mask, 3, fallback_rows=1, v_at=1.0) == [(10.5, 80.0), (14.5, 80.0),
+                                                                         (17.5, 80.0)]
+    # a foot pixel (true height < 1 px) wins over everything else, whatever the options
+    true_h[50, 30] = 0.5
+    assert true_contacts(true_h, mask, 3, fallback_rows=2, v_at=1.0) == [(30.5, 51.0)]

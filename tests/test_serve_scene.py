@@ -10,6 +10,7 @@ import pytest
 
 from pixgraph_nodes.ops import light_screen as LS
 from pixgraph_nodes.ops import lights as L
+from pixgraph_nodes.ops.lights import MIN_ELEVATION_DEG
 from pixgraph_nodes.ops.camera import Camera
 from pixgraph_serve import app as serve_app
 from pixgraph_serve import scene
@@ -245,6 +246,73 @@ def test_a_camera_edit_in_the_tip_placement_keeps_the_angle_params_the_lights(tm
     serve_app.apply_edits(st, {"params": {"light.placement": "controls"}})
     assert (scene.describe(st)["light"]["azimuth_deg"], scene.describe(st)["light"]["elevation_deg"]) == \
         pytest.approx((az, el), abs=0.006)
+
+
+def test_an_azimuth_written_back_keeps_the_params_convention(tmp_path):
+    """In the tip placement the geometry gives azimuths in (-180, 180]; the param written
+    back (a typed angle, a tip drag, a camera edit) keeps the param's convention inside
+    its declared range: a typed 350 stays 350 (not -10), a drag across 0/360 reads 359.5,
+    past the declared max (360) the turn that fits, and jumps never walk it round."""
+    st = ServeState(copy_scene(str(tmp_path)))
+
+    def light():
+        return scene.describe(st)["light"]
+
+    def tip_at(az, el=40.0):
+        a = scene.anchors(st, scene.roles(st))
+        return list(LS.tip_at_angles(a.camera, a.top, az, el))
+
+    serve_app.apply_edits(st, {"light_tip": [230, 400]})
+    serve_app.apply_edits(st, {"params": {"light.azimuth": 350, "light.elevation": 40}})
+    got = light()
+    assert got["azimuth"] == 350 and got["azimuth_deg"] == pytest.approx(350, abs=1e-6)
+    assert got["angles"]["light.azimuth"] == 350
+    # a tip drag to the light's azimuth -0.5 (= 359.5): from 350 that is 359.5
+    serve_app.apply_edits(st, {"light_tip": tip_at(-0.5)})
+    got = light()
+    assert got["azimuth"] == pytest.approx(359.5, abs=0.006) and got["azimuth_deg"] == pytest.approx(359.5, abs=1e-6)
+    assert got["angles"]["light.azimuth"] == got["azimuth"]
+    # a camera edit turns the light a little: the param stays on its side of 0/360
+    cam = scene.roles(st)["camera"]
+    serve_app.apply_edits(st, {"params": {f"{cam}.horizon": st.graph.nodes[cam].params["horizon"] - 20}})
+    got = light()
+    assert 340 < got["azimuth"] <= 360 and got["azimuth"] == got["angles"]["light.azimuth"], got["angles"]
+    # past the param's max (360): 370 does not fit, 10 does
+    serve_app.apply_edits(st, {"light_tip": tip_at(10)})
+    assert light()["azimuth"] == pytest.approx(10, abs=0.006)
+    # typed on the negative side, the negative turn stays
+    serve_app.apply_edits(st, {"params": {"light.azimuth": -350}})
+    assert light()["azimuth"] == -350 and light()["azimuth_deg"] == pytest.approx(-350, abs=1e-6)
+    serve_app.apply_edits(st, {"light_tip": tip_at(5)})
+    assert light()["azimuth"] == pytest.approx(-355, abs=0.006)
+    # from the example's -30, jumps of the tip stay in [-180, 180): the number does not
+    # walk round (nearest-turn unwrapping read a jump to 170 as -190, and kept counting)
+    serve_app.apply_edits(st, {"params": {"light.azimuth": -30}})
+    for az in (170.0, -170.0, 100.0, -100.0, 175.0):
+        serve_app.apply_edits(st, {"light_tip": tip_at(az)})
+        assert light()["azimuth"] == pytest.approx(az, abs=0.006), az
+
+
+def test_the_elevation_sliders_range_is_the_params_and_in_the_tip_placement_the_tips(tmp_path):
+    """``/api/scene``'s ``light.elevation_range``: the elevation param's declared min/max
+    in the controls placement, from the light's ``elevation_min`` handle up; in the tip placement the part of it the tip geometry gives
+    ([0.5, 90): 89.99 at most, the 0.01 deg the angles are written to), and each end is
+    an elevation the tip takes."""
+    st = ServeState(copy_scene(str(tmp_path)))
+    spec = st.registry.get(st.graph.nodes["light"].type).param("elevation")
+    serve_app.apply_edits(st, {"params": {"light.placement": "controls"}})
+    # from the lowest elevation that does something (a light below it is raised to it)
+    assert (spec.min, spec.max) == (-90.0, 90.0)
+    assert scene.describe(st)["light"]["elevation_range"] == [MIN_ELEVATION_DEG, spec.max] == [1.0, 90.0]
+    serve_app.apply_edits(st, {"light_tip": [230, 400]})
+    lo, hi = scene.describe(st)["light"]["elevation_range"]
+    assert (lo, hi) == (LS.TIP_ELEVATION_RANGE[0], 89.99)
+    serve_app.apply_edits(st, {"light_elevation": hi})
+    assert scene.describe(st)["light"]["elevation_deg"] == pytest.approx(hi, abs=1e-6)
+    with pytest.raises(ServeError, match="0.5, 90"):
+        serve_app.apply_edits(st, {"light_elevation": hi + 0.01})
+    with pytest.raises(ServeError, match="0.5, 90"):
+        serve_app.apply_edits(st, {"light_elevation": lo - 0.01})
 
 
 def test_in_the_controls_placement_the_panel_is_told_the_params_as_they_are(tmp_path):

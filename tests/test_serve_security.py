@@ -3,12 +3,14 @@ the probe of issue 23 replayed (Host and Origin of another site, text/plain bodi
 the per-launch token, a page on another origin in real Chromium, and stopping on
 SIGTERM/SIGINT mid-render. Every refused request must change nothing on disk."""
 import asyncio
+import contextlib
 import hashlib
 import http.server
 import os
 import shutil
 import signal
 import tempfile
+import textwrap
 import threading
 import time
 
@@ -256,28 +258,98 @@ def test_a_page_on_another_origin_changes_nothing_in_chromium(server):
 
 # -- stopping -------------------------------------------------------------------------------------
 
+# A node that holds a render busy until the test lets it go: stopping "mid-render" is then
+# certain, not a race with a render a fast machine finishes between two polls.
+HOLD_PLUGIN = {
+    "holdpack/__init__.py": '''
+        import os
+        import time
+
+        from pixgraph_nodes import types as T
+        from pixgraph.node import node, param, port
+
+        @node("test.Hold", version=1)
+        class Hold:
+            """Its input; with ``hold``, once the file ``gate`` exists (``started`` is written
+            when the wait begins, ``started`` + ".passed" when it ends)."""
+            class Inputs:
+                image: T.Image = port()
+            class Params:
+                hold: bool = param(False, doc="wait for the gate")
+                started: str = param("", doc="file written when the wait begins")
+                gate: str = param("", doc="file whose existence ends the wait")
+            class Outputs:
+                image: T.Image = port()
+            def compute(self, ctx, inputs, params):
+                if params.hold:
+                    open(params.started, "w").close()
+                    deadline = time.monotonic() + 600
+                    while not os.path.exists(params.gate):
+                        if time.monotonic() > deadline:
+                            raise RuntimeError("the test never opened the gate")
+                        time.sleep(0.005)
+                    open(params.started + ".passed", "w").close()
+                return {"image": inputs.image}
+    ''',
+    "holdpack-0.1.dist-info/METADATA": "Metadata-Version: 2.1\nName: holdpack\nVersion: 0.1\n",
+    "holdpack-0.1.dist-info/entry_points.txt": "[pixgraph.nodes]\nhold = holdpack\n",
+}
+HOLD_GRAPH = """pixgraph: 1
+nodes:
+  c: {type: pixgraph.Constant, params: {width: 8, height: 8}}
+  hold: {type: test.Hold, inputs: {image: c.image}}
+outputs: {final: hold.image}
+"""
+
+
+@contextlib.contextmanager
+def held_server(tmp_path):
+    """A server (``test.Hold`` on its path) of a graph whose render a test holds busy:
+    yields (url, process, the render's params that hold it, the file its start writes).
+    The gate opens on the way out, so a server still running would finish that render."""
+    plugins = tmp_path / "plugins"
+    for rel, text in HOLD_PLUGIN.items():
+        (plugins / rel).parent.mkdir(parents=True, exist_ok=True)
+        (plugins / rel).write_text(textwrap.dedent(text).lstrip())
+    graph = tmp_path / "held.yaml"
+    graph.write_text(HOLD_GRAPH)
+    started, gate = tmp_path / "started", tmp_path / "gate"
+    env = {"PYTHONPATH": os.pathsep.join([str(plugins), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    try:
+        with start_server(str(graph), "--no-token", env=env) as (url, _, proc):
+            yield url, proc, {"hold.hold": True, "hold.started": str(started), "hold.gate": str(gate)}, started
+    finally:
+        gate.touch()
+
+
+async def stop_while_held(url, proc, hold, started, sig=signal.SIGTERM) -> tuple[int, float]:
+    """Start a render the gate holds, wait (polls, up to 120 s) until its node is waiting,
+    send ``sig``; the exit code and the seconds to exit. Asserts the stop came while the
+    render was busy: the node never passed its gate and the render never answered."""
+    async with httpx.AsyncClient(base_url=url, timeout=600) as c:
+        long = asyncio.create_task(c.post("/api/render", json={"params": hold}))
+        for _ in range(12000):
+            if started.exists() or long.done():
+                break
+            await asyncio.sleep(0.01)
+        assert started.exists() and not long.done(), "the held render did not start"
+        assert (await c.get("/api/status")).json()["running"] >= 1
+        t0 = time.monotonic()
+        proc.send_signal(sig)
+        code = await asyncio.get_running_loop().run_in_executor(None, proc.wait, 30)
+        seconds = time.monotonic() - t0
+        with pytest.raises(httpx.TransportError):      # the server went away mid-render
+            await long
+    assert not os.path.exists(str(started) + ".passed")
+    return code, seconds
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_stops_the_server_mid_render(tmp_path, sig):
-    graph = copy_scene(str(tmp_path / "scene"))
-    with start_server(graph, "--no-token") as (url, _, proc):
-        async def main():
-            async with httpx.AsyncClient(base_url=url, timeout=600) as c:
-                long = asyncio.create_task(c.post("/api/render", json={"params": {"shadow.samples": 65536}}))
-                for _ in range(6000):          # wait (up to 60 s) until the render is running
-                    # (or has already ended: a fast device may finish it between two polls;
-                    # the server must exit 0 either way)
-                    if long.done() or (await c.get("/api/status")).json()["running"]:
-                        break
-                    await asyncio.sleep(0.01)
-                else:
-                    raise AssertionError("the render did not start")
-                t0 = time.monotonic()
-                proc.send_signal(sig)
-                code = await asyncio.get_running_loop().run_in_executor(None, proc.wait, 5)
-                long.cancel()
-                return code, time.monotonic() - t0
-
-        code, seconds = asyncio.run(main())
+    """A stop signal while a node runs (held by its gate, so the render is certainly
+    busy) ends the server at once, exit code 0, without waiting for the node."""
+    with held_server(tmp_path) as (url, proc, hold, started):
+        code, seconds = asyncio.run(stop_while_held(url, proc, hold, started, sig))
     assert code == 0
     print(f"{signal.Signals(sig).name}: exited in {seconds:.3f} s")
 
@@ -292,31 +364,23 @@ def test_a_signal_stops_an_idle_server(tmp_path):
 @pytest.mark.parametrize("busy", [False, True])
 def test_a_stopped_server_leaves_no_uploaded_photo_behind(tmp_path, busy):
     """The photos and cutouts opened in the page go to an upload folder the server made;
-    it is removed when the server stops (idle or mid-render), so the user's photos do not
-    stay in the temporary folder (a graph saved from the page reads copies beside it).
-    Before, every stop left the folder and its files behind."""
-    with start_server(copy_scene(str(tmp_path / "scene")), "--no-token") as (url, _, proc):
+    it is removed when the server stops (idle, or mid-render: a render held busy by a
+    node the test lets go only after the stop), so the user's photos do not stay in the
+    temporary folder (a graph saved from the page reads copies beside it). Before, every
+    stop left the folder and its files behind."""
+    with held_server(tmp_path) as (url, proc, hold, started):
         with open(os.path.join(REPO, "graphs", "assets", "figure.png"), "rb") as f:
             r = httpx.put(url + "/api/uploads/mine.png", content=f.read(), timeout=60)
         r.raise_for_status()
         folder = os.path.dirname(r.json()["path"])
         assert os.path.isfile(os.path.join(folder, "mine.png"))
         if busy:
-            async def go():
-                async with httpx.AsyncClient(base_url=url, timeout=600) as c:
-                    long = asyncio.create_task(c.post("/api/render", json={"params": {"shadow.samples": 65536}}))
-                    for _ in range(6000):
-                        if long.done() or (await c.get("/api/status")).json()["running"]:
-                            break
-                        await asyncio.sleep(0.01)
-                    proc.send_signal(signal.SIGTERM)
-                    code = await asyncio.get_running_loop().run_in_executor(None, proc.wait, 5)
-                    long.cancel()
-                    return code
-            assert asyncio.run(go()) == 0
+            assert asyncio.run(stop_while_held(url, proc, hold, started))[0] == 0
         else:
+            assert httpx.get(url + "/api/status", timeout=60).json()["running"] == 0
             proc.send_signal(signal.SIGTERM)
-            assert proc.wait(timeout=5) == 0
+            assert proc.wait(timeout=30) == 0
+            assert not started.exists()
     assert not os.path.exists(folder)
 
 

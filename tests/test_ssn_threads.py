@@ -46,13 +46,4 @@ def test_threads_hold_during_inference_and_are_restored(monkeypatch):
     np.testing.assert_allclose(one, two, atol=1e-5)
 
 
-def test_a_bad_setting_is_bad_input(monkeypatch, capsys):
-    """The node reports a bad PIXGRAPH_TORCH_THREADS as bad input (exit 2), not a crash."""
-    from pixgraph.cli import main
-
-    monkeypatch.setenv(ssn.THREADS_ENV, "many")
-    graph = os.path.join(os.path.dirname(__file__), "..", "graphs", "ssn_wall_corner.yaml")
-    code = main(["run", graph, "--no-disk-cache", "-q"])
-    err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1
-    assert "node 'shadow' (pixgraph.SoftShadowSSN)" in err[0] and "PIXGRAPH_TORCH_THREADS" in err[0]
+# a bad PIXGRAPH_TORCH_THREADS given to the node: tests/test_ssn_device.py (with the device's)

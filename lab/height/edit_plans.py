@@ -34,19 +34,28 @@ def known_heights(true_h: np.ndarray, rendered: np.ndarray, seen: np.ndarray) ->
     return np.where(seen, np.where(good, true_h, true_h[iy, ix]), 0.0)
 
 
-def true_contacts(true_h: np.ndarray, mask: np.ndarray, k: int) -> list:
+def true_contacts(true_h: np.ndarray, mask: np.ndarray, k: int, *, fallback_rows: int | None = None,
+                  v_at: float = 0.5) -> list:
     """Up to ``k`` contact points (u, v) [px]: the lowest visible pixel whose true height is
-    < 1 px in each of ``k`` equal column bins of those pixels (one bin: the lowest of all)."""
+    < 1 px in each of ``k`` equal column bins of those pixels (one bin: the lowest of all;
+    fewer bins when those pixels span fewer than ``k`` columns).
+
+    With no such pixel the mask's own pixels stand in, only its lowest ``fallback_rows``
+    rows when that is given. ``v_at``: where in the chosen pixel the point lies, 0.5 its
+    centre (inside the mask), 1.0 its bottom edge (``real_photos``' old plans)."""
     ys, xs = np.nonzero(mask & (true_h < 1.0))
     if len(xs) == 0:
         ys, xs = np.nonzero(mask)
-    edges = np.linspace(xs.min(), xs.max() + 1, k + 1)
+        if fallback_rows is not None:
+            keep = ys >= ys.max() - (fallback_rows - 1)
+            ys, xs = ys[keep], xs[keep]
+    edges = np.linspace(xs.min(), xs.max() + 1, min(k, len(np.unique(xs))) + 1)
     pts = []
     for a, b in zip(edges[:-1], edges[1:]):
         sel = (xs >= a) & (xs < b)
         if sel.any():
             i = np.argmax(np.where(sel, ys, -1))
-            pts.append((float(xs[i] + 0.5), float(ys[i] + 0.5)))    # the pixel's centre: inside the mask
+            pts.append((float(xs[i] + 0.5), float(ys[i] + v_at)))
     return pts
 
 

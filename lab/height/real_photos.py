@@ -38,26 +38,10 @@ import os
 
 import numpy as np
 
-#: the plans of this check before the plan set grew (contact points only, ``simulated_contacts``)
+#: the plans of this check before the plan set grew (contact points only: ``edit_plans.true_contacts``
+#: with k = 3, on the bottom edge of the pixel, the two lowest rows when no pixel is below 1 px)
 OLD_PLANS = {"3 points (old rule), shift": "shift", "3 points (old rule), upright": "upright"}
 OBJECTS = ("named:teddy", "named:duck", "named:table", "named:mug", "named:bunny", "named:lego")
-
-
-def simulated_contacts(true_h, mask, k=3):
-    """Up to ``k`` contact points (u, v) [px] where the true height is < 1 px (module doc)."""
-    ys, xs = np.nonzero(mask & (true_h < 1.0))
-    if len(xs) == 0:
-        ys, xs = np.nonzero(mask)
-        keep = ys >= ys.max() - 1
-        ys, xs = ys[keep], xs[keep]
-    edges = np.linspace(xs.min(), xs.max() + 1, min(k, len(np.unique(xs))) + 1)
-    pts = []
-    for a, b in zip(edges[:-1], edges[1:]):
-        sel = (xs >= a) & (xs < b)
-        if sel.any():
-            i = np.argmax(np.where(sel, ys, -1))
-            pts.append((xs[i] + 0.5, ys[i] + 1.0))       # the bottom edge of that pixel
-    return pts
 
 
 def main(argv=None) -> int:
@@ -81,7 +65,8 @@ def main(argv=None) -> int:
 
     from pixgraph_lab.datagen.dataset import sample_files
     from pixgraph_lab.evaluate import Method, prepared_sample
-    from pixgraph_lab.height.edit_plans import PLANS, edit_with, known_heights, plan_method, plan_params
+    from pixgraph_lab.height.edit_plans import (PLANS, edit_with, known_heights, plan_method, plan_params,
+                                                true_contacts)
     from pixgraph_lab.metrics import shadow_metrics
     device = Device.open()
     soft = Method("soft:64", 1.0)
@@ -106,7 +91,7 @@ def main(argv=None) -> int:
         rgba = np.concatenate([s["rgb"].astype(np.float32) * al[..., None], al[..., None]], 2)
         r = pred.predict_full(rgba)
         true = s["fg_height"].astype(np.float32)
-        pts = simulated_contacts(true, mask)
+        pts = true_contacts(true, mask, 3, fallback_rows=2, v_at=1.0)
         maps = {"true": true, "heuristic": r["heuristic"], "learned": r["height"]}
         conf = r["confidence"]
         maps["auto"] = r["auto_height"]

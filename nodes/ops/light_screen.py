@@ -102,9 +102,20 @@ def tip_at_angles(camera, top_uvh, azimuth_deg: float, elevation_deg: float) -> 
     return _tip_along(camera, P, d, elevation_deg, f"at azimuth {azimuth_deg}, elevation {elevation_deg}")
 
 
+#: [lo, hi) degrees of the elevations ``tip_at_elevation`` and ``tip_at_angles`` accept:
+#: at 90 the tip is the top's foot (no ground direction left), toward 0 it runs off to
+#: the horizon; a shell's elevation slider reads it as ``tip_at_elevation.elevation_range``
+TIP_ELEVATION_RANGE = (0.5, 90.0)
+
+
 def _check_elevation(elevation_deg: float) -> None:
-    if not 0.5 <= elevation_deg < 90.0:
-        raise ValueError(f"elevation must be in [0.5, 90) degrees, got {elevation_deg}")
+    lo, hi = TIP_ELEVATION_RANGE
+    if not lo <= elevation_deg < hi:
+        raise ValueError(f"elevation must be in [{lo:g}, {hi:g}) degrees, got {elevation_deg}")
+
+
+tip_at_elevation.elevation_range = TIP_ELEVATION_RANGE
+tip_at_angles.elevation_range = TIP_ELEVATION_RANGE
 
 
 def _tip_along(camera, P, d, elevation_deg: float, what: str) -> tuple[float, float]:

@@ -22,8 +22,10 @@ Channel sets (the paper's Table 2 ablation):
 from __future__ import annotations
 
 import contextlib
+import copy
 import dataclasses
 import json
+import os
 import pathlib
 
 import numpy as np
@@ -53,6 +55,11 @@ SOFTNESS_MAX = 1.0
 #: Environment variable a host sets to choose torch's intra-op threads for
 #: inference (a positive integer); see :func:`inference_threads`.
 THREADS_ENV = "PIXGRAPH_TORCH_THREADS"
+
+#: Environment variable a host sets to choose the torch device SSN++ runs on:
+#: ``auto`` (the default: CUDA when torch has it, else the CPU), ``cpu``, ``cuda``
+#: or ``cuda:N``; see :func:`inference_device`.
+DEVICE_ENV = "PIXGRAPH_TORCH_DEVICE"
 
 # Buffer channels in pixel units are brought to O(1) before entering the
 # network. Pixel heights and distances are divided by the image size, so the
@@ -230,6 +237,45 @@ def inference_threads() -> int:
     return threads_from_env(THREADS_ENV, max(1, min(4, usable_cpus() // 4)))
 
 
+def inference_device() -> torch.device:
+    """The torch device for SSN++ inference: ``PIXGRAPH_TORCH_DEVICE`` (``auto``,
+    ``cpu``, ``cuda`` or ``cuda:N``; ValueError naming the variable for anything
+    else, or for a CUDA device this torch build or machine does not have), by
+    default ``auto``: the first CUDA device when ``torch.cuda.is_available()``,
+    else the CPU. The network is small (0.54 M parameters); on the CPU it costs
+    most of the node's time, on a GPU a few milliseconds."""
+    raw = os.environ.get(DEVICE_ENV, "").strip().lower() or "auto"
+    if raw == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if raw == "cpu":
+        return torch.device("cpu")
+    kind, _, index = raw.partition(":")
+    if kind != "cuda" or (index and not index.isdigit()):
+        raise ValueError(f"{DEVICE_ENV} must be auto, cpu, cuda or cuda:N, got {raw!r}")
+    if not torch.cuda.is_available():
+        raise ValueError(f"{DEVICE_ENV}={raw} but this torch ({torch.__version__}) finds no CUDA device; "
+                         f"use auto or cpu")
+    n = torch.cuda.device_count()
+    if index and int(index) >= n:
+        raise ValueError(f"{DEVICE_ENV}={raw} but torch finds {n} CUDA device(s)")
+    return torch.device(raw if index else "cuda")
+
+
+_on_device: dict = {}
+
+
+def model_on(model: SSN, device: torch.device) -> SSN:
+    """``model`` itself when it is on ``device``; else a copy on ``device``, made once
+    per model and device (the shipped model is loaded once per process on the CPU)."""
+    if next(model.parameters()).device == device:
+        return model
+    key = (id(model), str(device))
+    hit = _on_device.get(key)
+    if hit is None or hit[0] is not model:
+        hit = _on_device[key] = (model, copy.deepcopy(model).to(device))
+    return hit[1]
+
+
 @contextlib.contextmanager
 def torch_threads(n: int):
     """Run the block with ``n`` torch intra-op threads, then restore the host's setting
@@ -245,14 +291,13 @@ def torch_threads(n: int):
 
 
 def predict(model: SSN, buffers: dict[str, np.ndarray], softness: float,
-            threads: int | None = None) -> np.ndarray:
+            threads: int | None = None, device: torch.device | str | None = None) -> np.ndarray:
     """Soft-shadow darkness (H, W) float32 in [0, 1] for one sample at any resolution.
 
     The buffers are resized to ``RESOLUTION`` (pixel-unit channels are
     normalised by ``stack_channels``), run through the network, and the result
     is resized back. ``softness`` is clamped to [0, SOFTNESS_MAX] (ValueError
-    when NaN). threads: torch intra-op threads (default
-    :func:`inference_threads`).
+    when NaN). threads, device: as for :func:`run_network`.
     """
     softness = float(softness)
     if softness != softness:
@@ -260,29 +305,38 @@ def predict(model: SSN, buffers: dict[str, np.ndarray], softness: float,
     softness = min(max(softness, 0.0), SOFTNESS_MAX)
     x = torch.from_numpy(stack_channels(buffers, model.config.channels))[None]
     H, W = x.shape[-2:]
-    with torch_threads(threads or inference_threads()), torch.inference_mode():
-        if (H, W) != (RESOLUTION, RESOLUTION):
-            x = F.interpolate(x, size=(RESOLUTION, RESOLUTION), mode="bilinear", align_corners=False)
-        y = model(x.contiguous(memory_format=torch.channels_last), torch.tensor([softness]))
-        if (H, W) != (RESOLUTION, RESOLUTION):
-            y = F.interpolate(y, size=(H, W), mode="bilinear", align_corners=False)
-        return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
+    if (H, W) != (RESOLUTION, RESOLUTION):
+        x = F.interpolate(x, size=(RESOLUTION, RESOLUTION), mode="bilinear", align_corners=False)
+    return _forward(model, x, softness, threads, device, out_size=(H, W))
 
 
 def run_network(model: SSN, buffers: dict[str, np.ndarray], softness: float,
-                norm: float | None = None, threads: int | None = None) -> np.ndarray:
+                norm: float | None = None, threads: int | None = None,
+                device: torch.device | str | None = None) -> np.ndarray:
     """Darkness (H, W) float32 in [0, 1] with the network run at the buffers' own
     size (no resizing: H and W must be multiples of ``2**levels``); pixel-unit
     channels are divided by ``norm`` px (see ``stack_channels``). ``ssn_crop``
     runs it on a window at the trained scale, where ``norm = RESOLUTION``.
-    threads: torch intra-op threads (default :func:`inference_threads`)."""
+    threads: torch intra-op threads (default :func:`inference_threads`; they
+    matter on the CPU only); device: torch's (default :func:`inference_device`)."""
     x = torch.from_numpy(stack_channels(buffers, model.config.channels, norm))[None]
     m = 2 ** model.config.levels
     if x.shape[-2] % m or x.shape[-1] % m:
         raise ValueError(f"run_network needs sides divisible by {m}, got {tuple(x.shape[-2:])}")
+    return _forward(model, x, float(softness), threads, device)
+
+
+def _forward(model: SSN, x: torch.Tensor, softness: float, threads, device, out_size=None) -> np.ndarray:
+    """The network on ``x`` (1, C, h, w) on the CPU -> darkness (H, W) float32 in
+    [0, 1] on the CPU, resized to ``out_size`` when it is given and differs."""
+    device = torch.device(device) if device is not None else inference_device()
+    net = model_on(model, device)
     with torch_threads(threads or inference_threads()), torch.inference_mode():
-        y = model(x.contiguous(memory_format=torch.channels_last), torch.tensor([float(softness)]))
-        return y[0, 0].clamp(0, 1).numpy().astype(np.float32)
+        x = x.to(device).contiguous(memory_format=torch.channels_last)
+        y = net(x, torch.tensor([softness], device=device))
+        if out_size is not None and tuple(out_size) != tuple(y.shape[-2:]):
+            y = F.interpolate(y, size=tuple(out_size), mode="bilinear", align_corners=False)
+        return y[0, 0].clamp(0, 1).cpu().numpy().astype(np.float32)
 
 
 # the definition lives in a torch-free module (pixgraph.Shadow's method choice needs

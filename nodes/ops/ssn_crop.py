@@ -161,7 +161,7 @@ def reach_gate(channels: dict, mask_win: np.ndarray | None = None, reach_px: flo
 
 
 def render(device, model, mask, fg_height, bg_height, light_center, light_extremes, softness,
-           thickness=1.0, gate: bool = True, *, threads=None, progress=None,
+           thickness=1.0, gate: bool = True, *, threads=None, torch_device=None, progress=None,
            check_cancelled=None) -> tuple[np.ndarray, CropInfo]:
     """SSN++ darkness float32 (H, W) in [0, 1] for an image of any size, and how it was run.
 
@@ -169,7 +169,8 @@ def render(device, model, mask, fg_height, bg_height, light_center, light_extrem
     pixel-height space (``lights.light_point``, ``lights.disk_extremes``);
     softness: radius / distance (``ssn.softness_of``), clamped to SOFTNESS_RANGE;
     thickness: of the buffer channels' hard shadows, in network pixels (the
-    scale the model was trained at). threads: torch's (``ssn.run_network``);
+    scale the model was trained at). threads, torch_device: torch's (``ssn.run_network``'s
+    ``threads`` and ``device``; ``device`` is the OpenCL device of the buffer channels);
     progress, check_cancelled: passed to the buffer channels' banded trace.
     """
     mask = np.asarray(mask)
@@ -192,7 +193,8 @@ def render(device, model, mask, fg_height, bg_height, light_center, light_extrem
                                check_cancelled=check_cancelled)
     if check_cancelled is not None:
         check_cancelled()
-    d = ssn.run_network(model, channels, info.softness, norm=ssn.RESOLUTION, threads=threads)
+    d = ssn.run_network(model, channels, info.softness, norm=ssn.RESOLUTION, threads=threads,
+                        device=torch_device)
     if gate:
         d = d * reach_gate(channels, m)
     d_img = masked_resize(d, m, win.crop(inside.astype(np.float32)), (win.h, win.w))

@@ -58,13 +58,25 @@ export async function openChosen(reload) {
     showError(err.message);
     return false;
   }
-  $("save-name").value = opened.save_as;   // the server's proposal, the same after a reload
+  setSaveName(opened.save_as);   // the server's proposal, the same after a reload
   $("open-form").hidden = true;
   await reload();
   return true;
 }
 
+/** Put ``name`` in the save box, wide enough to show it whole (16 to 48 characters). */
+export function setSaveName(name) {
+  $("save-name").value = name;
+  fitSaveName();
+}
+
+function fitSaveName() {
+  const box = $("save-name");
+  box.size = Math.min(48, Math.max(16, box.value.length + 1));
+}
+
 export function wireFiles(reload) {
+  $("save-name").addEventListener("input", fitSaveName);
   $("open").addEventListener("click", () => { $("open-form").hidden = !$("open-form").hidden; });
   for (const role of ROLES) {
     const input = $(`open-${role}`);

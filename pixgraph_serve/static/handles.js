@@ -53,6 +53,12 @@ export function grab(el, drag, draw) {
   el.addEventListener("pointerdown", (ev) => {
     ev.preventDefault();
     ev.stopPropagation();
+    // the default (a press moving the focus) is prevented: a panel field typed in last
+    // keeps the focus, and syncControls leaves a focused field as it is, so it would go
+    // on showing the typed value while the drag changes the param (a typed azimuth, then
+    // a tip drag): leave the field, as a press elsewhere does
+    const typed = document.activeElement;
+    if (typed && typed !== document.body && typed.closest("#nodes")) typed.blur();
     el.setPointerCapture(ev.pointerId);
     ui.drag = {el, last: null, start: eventToImage(ev)};
   });

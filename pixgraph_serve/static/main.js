@@ -2,7 +2,7 @@
 "use strict";
 
 import {$, showError} from "./app.js";
-import {wireFiles} from "./files.js";
+import {setSaveName, wireFiles} from "./files.js";
 import {cutoutWheel, drawHandles} from "./handles.js";
 import {syncHeightTools, wireHeightTools} from "./heightedit.js";
 import {wireHistory} from "./history.js";
@@ -37,7 +37,7 @@ async function load() {
   if (ui.scene.camera) setImageSize(ui.scene.camera.width, ui.scene.camera.height);
   // what the server proposes (the last name saved, the opened photo's, else the served file's):
   // a reload keeps it, so "save" does not write the user's graph over the served one
-  if (!$("save-name").value) $("save-name").value = ui.info.save_as || ui.info.file.split(/[\\/]/).pop();
+  if (!$("save-name").value) setSaveName(ui.info.save_as || ui.info.file.split(/[\\/]/).pop());
   buildPanel();
   syncControls();
   syncHeightTools();

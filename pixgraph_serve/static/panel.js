@@ -13,6 +13,12 @@ export function syncControls() {
   const light = s.light;
   for (const id of ["elevation", "softness"]) $(id).disabled = !light;
   if (light) {
+    // the slider's ends: the elevation param's declared range (in the shadow_tip placement
+    // what the tip can give), so the slider reaches what the panel's field takes; set
+    // before the value, which a range input clamps to its ends
+    const [lo, hi] = light.elevation_range || [];
+    if (lo != null) $("elevation").min = lo;
+    if (hi != null) $("elevation").max = hi;
     if (!(ui.drag && ui.drag.el === $("elevation"))) $("elevation").value = light.elevation_deg ?? light.elevation;
     $("elevation-value").textContent = Number($("elevation").value).toFixed(1);
     $("softness").value = light.radius;
