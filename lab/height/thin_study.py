@@ -329,6 +329,67 @@ def ordinary(folder: str, out: str, scales=(4, 8), limit: int = 60, weights: str
     return lines
 
 
+def hairy_figure(H: int = 6000, W: int = 4000, strands: int = 200, seed: int = 0):
+    """``stick_figure`` at 6000 x 4000 (24 MP; the figure 5,500 px tall) with ``strands``
+    1-2 px lines rising 100-600 px from its head and shoulders (hair, wires): a cutout
+    with many lost components, for ``time_fill``. Returns the premultiplied RGBA."""
+    rgba, _, mask, _ = stick_figure(H, W, fig=5500, stick=1200, width=3)
+    rng = np.random.default_rng(seed)
+    rows = np.nonzero(mask.any(1))[0]
+    top = int(rows.min())
+    for _ in range(strands):
+        cands = np.nonzero(mask[top + int(rng.integers(0, 1200))])[0]
+        if len(cands) == 0:
+            continue
+        c, r = int(rng.choice(cands)), top + int(rng.integers(0, 1200))
+        length, lean, w = int(rng.integers(100, 600)), rng.uniform(-0.5, 0.5), int(rng.integers(1, 3))
+        rr = np.arange(max(r - length, 1), r)
+        cc = np.clip((c + lean * (rr - r)).astype(int), 1, W - 3)
+        for d in range(w):
+            rgba[rr, cc + d] = rgba[r, c] if rgba[r, c, 3] > 0 else (0.3, 0.2, 0.1, 1.0)
+    return rgba
+
+
+def time_fill(runs: int = 5) -> list[str]:
+    """Wall and CPU time of ``predict_full``'s work-size path on ``hairy_figure`` (24 MP) with
+    the shipped fill and with ``none``, alternating run by run, and of ``masked_resize``
+    with and without ``return_lost`` (what a cutout without lost pixels pays)."""
+    import torch
+    torch.set_num_threads(1)
+    from pixgraph_nodes.ops.height_work_size import THIN_FILL, predict_at_work_size, shrink_cutout, work_shape
+    from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor, crop_box
+    from pixgraph_nodes.ops.upsample import masked_resize
+    pred = LearnedHeightPredictor()
+    rgba = hairy_figure()
+    lost = lost_pixels(rgba, 0.5, pred.work_side)
+    mask = rgba[..., 3] > 0.5
+    box = crop_box(mask)
+    f, shape = work_shape(*mask.shape, box[6], pred.work_side)
+    ms = (shrink_cutout(rgba, shape)[..., 3] > 0.5).astype(np.float32)
+    lo = np.ones(shape, np.float32)
+    jobs = {"fill " + THIN_FILL: lambda: predict_at_work_size(pred, rgba, thin_fill=THIN_FILL),
+            "fill none": lambda: predict_at_work_size(pred, rgba, thin_fill="none"),
+            "masked_resize, return_lost": lambda: masked_resize(lo, ms, mask, mask.shape, box=box[:4],
+                                                                return_lost=True),
+            "masked_resize": lambda: masked_resize(lo, ms, mask, mask.shape, box=box[:4])}
+    for fn in jobs.values():
+        fn()                                          # warm up
+    got = {k: [] for k in jobs}
+    for _ in range(runs):
+        for k, fn in jobs.items():
+            t0, c0 = time.perf_counter(), time.process_time()
+            fn()
+            got[k].append((time.perf_counter() - t0, time.process_time() - c0))
+    lines = [f"hairy_figure: {rgba.shape[1]}x{rgba.shape[0]}, {int(mask.sum())} cutout px, {int(lost.sum())} lost, "
+             f"f {f:.2f}; {runs} runs alternating, load average {os.getloadavg()[0]:.2f}", "",
+             "| job | median wall ms | median CPU ms |", "|---|---|---|"]
+    for k, v in got.items():
+        v = np.array(v) * 1e3
+        lines.append(f"| {k} | {np.median(v[:, 0]):.0f} | {np.median(v[:, 1]):.0f} |")
+    print("\n".join(lines))
+    return lines
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m pixgraph_lab.height.thin_study", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -349,8 +410,12 @@ def main(argv=None) -> int:
     o.add_argument("--limit", type=int, default=60)
     o.add_argument("--weights", default=None)
     o.add_argument("--out", required=True)
+    t = sub.add_parser("time")
+    t.add_argument("--runs", type=int, default=5)
     a = ap.parse_args(argv)
-    if a.cmd == "generate":
+    if a.cmd == "time":
+        time_fill(a.runs)
+    elif a.cmd == "generate":
         generate(a.n, a.out, a.seed, a.res, a.start)
     elif a.cmd == "ordinary":
         ordinary(a.heights, a.out, a.scales, a.limit, a.weights)
