@@ -5,7 +5,7 @@
     python benchmarks/height_bench.py --size 400 --canvas 5120x3840 --runs 9   # a matte at a 20 MP photo's size
     python benchmarks/height_bench.py --backend both --runs 31            # numpy vs torch network, alternating
     python benchmarks/height_bench.py --first-use 5                       # a fresh process's first prediction
-    python benchmarks/height_bench.py --compare /work/wt/height/data/hreal/test   # numpy vs torch maps on a split
+    python benchmarks/height_bench.py --compare data/hreal/test   # numpy vs torch maps on a split
 
 ``--backend``: where the network runs (``LearnedHeightPredictor(backend=...)``):
 ``numpy`` (ops/height_net.py), ``torch``, or ``both``: the two timed run by run

@@ -20,7 +20,7 @@ paired bootstrap bounds against ``none`` and the time ratio (the rule's verdict)
 parts: 256^2 samples enlarged 4x and 8x as ``scale_study`` does.
 
     nice -n 10 python -m pixgraph_lab.height.thin_study ordinary \\
-        --heights /work/wt/height/data/hreal/val_fresh --limit 60 --out runs/thin_ordinary
+        --heights data/hreal/val_fresh --limit 60 --out runs/thin_ordinary
 """
 from __future__ import annotations
 
