@@ -148,3 +148,20 @@ def test_a_cutout_without_lost_pixels_gets_the_same_map_as_before(predictor, k):
         for key in ("height", "auto_height", "heuristic"):
             assert np.array_equal(new[key], old[key]), key
     assert checked >= 3, checked
+
+
+def test_a_lifted_cutouts_thin_part_is_lifted_with_it(predictor):
+    # contact: lifted puts the whole cutout `lift` px above its foot (the covered pixels and
+    # the heuristic output are pinned there); the lost stick must be lifted with the hand
+    # that holds it, not left at the contact line's ground-standing heights (300 px under
+    # the hand, a step in the shadow where the stick leaves the hand)
+    from pixgraph_lab.height.thin_study import lost_pixels, stick_figure
+    rgba, true, mask, stick = stick_figure()
+    lost = lost_pixels(rgba, 0.5, predictor.work_side)
+    assert lost.any()
+    r = predictor.predict_full(rgba, contact="lifted", lift=300.0)
+    err = np.abs(r["height"][lost] - (true[lost] + 300.0))
+    assert err.max() <= 1.0, err.max()
+    # lift 0 is the ground's map, bit for bit
+    assert np.array_equal(predictor.predict_full(rgba, contact="lifted", lift=0.0)["height"],
+                          predictor.predict_full(rgba)["height"])

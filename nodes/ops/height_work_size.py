@@ -157,7 +157,11 @@ def enlarge_prediction(out: dict, f: float, mask: np.ndarray, mask_small: np.nda
             part, lost = masked_resize(np.asarray(h_small, np.float32) * f, mask_small.astype(np.float32),
                                        mask, (H, W), box=box, return_lost=True)
             if thin_fill != "none" and lost.any():      # (on the box: rows are only compared)
-                part = fill_thin(part, mask[r0:r1, c0:c1], lost, heur[r0:r1, c0:c1], thin_fill)
+                # the contact line of a cutout standing on the ground, raised by ``lift``
+                # (contact: lifted) like the rest of the map: the pin that follows is a
+                # fixed shift, it does not move a lost stick up to the hand that holds it
+                part = fill_thin(part, mask[r0:r1, c0:c1], lost, heur[r0:r1, c0:c1] + np.float32(lift),
+                                 thin_fill)
             full[r0:r1, c0:c1] = part
         full = np.where(mask, np.maximum(full, 0.0), 0.0).astype(np.float32)
         if contact != "free":
