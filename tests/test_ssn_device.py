@@ -85,3 +85,21 @@ def test_a_bad_host_setting_is_bad_input(monkeypatch, capsys, variable, value):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
     assert "node 'shadow' (pixgraph.SoftShadowSSN)" in err[0] and variable in err[0]
+
+
+def test_a_model_already_on_the_cuda_device_is_not_copied(monkeypatch):
+    """``auto`` and ``cuda`` give ``torch.device("cuda")`` (no index), which torch does not
+    call equal to ``cuda:0``, where a model moved there has its parameters: such a model
+    is run as it is (a copy would double its memory and keep its weights of the first
+    call). No GPU here: a stand-in whose parameters say they are on cuda:0."""
+    class OnCuda0(torch.nn.Module):
+        def parameters(self, recurse=True):
+            yield type("P", (), {"device": torch.device("cuda", 0)})()
+
+        def to(self, *a, **k):
+            raise AssertionError("copied to another device")
+
+    monkeypatch.setattr(torch.cuda, "current_device", lambda: 0)
+    model = OnCuda0()
+    assert ssn.model_on(model, torch.device("cuda")) is model
+    assert ssn.model_on(model, torch.device("cuda", 0)) is model

@@ -267,6 +267,9 @@ _on_device: dict = {}
 def model_on(model: SSN, device: torch.device) -> SSN:
     """``model`` itself when it is on ``device``; else a copy on ``device``, made once
     per model and device (the shipped model is loaded once per process on the CPU)."""
+    device = torch.device(device)
+    if device.type == "cuda" and device.index is None:      # "cuda" is the current CUDA device,
+        device = torch.device("cuda", torch.cuda.current_device())  # which torch calls != cuda:0
     if next(model.parameters()).device == device:
         return model
     key = (id(model), str(device))
