@@ -52,3 +52,21 @@ def test_server_md_limits_are_the_codes():
     text = open(DOC).read()
     assert f"at most {history.MAX_STEP_ACTIONS} actions" in text
     assert f"at most {Renders().max_clients} clients" in text
+
+
+def test_server_md_elevation_slider_ends_are_what_the_page_is_told(tmp_path):
+    """The elevation slider's ends docs/server.md states (controls placement, then
+    shadow_tip) are /api/scene's ``elevation_range`` in each placement (the controls
+    one starts at the light's ``elevation_min``, not at the param's -90)."""
+    from pixgraph_serve import app as serve_app
+    from pixgraph_serve import scene
+    from pixgraph_serve.state import ServeState
+    text = open(DOC).read()
+    para = text[text.index("The elevation slider spans"):text.index("The elevation is always")]
+    stated = [[float(a), float(b)] for a, b in re.findall(r"(-?\d+(?:\.\d+)?) to (-?\d+(?:\.\d+)?)°", para)]
+    st = ServeState(copy_scene(str(tmp_path)))
+    serve_app.apply_edits(st, {"params": {"light.placement": "controls"}})
+    controls = scene.describe(st)["light"]["elevation_range"]
+    serve_app.apply_edits(st, {"light_tip": [230, 400]})
+    tip = scene.describe(st)["light"]["elevation_range"]
+    assert stated == [controls, tip], (stated, controls, tip)
