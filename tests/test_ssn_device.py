@@ -103,3 +103,17 @@ def test_a_model_already_on_the_cuda_device_is_not_copied(monkeypatch):
     model = OnCuda0()
     assert ssn.model_on(model, torch.device("cuda")) is model
     assert ssn.model_on(model, torch.device("cuda", 0)) is model
+
+
+def test_the_device_copy_goes_when_its_model_goes():
+    """The per-device copies do not keep their models alive: a model dropped by its owner
+    (``lab/ssn/methods``' lru_cache of 8 evicting one) is freed with its copy, so no
+    other model can later be taken for it by a reused id()."""
+    import gc
+    import weakref
+    model = ssn.SSN(ssn.SSNConfig(base=4, levels=1)).eval()
+    copy = ssn.model_on(model, torch.device("meta"))
+    gone, copy_gone = weakref.ref(model), weakref.ref(copy)
+    del model, copy
+    gc.collect()
+    assert gone() is None and copy_gone() is None

@@ -27,6 +27,7 @@ import dataclasses
 import json
 import os
 import pathlib
+import weakref
 
 import numpy as np
 import torch
@@ -261,7 +262,8 @@ def inference_device() -> torch.device:
     return torch.device(raw if index else "cuda")
 
 
-_on_device: dict = {}
+#: model -> {device: its copy there}; weak, so a model its owner drops goes with its copies
+_on_device: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def model_on(model: SSN, device: torch.device) -> SSN:
@@ -272,11 +274,10 @@ def model_on(model: SSN, device: torch.device) -> SSN:
         device = torch.device("cuda", torch.cuda.current_device())  # which torch calls != cuda:0
     if next(model.parameters()).device == device:
         return model
-    key = (id(model), str(device))
-    hit = _on_device.get(key)
-    if hit is None or hit[0] is not model:
-        hit = _on_device[key] = (model, copy.deepcopy(model).to(device))
-    return hit[1]
+    copies = _on_device.setdefault(model, {})
+    if str(device) not in copies:
+        copies[str(device)] = copy.deepcopy(model).to(device)
+    return copies[str(device)]
 
 
 @contextlib.contextmanager
