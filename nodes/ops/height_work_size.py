@@ -51,8 +51,8 @@ from .upsample import masked_resize
 #: how the full-size pixels with no work-size pixel of their own (a part thinner than a
 #: work-size pixel: ``upsample.masked_resize``'s ``lost``) get their height
 #: (``fill_thin``). ``contact`` shipped by the rule of docs/height.md ("Measured: thin
-#: parts of large cutouts"): on 30 renders at 3072^2 with thin rods and the stick figure,
-#: MAE over the lost pixels 117 px (none, the path before: 1,569; attached: 277)
+#: parts of large cutouts"): over the stick figure and the 29 of 30 renders at 3072^2 with thin
+#: rods that lose pixels, MAE over the lost pixels 117 px (none, the path before: 1,569; attached: 277)
 THIN_FILLS = ("none", "contact", "attached", "attached_ground")
 THIN_FILL = "contact"
 
