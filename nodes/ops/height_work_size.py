@@ -25,8 +25,8 @@ predicted there, and the map brought back to full size:
 * a thin *part* of a large cutout (a stick held up, an antenna, a lamp's stem:
   full-size mask pixels with no work-size mask pixel within the enlargement's
   reach, ``masked_resize``'s ``lost``) takes the contact line's height there,
-  plus ``lift`` with ``contact: lifted`` (``fill_thin``, ``THIN_FILL``) before the pin; it got the plain bilinear value,
-  about 0. A cutout without such pixels gets the same map as before, bit for bit.
+  plus ``lift`` with ``contact: lifted`` (``fill_thin``, ``THIN_FILL``) before
+  the pin; it got the plain bilinear value, about 0. A cutout without such pixels gets the same map as before, bit for bit.
 
 Shipped with ``WORK_SIDE = 512`` by a non-inferiority rule fixed before its
 fresh validation samples existed (docs/height.md, "Measured: large cutouts at
