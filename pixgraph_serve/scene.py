@@ -386,7 +386,8 @@ def _tip_for(geometry, field: str):
 
 def _tip_angle_params(state, r, lid, h, light_cls, tip, top) -> dict:
     """The light's ``azimuth`` and ``elevation`` params set to the angles the light at
-    ``tip``/``top`` has (``tip_angles``, to 0.01 deg); none when the type has no such
+    ``tip``/``top`` has (``tip_angles``, to 0.01 deg, the elevation kept inside the range
+    the tip geometry takes back, ``_elevation_range``'s); none when the type has no such
     geometry or the tip has no light (the render says why)."""
     if getattr(light_cls, "tip_angles", None) is None:
         return {}
@@ -394,7 +395,11 @@ def _tip_angle_params(state, r, lid, h, light_cls, tip, top) -> dict:
         az, el = light_cls.tip_angles(_camera(state, r), tip, top)
     except ValueError:
         return {}
-    out = {f"{lid}.{h['elevation']}": round(el, 2)}
+    el = round(el, 2)
+    ends = getattr(getattr(light_cls, "tip_at_elevation", None), "elevation_range", None)
+    if ends is not None:     # [lo, hi): a tip within 0.005 deg of hi would round to hi itself
+        el = min(max(el, ends[0]), round(ends[1] - 0.01, 2))
+    out = {f"{lid}.{h['elevation']}": el}
     if "azimuth" in h:
         out[f"{lid}.{h['azimuth']}"] = round(_azimuth_near(state, lid, h, az), 2)
     return out

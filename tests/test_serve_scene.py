@@ -313,6 +313,13 @@ def test_the_elevation_sliders_range_is_the_params_and_in_the_tip_placement_the_
         serve_app.apply_edits(st, {"light_elevation": hi + 0.01})
     with pytest.raises(ServeError, match="0.5, 90"):
         serve_app.apply_edits(st, {"light_elevation": lo - 0.01})
+    # a tip dragged within 0.005 deg of straight above is written as the slider's end, not
+    # as 90.0, which the tip geometry refuses (before: 90.0, and the slider read past its end)
+    a = scene.anchors(st, scene.roles(st))
+    serve_app.apply_edits(st, {"light_tip": list(LS.tip_at_angles(a.camera, a.top, 30.0, 89.996))})
+    assert st.graph.nodes["light"].params["elevation"] == hi == 89.99
+    serve_app.apply_edits(st, {"params": {"light.azimuth": 40}})          # and it still edits
+    assert scene.describe(st)["light"]["azimuth"] == 40
 
 
 def test_in_the_controls_placement_the_panel_is_told_the_params_as_they_are(tmp_path):
