@@ -10,6 +10,7 @@ from pixgraph_nodes.ops import height_work_size as hw
 from pixgraph_nodes.ops.heightmaps import contact_line_height
 from pixgraph_nodes.ops.resample import resize
 from pixgraph_nodes.ops.upsample import masked_resize
+from pixgraph_lab.height.thin_study import FILLS  # the rule's candidates (contact shipped)
 
 
 def test_masked_resize_reports_the_pixels_with_no_inside_pixel_within_reach():
@@ -55,7 +56,7 @@ def test_an_attached_lost_part_stands_where_what_holds_it_stands(lift):
     h = np.where(m & ~lost, true + lift, 0.0).astype(np.float32)
     heur = contact_line_height(m)
     for how in ("attached", "attached_ground"):
-        out = hw.fill_thin(h.copy(), m, lost, heur, how)
+        out = hw.fill_thin(h.copy(), m, lost, heur, FILLS[how])
         np.testing.assert_allclose(out[lost], true[lost] + lift, atol=1e-4)
         assert np.array_equal(out[~lost], h[~lost])
     # the contact line is the figure's, whatever the map says
@@ -73,10 +74,10 @@ def test_a_lost_part_standing_on_the_ground_or_alone():
     heur = contact_line_height(m)
     rows = np.arange(220, dtype=np.float32)[:, None] + np.zeros((1, 200), np.float32)
     # attached: no covered neighbour -> the contact line
-    out = hw.fill_thin(h.copy(), m, lost, heur, "attached")
+    out = hw.fill_thin(h.copy(), m, lost, heur, FILLS["attached"])
     np.testing.assert_allclose(out[lost], heur[lost])
     # attached_ground: the leg reaching the silhouette's lowest rows stands there itself
-    out = hw.fill_thin(h.copy(), m, lost, heur, "attached_ground")
+    out = hw.fill_thin(h.copy(), m, lost, heur, FILLS["attached_ground"])
     np.testing.assert_allclose(out[150:200, 170], 199.5 - rows[150:200, 170], atol=1e-4)
     np.testing.assert_allclose(out[10:20, 20], heur[10:20, 20])
 
@@ -84,7 +85,7 @@ def test_a_lost_part_standing_on_the_ground_or_alone():
 def test_no_lost_pixel_no_change():
     m, true, _ = _figure()
     h = true.copy()
-    for how in hw.THIN_FILLS:
+    for how in FILLS.values():
         assert hw.fill_thin(h, m, np.zeros_like(m), contact_line_height(m), how) is h
     with pytest.raises(ValueError, match="unknown thin fill"):
         hw.fill_thin(h.copy(), m, m.copy(), contact_line_height(m), "nearest")

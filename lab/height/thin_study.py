@@ -13,7 +13,7 @@ of a 3072^2 image high, with 1-3 thin rods added before rendering (``ROD_KINDS``
 generator's looks and matting (``real.render_real``); heights exact (float32),
 sample ``i`` from ``default_rng([seed, 24, i])``; plus ``stick_figure()`` (the
 review's case, procedural, exact heights). ``measure`` runs ``predict_full``'s
-work-size path with each fill of ``height_work_size.THIN_FILLS`` and reports per
+work-size path with each fill of ``FILLS`` and reports per
 sample and pooled the MAE over the lost pixels and over the whole cutout, the
 paired bootstrap bounds against ``none`` and the time ratio (the rule's verdict).
 ``ordinary`` (not the rule's) checks the shipped fill on cutouts without added thin
@@ -216,11 +216,64 @@ def _samples(folders):
     yield "stick_figure", rgba, true, mask, {"object": "stick figure", "rods": ["held"], "rod_px": [3.0]}
 
 
+def attached_fill(height: np.ndarray, mask: np.ndarray, lost: np.ndarray, heuristic: np.ndarray,
+                  ground: bool = False) -> np.ndarray:
+    """A candidate fill of the rule (``FILLS``; lost to ``contact``): each 8-connected
+    component of lost pixels is taken to be an upright part standing where what it is
+    attached to stands: the covered mask pixels 8-adjacent to it imply a contact row
+    ``row + height`` each; their mean ``v`` gives the part ``max(0, v - row)``; a
+    component with no covered neighbour takes ``heuristic``. ``ground``
+    (``attached_ground``): a component reaching the silhouette's two lowest rows stands
+    on the ground itself: 0 at its lowest pixel's bottom edge, +1 px per row up."""
+    from pixgraph_nodes.ops.resample import nonzero_box
+    from scipy import ndimage
+    H, W = mask.shape
+    r0, r1, c0, c1 = nonzero_box(lost)
+    lo = lost[r0:r1, c0:c1]
+    lab, n = ndimage.label(lo, structure=np.ones((3, 3), bool))
+    lr, lc = np.nonzero(lo)
+    lr, lc = lr + r0, lc + c0                           # the lost pixels (full-size rows, columns)
+    kl = lab[lr - r0, lc - c0]
+    # their covered 8-neighbours, each counted once per component
+    nb_k, nb_i = [], []
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            rr, cc = lr + dr, lc + dc
+            ok = (rr >= 0) & (rr < H) & (cc >= 0) & (cc < W)
+            rr, cc, k = rr[ok], cc[ok], kl[ok]
+            ok = mask[rr, cc] & ~lost[rr, cc]
+            nb_k.append(k[ok])
+            nb_i.append(rr[ok] * W + cc[ok])
+    pairs = np.unique(np.stack([np.concatenate(nb_k), np.concatenate(nb_i)]).astype(np.int64), axis=1)
+    k, idx = pairs
+    implied = (idx // W).astype(np.float64) + height.reshape(-1)[idx]      # the contact row they imply
+    cnt = np.bincount(k, minlength=n + 1)
+    level = np.bincount(k, weights=implied, minlength=n + 1) / np.maximum(cnt, 1)
+    row = lr.astype(np.float64)
+    val = level[kl] - row
+    if ground:
+        low = np.array([-1] + [sl[0].stop - 1 + r0 for sl in ndimage.find_objects(lab)], np.float64)
+        bottom = float(np.nonzero(mask.any(1))[0].max())
+        own = low[kl] >= bottom - 1
+        val = np.where(own, low[kl] + 0.5 - row, val)
+        cnt[1:][low[1:] >= bottom - 1] = 1       # standing on the ground: no fall back to the contact line
+    val = np.where(cnt[kl] > 0, val, heuristic[lr, lc])
+    height[lr, lc] = np.maximum(val, 0.0)
+    return height
+
+
+
+
+#: the rule's candidates: ``height_work_size.fill_thin``'s ``how`` (``contact`` shipped)
+FILLS = {"none": "none", "contact": "contact", "attached": attached_fill,
+         "attached_ground": lambda h, m, lost, heur: attached_fill(h, m, lost, heur, ground=True)}
+
+
 def measure(folders, out: str, weights: str | None = None, min_lost: int = 50) -> list[str]:
     """The rule's numbers (module doc); writes ``out/thin.csv`` and ``out/thin_study.md``."""
     import torch
     torch.set_num_threads(1)
-    from pixgraph_nodes.ops.height_work_size import THIN_FILLS, predict_at_work_size
+    from pixgraph_nodes.ops.height_work_size import predict_at_work_size
     from pixgraph_nodes.ops.learned_height import WEIGHTS, LearnedHeightPredictor
 
     from .evaluate import _write, write_report
@@ -236,10 +289,11 @@ def measure(folders, out: str, weights: str | None = None, min_lost: int = 50) -
                "side": int(max(np.ptp(np.nonzero(tmask)[0]), np.ptp(np.nonzero(tmask)[1])) + 1),
                "cutout_px": int(tmask.sum()), "lost_px": int(lost.sum())}
         maps = {}
-        order = list(THIN_FILLS[n % len(THIN_FILLS):]) + list(THIN_FILLS[:n % len(THIN_FILLS)])
+        names = list(FILLS)
+        order = names[n % len(names):] + names[:n % len(names)]
         for how in order:
             t0, c0 = time.perf_counter(), time.process_time()
-            r = predict_at_work_size(pred, rgba, 0.5, "ground", 0.0, pred.work_side, False, how)
+            r = predict_at_work_size(pred, rgba, 0.5, "ground", 0.0, pred.work_side, False, FILLS[how])
             row[f"s_{how}"] = time.perf_counter() - t0
             row[f"cpu_{how}"] = time.process_time() - c0
             h = r["height"]
@@ -247,7 +301,7 @@ def measure(folders, out: str, weights: str | None = None, min_lost: int = 50) -
             row[f"mae_{how}"] = float(np.abs(h[tmask] - true[tmask]).mean())
             row[f"lost_mae_{how}"] = float(np.abs(h[lost] - true[lost]).mean()) if lost.any() else float("nan")
             row["work_scale"] = float(r.get("work_scale", 1.0))
-        row["identical"] = int(all(np.array_equal(maps[h], maps["none"]) for h in THIN_FILLS))
+        row["identical"] = int(all(np.array_equal(maps[h], maps["none"]) for h in FILLS))
         rows.append(row)
         print(name, {k: (round(v, 3) if isinstance(v, float) else v) for k, v in row.items()}, flush=True)
     os.makedirs(out, exist_ok=True)
@@ -262,7 +316,7 @@ def measure(folders, out: str, weights: str | None = None, min_lost: int = 50) -
              "median time ratio | met |", "|---|---|---|---|---|---|---|"]
     base_whole = float(np.mean([r["mae_none"] for r in use]))
     best, verdicts = None, {}
-    for how in THIN_FILLS:
+    for how in FILLS:
         lm = float(np.mean([r[f"lost_mae_{how}"] for r in use]))
         wm = float(np.mean([r[f"mae_{how}"] for r in use]))
         dl = [r[f"lost_mae_{how}"] - r["lost_mae_none"] for r in use]
@@ -282,7 +336,7 @@ def measure(folders, out: str, weights: str | None = None, min_lost: int = 50) -
     for r in rows:
         lines.append(f"| {r['sample']} | {r['object']} | {r['rods']} ({r['rod_px']}) | {r['side']} | "
                      f"{r['work_scale']:.2f} | {r['lost_px']} | "
-                     + " | ".join(f"{r[f'lost_mae_{h}']:.1f}" for h in THIN_FILLS) + " |")
+                     + " | ".join(f"{r[f'lost_mae_{h}']:.1f}" for h in FILLS) + " |")
     lines += ["", f"**ships: {best[0]}**" if best else "**nothing ships**"]
     write_report(out, "thin_study.md", lines)
     return lines

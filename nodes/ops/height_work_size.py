@@ -52,8 +52,8 @@ from .upsample import masked_resize
 #: work-size pixel: ``upsample.masked_resize``'s ``lost``) get their height
 #: (``fill_thin``). ``contact`` shipped by the rule of docs/height.md ("Measured: thin
 #: parts of large cutouts"): over the stick figure and the 29 of 30 renders at 3072^2 with thin
-#: rods that lose pixels, MAE over the lost pixels 117 px (none, the path before: 1,569; attached: 277)
-THIN_FILLS = ("none", "contact", "attached", "attached_ground")
+#: rods that lose pixels, MAE over the lost pixels 117 px (none, the path before: 1,569; attached: 277;
+#: the candidates that lost are in ``pixgraph_lab.height.thin_study``)
 THIN_FILL = "contact"
 
 #: the largest square crop [px] the predictor runs at (the validation renders are
@@ -82,63 +82,27 @@ def shrink_cutout(rgba: np.ndarray, shape) -> np.ndarray:
 
 
 def fill_thin(height: np.ndarray, mask: np.ndarray, lost: np.ndarray, heuristic: np.ndarray,
-              how: str = "attached") -> np.ndarray:
+              how=THIN_FILL) -> np.ndarray:
     """``height`` [px] (H, W) with its ``lost`` pixels (inside ``mask``, no work-size
-    pixel of their own) filled by ``how`` (``THIN_FILLS``), in place; the others untouched.
+    pixel of their own) filled, in place; the others untouched.
 
-    ``contact``: the contact line ``heuristic`` [px]. ``attached``: each 8-connected
-    component of lost pixels is taken to be an upright part standing where what it
-    is attached to stands: the covered mask pixels 8-adjacent to it imply a contact
-    row ``row + height`` each; their mean ``v`` gives the part ``max(0, v - row)``;
-    a component with no covered neighbour takes ``heuristic``. ``attached_ground``:
-    the same, but a component reaching the silhouette's two lowest rows stands on
-    the ground itself: 0 at its lowest pixel's bottom edge, +1 px per row up."""
+    ``how``: ``"contact"``, the contact line ``heuristic`` [px] there; ``"none"``,
+    nothing (the path before); or a function ``how(height, mask, lost, heuristic)``
+    returning the filled map (the other candidates of the study,
+    ``pixgraph_lab.height.thin_study.FILLS``)."""
     if how == "none" or not lost.any():
         return height
-    if how == "contact":
-        lr, lc = np.nonzero(lost)
-        height[lr, lc] = heuristic[lr, lc]
-        return height
-    if how not in ("attached", "attached_ground"):
-        raise ValueError(f"unknown thin fill {how!r}; known: {', '.join(THIN_FILLS)}")
-    from scipy import ndimage
-    H, W = mask.shape
-    r0, r1, c0, c1 = nonzero_box(lost)
-    lo = lost[r0:r1, c0:c1]
-    lab, n = ndimage.label(lo, structure=np.ones((3, 3), bool))
-    lr, lc = np.nonzero(lo)
-    lr, lc = lr + r0, lc + c0                           # the lost pixels (full-size rows, columns)
-    kl = lab[lr - r0, lc - c0]
-    # their covered 8-neighbours, each counted once per component
-    nb_k, nb_i = [], []
-    for dr in (-1, 0, 1):
-        for dc in (-1, 0, 1):
-            rr, cc = lr + dr, lc + dc
-            ok = (rr >= 0) & (rr < H) & (cc >= 0) & (cc < W)
-            rr, cc, k = rr[ok], cc[ok], kl[ok]
-            ok = mask[rr, cc] & ~lost[rr, cc]
-            nb_k.append(k[ok])
-            nb_i.append(rr[ok] * W + cc[ok])
-    pairs = np.unique(np.stack([np.concatenate(nb_k), np.concatenate(nb_i)]).astype(np.int64), axis=1)
-    k, idx = pairs
-    implied = (idx // W).astype(np.float64) + height.reshape(-1)[idx]      # the contact row they imply
-    cnt = np.bincount(k, minlength=n + 1)
-    level = np.bincount(k, weights=implied, minlength=n + 1) / np.maximum(cnt, 1)
-    row = lr.astype(np.float64)
-    val = level[kl] - row
-    if how == "attached_ground":
-        low = np.array([-1] + [sl[0].stop - 1 + r0 for sl in ndimage.find_objects(lab)], np.float64)
-        bottom = float(np.nonzero(mask.any(1))[0].max())
-        own = low[kl] >= bottom - 1
-        val = np.where(own, low[kl] + 0.5 - row, val)
-        cnt[1:][low[1:] >= bottom - 1] = 1       # standing on the ground: no fall back to the contact line
-    val = np.where(cnt[kl] > 0, val, heuristic[lr, lc])
-    height[lr, lc] = np.maximum(val, 0.0)
+    if callable(how):
+        return how(height, mask, lost, heuristic)
+    if how != "contact":
+        raise ValueError(f"unknown thin fill {how!r}: 'contact', 'none' or a function")
+    lr, lc = np.nonzero(lost)
+    height[lr, lc] = heuristic[lr, lc]
     return height
 
 
 def enlarge_prediction(out: dict, f: float, mask: np.ndarray, mask_small: np.ndarray, contact: str,
-                       lift: float, pin_fade, foot_snap, thin_fill: str | None = None) -> dict:
+                       lift: float, pin_fade, foot_snap, thin_fill=None) -> dict:
     """``predict_full``'s result at the work size -> at full size (module doc).
 
     ``mask`` / ``mask_small``: the cutout (alpha > threshold) at full and work
@@ -156,7 +120,7 @@ def enlarge_prediction(out: dict, f: float, mask: np.ndarray, mask_small: np.nda
             r0, r1, c0, c1 = box
             part, lost = masked_resize(np.asarray(h_small, np.float32) * f, mask_small.astype(np.float32),
                                        mask, (H, W), box=box, return_lost=True)
-            if thin_fill != "none" and lost.any():      # (on the box: rows are only compared)
+            if lost.any():                              # (on the box: rows are only compared)
                 # the contact line of a cutout standing on the ground, raised by ``lift``
                 # (contact: lifted) like the rest of the map: the pin that follows is a
                 # fixed shift, it does not move a lost stick up to the hand that holds it
