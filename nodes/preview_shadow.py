@@ -36,8 +36,7 @@ class PreviewShadow(Node):
         darkness: T.Mask = port(doc="1 = full shadow (what Composite takes)")
 
     impl_version = "1"
-    #: shells may switch this node among the registered types declaring the same handles kind
-    handles = {"kind": "shadow"}
+    # no ``handles``: a stand-in, not one of the shadow methods a shell offers to switch to
 
     def compute(self, ctx, inputs, params):
         check_inputs(inputs)

@@ -104,29 +104,26 @@ def hard_shadow_distance(device, mask, fg_height, bg_height, light, thickness=1.
 
 
 def _sat(a: np.ndarray) -> np.ndarray:
-    """Summed-area table (h + 1, w + 1), float64, with a zero first row and column."""
-    z = np.zeros((a.shape[0] + 1, a.shape[1] + 1), np.float64)
-    np.cumsum(np.cumsum(a, axis=0, dtype=np.float64), axis=1, out=z[1:, 1:])
+    """Summed-area tables of planes a (k, h, w): (k, h + 1, w + 1) float64 with a zero
+    first row and column (columns summed in float32: exact for sums of 0/1 up to 2^24)."""
+    k, h, w = a.shape
+    z = np.zeros((k, h + 1, w + 1), np.float64)
+    np.cumsum(np.cumsum(a, axis=1, dtype=np.float32), axis=2, dtype=np.float64, out=z[:, 1:, 1:])
     return z
 
 
-def _box_fixed(z: np.ndarray, r: int, rows: slice, cols: slice) -> np.ndarray:
-    """Sums over the boxes of half-size r around the pixels rows x cols of the table's
-    image (clipped to it)."""
-    h, w = z.shape[0] - 1, z.shape[1] - 1
-    i = np.arange(rows.start, rows.stop)
-    j = np.arange(cols.start, cols.stop)
-    i0, i1 = np.clip(i - r, 0, h), np.clip(i + r + 1, 0, h)
-    j0, j1 = np.clip(j - r, 0, w), np.clip(j + r + 1, 0, w)
-    return z[np.ix_(i1, j1)] - z[np.ix_(i0, j1)] - z[np.ix_(i1, j0)] + z[np.ix_(i0, j0)]
+def _box_fixed(z: np.ndarray, r: int) -> np.ndarray:
+    """Sums over the boxes of half-size r around the pixels of a table's image that lie
+    at least r pixels inside it: (k, h - 2r, w - 2r)."""
+    n = 2 * r + 1
+    return z[:, n:, n:] - z[:, :-n, n:] - z[:, n:, :-n] + z[:, :-n, :-n]
 
 
 def _box_at(z: np.ndarray, i: np.ndarray, j: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Sums over the boxes of half-size r[k] around pixels (i[k], j[k]) (clipped)."""
-    h, w = z.shape[0] - 1, z.shape[1] - 1
-    i0, i1 = np.clip(i - r, 0, h), np.clip(i + r + 1, 0, h)
-    j0, j1 = np.clip(j - r, 0, w), np.clip(j + r + 1, 0, w)
-    return z[i1, j1] - z[i0, j1] - z[i1, j0] + z[i0, j0]
+    """Sums over the boxes of half-size r[m] around pixels (i[m], j[m]) of a table's
+    image (k, ...), boxes inside it."""
+    i0, i1, j0, j1 = i - r, i + r + 1, j - r, j + r + 1
+    return z[:, i1, j1] - z[:, i0, j1] - z[:, i1, j0] + z[:, i0, j0]
 
 
 def penumbra_blur(darkness, distance, inside, softness: float) -> np.ndarray:
@@ -135,12 +132,13 @@ def penumbra_blur(darkness, distance, inside, softness: float) -> np.ndarray:
     darkness: float (H, W) in [0, 1], the hard shadow (1 shadow); distance: float
     (H, W) blocker distance [px] where shadowed (ignored elsewhere); inside: bool
     (H, W), the cutout (its pixels average only cutout pixels, the others only
-    background pixels); softness: light radius over distance (>= 0).
+    background pixels; outside the image counts as neither); softness: light
+    radius over distance (>= 0).
     Returns darkness float32 (H, W) in [0, 1]; softness 0 returns ``darkness``.
     """
     dark = np.clip(np.asarray(darkness, np.float32), 0.0, 1.0)
     H, W = dark.shape
-    dist = np.nan_to_num(np.asarray(distance, np.float32), nan=0.0, posinf=0.0)
+    dist = np.asarray(distance, np.float32)
     inside = np.asarray(inside, bool)
     if dist.shape != dark.shape or inside.shape != dark.shape:
         raise ValueError(f"darkness, distance and inside must share one shape, got "
@@ -149,40 +147,39 @@ def penumbra_blur(darkness, distance, inside, softness: float) -> np.ndarray:
     if not math.isfinite(softness) or softness < 0:
         raise ValueError(f"softness must be finite and >= 0, got {softness}")
     out = dark.copy()
-    shadowed = dark > 0.0
+    shadowed = (dark > 0.0) & np.isfinite(dist)
     if softness == 0.0 or not shadowed.any():
         return out
     cap = max(1, int(MAX_REACH * max(H, W)))
-    reach = min(cap, math.ceil(softness * float(np.max(np.where(shadowed, dist, 0.0)))))
+    reach = min(cap, math.ceil(softness * float(dist[shadowed].max())))
     if reach < 1:
         return out
+    R = reach
     for side in (~inside, inside):
         src = shadowed & side
         if not src.any():
             continue
         rows, cols = np.flatnonzero(src.any(axis=1)), np.flatnonzero(src.any(axis=0))
-        # pixels that may change: within reach of a shadowed pixel; they read up to reach farther
-        o0, o1 = max(0, rows[0] - reach), min(H, rows[-1] + 1 + reach)
-        p0, p1 = max(0, cols[0] - reach), min(W, cols[-1] + 1 + reach)
-        r0, r1 = max(0, o0 - reach), min(H, o1 + reach)
-        c0, c1 = max(0, p0 - reach), min(W, p1 + reach)
-        wgt = side[r0:r1, c0:c1].astype(np.float32)
-        a = dark[r0:r1, c0:c1] * wgt
-        zw, za, zb = _sat(wgt), _sat(a), _sat(a * dist[r0:r1, c0:c1])
-        orows, ocols = slice(o0 - r0, o1 - r0), slice(p0 - c0, p1 - c0)
-        nw, na = _box_fixed(zw, reach, orows, ocols), _box_fixed(za, reach, orows, ocols)
+        # the pixels that may change lie within reach of a shadowed pixel; they read up
+        # to reach farther: a zero-padded crop, so that every box lies inside it
+        o0, o1 = max(0, rows[0] - R), min(H, rows[-1] + 1 + R)
+        p0, p1 = max(0, cols[0] - R), min(W, cols[-1] + 1 + R)
+        r0, r1, c0, c1 = max(0, o0 - R), min(H, o1 + R), max(0, p0 - R), min(W, p1 + R)
+        planes = np.zeros((3, o1 - o0 + 2 * R, p1 - p0 + 2 * R), np.float32)
+        at = (slice(None), slice(r0 - o0 + R, r1 - o0 + R), slice(c0 - p0 + R, c1 - p0 + R))
+        wgt = side[r0:r1, c0:c1]
+        planes[at] = [wgt, np.where(src[r0:r1, c0:c1], dark[r0:r1, c0:c1], 0.0),
+                      np.where(src[r0:r1, c0:c1], dark[r0:r1, c0:c1] * dist[r0:r1, c0:c1], 0.0)]
+        z = _sat(planes)
+        nw, na, nb = _box_fixed(z, R)                    # (o1 - o0, p1 - p0) each
+        # both shadow and light of this side within reach (an all-shadow box keeps 1)
         mixed = side[o0:o1, p0:p1] & (na > 0.0) & (na < nw - 1e-6)
-        if not mixed.any():
-            continue
         i, j = np.nonzero(mixed)
-        mean_d = _box_fixed(zb, reach, orows, ocols)[i, j] / na[i, j]
-        r = np.minimum(np.rint(softness * mean_d), reach).astype(np.int64)
+        r = np.minimum(np.rint(softness * (nb[i, j] / na[i, j])), R).astype(np.int64)
         k = r >= 1
         i, j, r = i[k], j[k], r[k]
-        ic, jc = i + (o0 - r0), j + (p0 - c0)
-        den = _box_at(zw, ic, jc, r)
-        val = _box_at(za, ic, jc, r) / np.maximum(den, 1.0)
-        out[i + o0, j + p0] = np.clip(val, 0.0, 1.0)
+        den, num = _box_at(z[:2], i + R, j + R, r)
+        out[i + o0, j + p0] = np.clip(num / np.maximum(den, 1.0), 0.0, 1.0)
     return out
 
 
