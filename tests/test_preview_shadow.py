@@ -1,0 +1,142 @@
+"""pixgraph.PreviewShadow, the soft shadows' preview stand-in (nodes/ops/preview_shadow.py):
+its kernel against the numpy reference, the penumbra estimate's guarantees and an
+analytic ramp, and the served preview graph that uses it and follows the light's radius."""
+import math
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from pixgraph_nodes.ops import preview_shadow as P
+from pixgraph_nodes.ops import shadow as S
+from pixgraph_serve.state import ServeState
+
+from _shadow_scenes import blobs, figure, wall_bg
+from serve_helpers import copy_scene
+
+LIGHTS = [(30.0, -40.0, 150.0, 1.0),     # in front, up left: the shadow falls back and down right
+          (110.0, 20.0, 60.0, 1.0),      # low, to the right
+          (60.0, 300.0, -50.0, -1.0),    # behind the camera plane
+          (0.4, 0.1, 0.6, 0.0)]          # at infinity, parallel to the image plane
+
+
+@pytest.mark.parametrize("light", LIGHTS)
+def test_kernel_matches_the_reference(device, light):
+    mask, fg, bg = figure(72, 96)
+    dark, dist = P.hard_shadow_distance(device, mask, fg, bg, light, 2.0)
+    dark_ref, dist_ref = P.hard_shadow_distance_ref(mask, fg, bg, light, 2.0)
+    assert dark_ref.sum() > 50                                   # a real shadow
+    np.testing.assert_array_equal(dark, dark_ref)
+    np.testing.assert_allclose(dist, dist_ref, rtol=1e-5, atol=1e-3)
+    # the darkness is the hard shadow's; the distance is zero exactly where lit
+    np.testing.assert_array_equal(dark, 1.0 - S.hard_shadow_ref(mask, fg, bg, light, 2.0))
+    assert np.all((dist > 0) == (dark > 0))
+
+
+def test_kernel_bands_change_nothing(device):
+    mask, fg = blobs(64, 80, 3)
+    bg = wall_bg(64, 80, 20)
+    scene = P.PreviewScene(device, mask, fg, bg, 1.5)
+    one = scene.hard_shadow_distance(LIGHTS[0])
+    calls = []
+    banded = scene.hard_shadow_distance(LIGHTS[0], progress=lambda f, m: calls.append(f))
+    assert calls and calls[-1] == 1.0
+    np.testing.assert_array_equal(one[0], banded[0])
+    np.testing.assert_array_equal(one[1], banded[1])
+
+
+def test_straight_edge_becomes_the_box_ramp():
+    """A shadow filling the left half, every blocker 50 px away, softness 0.1: the box
+    half-size is 5 px, so across the edge the darkness is the fraction of the 11
+    columns around each pixel that are in shadow, a linear ramp 11 px wide."""
+    H, W, edge = 40, 60, 30
+    dark = np.zeros((H, W), np.float32)
+    dark[:, :edge] = 1.0
+    dist = np.where(dark > 0, 50.0, 0.0).astype(np.float32)
+    out = P.penumbra_blur(dark, dist, np.zeros((H, W), bool), 0.1)
+    cols = np.arange(W)
+    want = np.clip((edge - (cols - 5)) / 11.0, 0.0, 1.0)
+    np.testing.assert_allclose(out, np.broadcast_to(want, (H, W)), atol=1e-6)
+    assert out[0, edge - 1] == pytest.approx(6 / 11) and out[0, edge] == pytest.approx(5 / 11)
+
+
+def test_a_point_light_keeps_the_hard_shadow_and_the_umbra_core():
+    mask, fg, bg = figure(96, 128)
+    dark, dist = P.hard_shadow_distance_ref(mask, fg, bg, LIGHTS[0], 2.0)
+    inside = mask > 0.5
+    np.testing.assert_array_equal(P.penumbra_blur(dark, dist, inside, 0.0), dark)
+    soft = 0.04
+    out = P.penumbra_blur(dark, dist, inside, soft)
+    assert out.dtype == np.float32 and out.min() >= 0.0 and out.max() <= 1.0
+    assert ((out > 0.02) & (out < 0.98)).sum() > 100             # a penumbra appeared
+    reach = math.ceil(soft * dist[dark > 0].max())
+    box = np.ones((2 * reach + 1, 2 * reach + 1), bool)
+    for side, least in ((~inside, 50), (inside, 0)):      # the cutout's self-shadow is thin here
+        # the umbra's core: every same-side pixel within reach shadowed -> still 1
+        lit_near = ndimage.binary_dilation(side & (dark == 0), box)
+        core = side & (dark == 1) & ~lit_near
+        assert core.sum() >= least
+        np.testing.assert_array_equal(out[core], 1.0)
+        # no same-side shadow within reach -> still 0: the shadow spreads at most `reach`
+        far = side & ~ndimage.binary_dilation(side & (dark > 0), box)
+        np.testing.assert_array_equal(out[far], 0.0)
+
+
+def test_the_two_sides_of_the_outline_do_not_mix():
+    """The cutout (inside) is lit and the background beside it shadowed: the cutout's
+    pixels average only cutout pixels, so they stay lit, and the background's edge pixels
+    only background pixels, so they stay dark."""
+    H, W = 30, 40
+    inside = np.zeros((H, W), bool)
+    inside[:, 20:] = True
+    dark = np.where(inside, 0.0, 1.0).astype(np.float32)
+    dark[:, :5] = 0.0                      # a lit strip far left: the background has an edge
+    dist = np.where(dark > 0, 40.0, 0.0).astype(np.float32)
+    out = P.penumbra_blur(dark, dist, inside, 0.1)
+    np.testing.assert_array_equal(out[:, 20:], 0.0)
+    np.testing.assert_array_equal(out[:, 10:20], 1.0)
+    assert 0.0 < out[0, 5] < 1.0                   # while the background's own edge softened
+
+
+def test_bad_inputs_are_refused():
+    z = np.zeros((4, 4), np.float32)
+    with pytest.raises(ValueError, match="softness"):
+        P.penumbra_blur(z, z, z > 0, -1.0)
+    with pytest.raises(ValueError, match="shape"):
+        P.penumbra_blur(z, np.zeros((3, 4)), z > 0, 0.1)
+
+
+@pytest.fixture(scope="module")
+def state(tmp_path_factory):
+    return ServeState(copy_scene(str(tmp_path_factory.mktemp("preview"))))
+
+
+def rmse(a, b):
+    return float(np.sqrt(np.mean((np.asarray(a) - np.asarray(b)) ** 2)))
+
+
+def test_served_previews_follow_the_light_radius(state):
+    """The page's previews (ServeState.preview_graph) use PreviewShadow: a point light
+    gives exactly the hard shadow, a larger radius a wider penumbra, and the preview is
+    nearer the final SoftShadow than the hard shadow is (work 0.5, as the page's drags)."""
+    prev = state.preview_graph()
+    assert prev.nodes["shadow"].type == "pixgraph.PreviewShadow"
+    assert dict(prev.nodes["shadow"].params) == {"thickness": 6}
+
+    def darkness(mode, radius, hard=False):
+        state.set_params({"light.radius": radius})
+        if hard:
+            state.set_type("shadow", "pixgraph.HardShadow")
+        try:
+            return state.run(["shadow.darkness"], mode, scale=0.5)["shadow.darkness"]
+        finally:
+            if hard:
+                state.set_type("shadow", "pixgraph.SoftShadow")
+
+    np.testing.assert_array_equal(darkness("preview", 0.0), darkness("final", 0.0, hard=True))
+    hard = darkness("final", 0.25, hard=True)
+    small, large = darkness("preview", 0.25), darkness("preview", 0.5)
+    penumbra = [int(((d > 0.02) & (d < 0.98)).sum()) for d in (hard, small, large)]
+    assert penumbra[0] == 0 and 0 < penumbra[1] < penumbra[2], penumbra
+    final = darkness("final", 0.25)
+    assert rmse(small, final) < 0.6 * rmse(hard, final), (rmse(small, final), rmse(hard, final))
