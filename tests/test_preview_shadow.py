@@ -140,3 +140,44 @@ def test_served_previews_follow_the_light_radius(state):
     assert penumbra[0] == 0 and 0 < penumbra[1] < penumbra[2], penumbra
     final = darkness("final", 0.25)
     assert rmse(small, final) < 0.6 * rmse(hard, final), (rmse(small, final), rmse(hard, final))
+
+
+# -- in the page (headless Chromium) ------------------------------------------------------------
+
+def test_the_page_preview_changes_with_the_softness_slider(tmp_path):
+    """Dragging the toolbar's softness slider (the light's radius): the previews drawn while
+    the pointer is down differ from one radius to the next (with HardShadow as the stand-in
+    they are the same image: 0 pixels differ)."""
+    from serve_helpers import chromium_browser, running_server
+    from test_page_photo import open_page, own_photo_copy, shown
+
+    graph = own_photo_copy(str(tmp_path / "served"))
+    with chromium_browser() as browser, running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        box = page.locator("#softness").bounding_box()
+        y = box["y"] + box["height"] / 2
+
+        def x(value):                            # the slider spans 0 .. 1.5
+            return box["x"] + 8 + (box["width"] - 16) * value / 1.5
+
+        def preview_at(value):
+            seq = page.evaluate("(window.pixgraphShown.at(-1) || {seq: 0}).seq")
+            page.mouse.move(x(value), y, steps=4)
+            page.wait_for_function(
+                f"() => {{ const l = window.pixgraphShown.at(-1); return l && l.mode === 'preview' && l.seq > {seq}"
+                f" && Number(document.getElementById('softness').value) > {value - 0.1}"
+                f" && Number(document.getElementById('softness').value) < {value + 0.1}; }}", timeout=120000)
+            page.wait_for_timeout(300)           # the newest edit's preview, not one in flight before it
+            return shown(page), float(page.evaluate("document.getElementById('softness').value"))
+
+        page.mouse.move(x(0.3), y)
+        page.mouse.down()
+        small, v_small = preview_at(0.1)
+        large, v_large = preview_at(1.2)
+        page.mouse.up()
+        assert v_large > v_small + 0.8, (v_small, v_large)
+        assert small.shape == large.shape
+        diff = np.abs(small - large).max(axis=2)
+        assert (diff > 0.03).sum() > 200, int((diff > 0.03).sum())
+        assert not errors, errors
+        page.close()
