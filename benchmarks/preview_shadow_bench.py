@@ -26,8 +26,9 @@ Cost, at about 0.5 MP (the page's drag budget, ``PREVIEW_PIXELS`` in
 render.js): graphs/own_photo's photo enlarged to 816 x 612 (what a 20 MP photo
 is previewed at) with the placement scaled to it, the light as in the graph,
 both cutout heights: the median wall time of ``--runs`` calls of each
-stand-in's computation (what its node's compute does after the input checks,
-from arrays to the darkness), with the CPU time the process used meanwhile, and
+stand-in's computation (what its node's compute does after the input checks, on
+a scene uploaded once: the host preparation and upload, the same for every
+stand-in, are not counted), with the CPU time the process used meanwhile, and
 ``+hard``: the median extra over the hard shadow measured in the same loop.
 The machine is shared: the load average is printed before and after.
 """
