@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from pixgraph_nodes import types as T
-from pixgraph.node import Node, node, port
+from pixgraph.node import Node, node, param, port
 
 from ._checks import finite_outputs, inside
 from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
@@ -23,13 +23,18 @@ class PreviewShadow(Node):
 
     All inputs share the camera's size; pixel heights must be finite and >= 0
     (the cutout's inside its mask), else the node stops with an input error. An
-    empty mask casts no shadow (all lit); a point light gives the hard shadow."""
+    empty mask casts no shadow (all lit); a point light, or ``method: hard`` (a
+    ``pixgraph.Shadow`` forced hard), gives the hard shadow."""
 
     class Inputs(ShadowInputs):
         light: T.Light = port(doc="the light; its radius / distance is the softness")
 
     class Params:
         thickness: float = thickness_param()
+        # shared with pixgraph.Shadow, so that its forced hard shadow previews as hard
+        method: str = param("auto", choices=("auto", "hard", "soft", "ssn"),
+                            doc="the stood-in pixgraph.Shadow's method: hard gives the hard shadow, "
+                                "the others the estimate")
 
     class Outputs:
         lit: T.Mask = port(doc="1 - darkness")
@@ -42,7 +47,7 @@ class PreviewShadow(Node):
         check_inputs(inputs)
         light, cam = inputs.light, inputs.camera
         softness = 0.0
-        if light.is_area:
+        if light.is_area and params.method != "hard":
             try:
                 softness = softness_of(light, cam, inputs.mask, inputs.fg_height)
             except ValueError as e:      # no cutout pixel below the horizon: no 3D centre

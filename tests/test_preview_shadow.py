@@ -121,7 +121,7 @@ def test_served_previews_follow_the_light_radius(state):
     nearer the final SoftShadow than the hard shadow is (work 0.5, as the page's drags)."""
     prev = state.preview_graph()
     assert prev.nodes["shadow"].type == "pixgraph.PreviewShadow"
-    assert dict(prev.nodes["shadow"].params) == {"thickness": 6}
+    assert dict(prev.nodes["shadow"].params) == {"thickness": 6}      # SoftShadow's samples dropped
 
     def darkness(mode, radius, hard=False):
         state.set_params({"light.radius": radius})
@@ -140,6 +140,25 @@ def test_served_previews_follow_the_light_radius(state):
     assert penumbra[0] == 0 and 0 < penumbra[1] < penumbra[2], penumbra
     final = darkness("final", 0.25)
     assert rmse(small, final) < 0.6 * rmse(hard, final), (rmse(small, final), rmse(hard, final))
+
+
+def test_a_shadow_forced_hard_previews_hard(state):
+    """pixgraph.Shadow's ``method`` is one of the params PreviewShadow shares: forced
+    ``hard``, its preview is the hard shadow too (``soft``: the estimate)."""
+    state.set_params({"light.radius": 0.25})
+    state.set_type("shadow", "pixgraph.Shadow")
+    try:
+        state.set_params({"shadow.method": "hard"})
+        assert state.preview_graph().nodes["shadow"].params["method"] == "hard"
+        hard_prev = state.run(["shadow.darkness"], "preview", scale=0.5)["shadow.darkness"]
+        hard = state.run(["shadow.darkness"], scale=0.5)["shadow.darkness"]
+        state.set_params({"shadow.method": "soft"})
+        soft_prev = state.run(["shadow.darkness"], "preview", scale=0.5)["shadow.darkness"]
+    finally:
+        state.set_type("shadow", "pixgraph.SoftShadow")
+    np.testing.assert_array_equal(hard_prev, hard)
+    assert set(np.unique(hard_prev)) == {0.0, 1.0}
+    assert ((soft_prev > 0.02) & (soft_prev < 0.98)).sum() > 100
 
 
 # -- in the page (headless Chromium) ------------------------------------------------------------
