@@ -64,19 +64,20 @@ export async function openChosen(reload) {
   return true;
 }
 
-/** Put ``name`` in the save box, wide enough to show it whole (16 to 48 characters). */
+/** Put ``name`` in the save box; a name longer than the box shows whole on hover (its
+ * title): the box keeps its width, which the toolbar's two rows were laid out for. */
 export function setSaveName(name) {
   $("save-name").value = name;
-  fitSaveName();
+  titleSaveName();
 }
 
-function fitSaveName() {
+function titleSaveName() {
   const box = $("save-name");
-  box.size = Math.min(48, Math.max(16, box.value.length + 1));
+  box.title = `${box.value}: file name, in the served graph's folder`;
 }
 
 export function wireFiles(reload) {
-  $("save-name").addEventListener("input", fitSaveName);
+  $("save-name").addEventListener("input", titleSaveName);
   $("open").addEventListener("click", () => { $("open-form").hidden = !$("open-form").hidden; });
   for (const role of ROLES) {
     const input = $(`open-${role}`);
