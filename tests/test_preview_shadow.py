@@ -200,3 +200,37 @@ def test_the_page_preview_changes_with_the_softness_slider(tmp_path):
         assert (diff > 0.03).sum() > 200, int((diff > 0.03).sum())
         assert not errors, errors
         page.close()
+
+
+# -- the node ---------------------------------------------------------------------------------
+
+def test_node_on_a_pole_under_the_sun(device):
+    """pixgraph.PreviewShadow on the thin pole of test_geometry_shadows under a directional
+    light: a point sun gives HardShadow's darkness exactly, a wider sun a wider penumbra
+    (more pixels between 0.02 and 0.98); an empty mask casts nothing."""
+    from pixgraph.node import Namespace
+    from pixgraph_nodes.hard_shadow import HardShadow
+    from pixgraph_nodes.ops import lights as L
+    from pixgraph_nodes.preview_shadow import PreviewShadow
+    from test_geometry_shadows import CAM, Ctx, pole
+
+    mask, fg = pole()
+    bg = np.zeros_like(fg)
+
+    def run(cls, mask, sun_deg):
+        light = L.directional_light((0.4, 1.0, 0.5), angular_radius_deg=sun_deg)
+        ins = Namespace({"mask": mask, "fg_height": fg, "bg_height": bg, "light": light, "camera": CAM})
+        out = cls().compute(Ctx(device), ins, Namespace(cls.spec.coerce_params({})))
+        np.testing.assert_allclose(out["lit"], 1.0 - out["darkness"])
+        return out["darkness"]
+
+    hard = run(HardShadow, mask, 0.0)
+    assert hard.sum() > 100
+    np.testing.assert_array_equal(run(PreviewShadow, mask, 0.0), hard)
+    penumbra = []
+    for deg in (1.0, 3.0):
+        d = run(PreviewShadow, mask, deg)
+        assert d.min() >= 0.0 and d.max() <= 1.0
+        penumbra.append(int(((d > 0.02) & (d < 0.98)).sum()))
+    assert 0 < penumbra[0] < penumbra[1], penumbra
+    np.testing.assert_array_equal(run(PreviewShadow, np.zeros_like(mask), 3.0), 0.0)
