@@ -51,8 +51,10 @@ class Shadow(Node):
     # the choice depends on the shipped table: a new table is a new implementation
     # the result depends on the shipped table and, through method ssn, on SSN++'s weights and inference
     impl_version = "1+table." + C.table_digest() + "+ssn." + SoftShadowSSN.impl_version
-    #: a cheaper node type with the same ports that stands in for this one in previews
-    preview = "pixgraph.HardShadow"
+    #: a cheaper node type with the same ports that stands in for this one in previews: a soft
+    #: shadow at about one hard shadow's cost that follows the light's radius
+    #: (benchmarks/preview_shadow_bench.py; docs/server.md, "Previews of soft shadows")
+    preview = "pixgraph.PreviewShadow"
     #: shells may switch this node among the registered types declaring the same handles kind
     handles = {"kind": "shadow"}
 

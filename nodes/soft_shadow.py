@@ -40,8 +40,10 @@ class SoftShadow(Node):
         darkness: T.Mask = port(doc="1 - lit: 1 = full shadow (what Composite takes)")
 
     impl_version = "1"
-    #: a cheaper node type with the same ports that stands in for this one in previews
-    preview = "pixgraph.HardShadow"
+    #: a cheaper node type with the same ports that stands in for this one in previews: a soft
+    #: shadow at about one hard shadow's cost that follows the light's radius
+    #: (benchmarks/preview_shadow_bench.py; docs/server.md, "Previews of soft shadows")
+    preview = "pixgraph.PreviewShadow"
     #: shells may switch this node among the registered types declaring the same handles kind
     handles = {"kind": "shadow"}
 

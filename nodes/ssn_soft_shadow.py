@@ -80,8 +80,10 @@ class SoftShadowSSN(Node):
     # 4: window at the trained scale, softness clamped to the trained range; 5: v2 weights;
     # 6: v3 weights)
     impl_version = "6"
-    #: a cheaper node type with the same ports that stands in for this one in previews
-    preview = "pixgraph.HardShadow"
+    #: a cheaper node type with the same ports that stands in for this one in previews: a soft
+    #: shadow at about one hard shadow's cost that follows the light's radius
+    #: (benchmarks/preview_shadow_bench.py; docs/server.md, "Previews of soft shadows")
+    preview = "pixgraph.PreviewShadow"
     #: shells may switch this node among the registered types declaring the same handles kind
     handles = {"kind": "shadow"}
 

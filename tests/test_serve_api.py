@@ -96,11 +96,11 @@ def test_png_is_the_srgb_of_the_exr(api):
     assert dark.shape == (512, 512) and dark.max() > 200 and dark.min() == 0
 
 
-def test_preview_is_a_hard_shadow_at_half_resolution(api):
+def test_preview_is_a_cheap_soft_shadow_at_half_resolution(api):
     r = api.post("/api/run", json={"mode": "preview"}).json()
     assert "shadow" in r["ran"] or "shadow" in r["cached"]
-    hard = np.asarray(Image.open(io.BytesIO(api.get("/api/outputs/shadow.darkness.png?mode=preview").content)))
-    assert set(np.unique(hard)) <= {0, 255}                 # a hard shadow: no penumbra
+    prev = np.asarray(Image.open(io.BytesIO(api.get("/api/outputs/shadow.darkness.png?mode=preview").content)))
+    assert ((prev > 10) & (prev < 245)).sum() > 200          # PreviewShadow: a penumbra, at half size
     soft = np.asarray(Image.open(io.BytesIO(api.get("/api/outputs/shadow.darkness.png").content)))
     assert ((soft > 10) & (soft < 245)).sum() > 1000          # the final one has a penumbra
     png = api.post("/api/render", json={"mode": "preview"})

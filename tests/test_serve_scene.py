@@ -108,7 +108,7 @@ def test_roles_preview_and_alternatives_come_from_declarations(state):
     assert state.alternatives("pixgraph.Light") == ["pixgraph.Light"]
     assert state.alternatives("pixgraph.Composite") == []
     prev = state.preview_graph()
-    assert prev.nodes["shadow"].type == "pixgraph.HardShadow"           # SoftShadow.preview
+    assert prev.nodes["shadow"].type == "pixgraph.PreviewShadow"        # SoftShadow.preview
     assert prev.nodes["shadow"].params == {"thickness": 6}              # only the params it declares
     assert {n: i.type for n, i in prev.nodes.items() if n != "shadow"} == \
         {n: i.type for n, i in state.graph.nodes.items() if n != "shadow"}

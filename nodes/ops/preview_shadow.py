@@ -1,0 +1,195 @@
+"""A cheap soft shadow for previews: the hard shadow widened by a penumbra estimate.
+
+The classical soft shadow (``shadow.soft_shadow``, 64 light samples) costs 64
+hard shadows; a preview may add about one. What a disk light's softness does to
+a hard shadow is, to first order, a penumbra whose half-width grows linearly
+with the distance between the occluder and the receiver:
+
+    half-width ~ softness * d,   softness = light radius / light distance
+
+(similar triangles; ``softness.softness_of``: radius over the distance from the
+light's centre to the object's centre, tan(angular radius) for a directional
+light). This is the estimate of percentage-closer soft shadows (PCSS): trace
+the hard shadow of the light's centre once, keeping for each shadowed receiver
+the distance ``d`` [px, in (u, v, h) pixel-height space] to the cutout point
+that blocks it (:func:`hard_shadow_distance`, one march per pixel, as
+``buffers.relative_distance``), then :func:`penumbra_blur`:
+
+1. blocker search: each pixel averages ``d`` over the shadowed pixels within
+   ``reach = ceil(softness * max d)`` pixels, at most ``MAX_REACH`` of the
+   image's longer side (so lit pixels just outside the hard shadow find the
+   occluders that cast the penumbra over them);
+2. each pixel whose neighbourhood within ``reach`` holds both shadow and light
+   takes the mean darkness of a square box of half-size
+   ``round(softness * mean d)`` around it (a box over a straight hard edge gives
+   the linear ramp a disk light's penumbra roughly is).
+
+Both are box sums over summed-area tables, restricted to the pixels of the
+receiver's own side of the cutout's outline (the shadow on the background and
+the self-shadow on the cutout are different surfaces, as in
+``upsample.masked_resize``), and only on the shadow's bounding box grown by
+``reach``. Guarantees (tests/test_preview_shadow.py): softness 0 (a point light)
+gives exactly the hard shadow; the darkness stays in [0, 1]; a pixel whose
+same-side neighbourhood within ``reach`` is all shadow stays at 1 (the umbra's
+core), one with no shadow there stays at 0 (the shadow never spreads farther
+than ``reach``). Accuracy and cost against the 64-sample soft shadow:
+``benchmarks/preview_shadow_bench.py`` (docs/server.md, "Previews of soft
+shadows").
+
+Units: pixels. Arrays: float32 (H, W).
+"""
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from pixgraph.device import load_kernel_source
+
+from . import shadow as S
+
+#: the penumbra's reach is at most this fraction of the image's longer side
+#: (a huge light on a long shadow: the box sums stay bounded; on the 60 scenes of
+#: benchmarks/preview_shadow_bench.py no cap gave the same RMSE, mean and max)
+MAX_REACH = 0.125
+
+
+def hard_shadow_distance_ref(mask, fg_height, bg_height, light, thickness=1.0):
+    """Numpy reference of :func:`hard_shadow_distance`: ``(darkness, distance)``,
+    float32 (H, W) each: darkness 1 where the light point ``(u, v, h, s)`` is
+    blocked, 0 lit; distance [px] from the receiver (pixel centre, height) to the
+    first blocking cutout point in (u, v, h), 0 where lit."""
+    prep = S.Prepared(mask, fg_height, bg_height, thickness)
+    blocked, hu, hv, hs = S.trace_ref(prep, light)
+    i, j = np.mgrid[0:prep.H, 0:prep.W]
+    with np.errstate(invalid="ignore"):
+        dist = np.sqrt((hu - (j + 0.5)) ** 2 + (hv - (i + 0.5)) ** 2 + (hs - prep.recv) ** 2)
+    return blocked.astype(np.float32), np.where(blocked, dist, 0.0).astype(np.float32)
+
+
+@functools.lru_cache(maxsize=1)
+def kernel_source() -> str:
+    """preview_shadow.cl with shadow.cl and march.h inlined."""
+    return load_kernel_source(__file__, "preview_shadow.cl")
+
+
+class PreviewScene(S.ShadowScene):
+    """A ``shadow.ShadowScene`` whose program also has ``hard_shadow_distance``."""
+
+    def __init__(self, device, mask, fg_height, bg_height, thickness=1.0):
+        super().__init__(device, mask, fg_height, bg_height, thickness)
+        self.prg = device.program(kernel_source(), S.BUILD_OPTIONS)
+
+    def hard_shadow_distance(self, light, progress=None, check_cancelled=None):
+        """``(darkness, distance)`` of :func:`hard_shadow_distance_ref`, one launch
+        (banded with the callbacks, as ``ShadowScene.launch_banded``)."""
+        p = self.prep
+        if p.empty:
+            z = np.zeros((p.H, p.W), np.float32)
+            return z, z.copy()
+        out = self.out_buffer("hard_distance", 2 * p.H * p.W * 4)
+        ev = self.launch_banded("hard_shadow_distance", self.recv, S._f4(S.light_array(light)), out,
+                                progress=progress, check_cancelled=check_cancelled)
+        self.last_event = ev
+        host = self._read(out, (2, p.H, p.W), ev)
+        return host[0], host[1]
+
+
+def hard_shadow_distance(device, mask, fg_height, bg_height, light, thickness=1.0, *,
+                         progress=None, check_cancelled=None):
+    """Hard shadow of one light point with each shadowed receiver's blocker distance
+    (OpenCL; :func:`hard_shadow_distance_ref` is the reference). Inputs as
+    ``shadow.hard_shadow``; returns ``(darkness, distance)`` float32 (H, W)."""
+    return PreviewScene(device, mask, fg_height, bg_height, thickness).hard_shadow_distance(
+        light, progress, check_cancelled)
+
+
+def _sat(a: np.ndarray) -> np.ndarray:
+    """Summed-area tables of planes a (k, h, w): (k, h + 1, w + 1) float64 with a zero
+    first row and column (columns summed in float32: exact for sums of 0/1 up to 2^24)."""
+    k, h, w = a.shape
+    z = np.zeros((k, h + 1, w + 1), np.float64)
+    np.cumsum(np.cumsum(a, axis=1, dtype=np.float32), axis=2, dtype=np.float64, out=z[:, 1:, 1:])
+    return z
+
+
+def _box_fixed(z: np.ndarray, r: int) -> np.ndarray:
+    """Sums over the boxes of half-size r around the pixels of a table's image that lie
+    at least r pixels inside it: (k, h - 2r, w - 2r)."""
+    n = 2 * r + 1
+    return z[:, n:, n:] - z[:, :-n, n:] - z[:, n:, :-n] + z[:, :-n, :-n]
+
+
+def _box_at(z: np.ndarray, i: np.ndarray, j: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Sums over the boxes of half-size r[m] around pixels (i[m], j[m]) of a table's
+    image (k, ...), boxes inside it."""
+    i0, i1, j0, j1 = i - r, i + r + 1, j - r, j + r + 1
+    return z[:, i1, j1] - z[:, i0, j1] - z[:, i1, j0] + z[:, i0, j0]
+
+
+def penumbra_blur(darkness, distance, inside, softness: float) -> np.ndarray:
+    """The soft shadow estimated from a hard one (module docstring, steps 1-2).
+
+    darkness: float (H, W) in [0, 1], the hard shadow (1 shadow); distance: float
+    (H, W) blocker distance [px] where shadowed (ignored elsewhere); inside: bool
+    (H, W), the cutout (its pixels average only cutout pixels, the others only
+    background pixels; outside the image counts as neither); softness: light
+    radius over distance (>= 0).
+    Returns darkness float32 (H, W) in [0, 1]; softness 0 returns ``darkness``.
+    """
+    dark = np.clip(np.asarray(darkness, np.float32), 0.0, 1.0)
+    H, W = dark.shape
+    dist = np.asarray(distance, np.float32)
+    inside = np.asarray(inside, bool)
+    if dist.shape != dark.shape or inside.shape != dark.shape:
+        raise ValueError(f"darkness, distance and inside must share one shape, got "
+                         f"{dark.shape}, {dist.shape}, {inside.shape}")
+    softness = float(softness)
+    if not math.isfinite(softness) or softness < 0:
+        raise ValueError(f"softness must be finite and >= 0, got {softness}")
+    out = dark.copy()
+    shadowed = (dark > 0.0) & np.isfinite(dist)
+    if softness == 0.0 or not shadowed.any():
+        return out
+    cap = max(1, int(MAX_REACH * max(H, W)))
+    reach = min(cap, math.ceil(softness * float(dist[shadowed].max())))
+    if reach < 1:
+        return out
+    R = reach
+    for side in (~inside, inside):
+        src = shadowed & side
+        if not src.any():
+            continue
+        rows, cols = np.flatnonzero(src.any(axis=1)), np.flatnonzero(src.any(axis=0))
+        # the pixels that may change lie within reach of a shadowed pixel; they read up
+        # to reach farther: a zero-padded crop, so that every box lies inside it
+        o0, o1 = max(0, rows[0] - R), min(H, rows[-1] + 1 + R)
+        p0, p1 = max(0, cols[0] - R), min(W, cols[-1] + 1 + R)
+        r0, r1, c0, c1 = max(0, o0 - R), min(H, o1 + R), max(0, p0 - R), min(W, p1 + R)
+        planes = np.zeros((3, o1 - o0 + 2 * R, p1 - p0 + 2 * R), np.float32)
+        at = (slice(None), slice(r0 - o0 + R, r1 - o0 + R), slice(c0 - p0 + R, c1 - p0 + R))
+        wgt = side[r0:r1, c0:c1]
+        planes[at] = [wgt, np.where(src[r0:r1, c0:c1], dark[r0:r1, c0:c1], 0.0),
+                      np.where(src[r0:r1, c0:c1], dark[r0:r1, c0:c1] * dist[r0:r1, c0:c1], 0.0)]
+        z = _sat(planes)
+        nw, na, nb = _box_fixed(z, R)                    # (o1 - o0, p1 - p0) each
+        # both shadow and light of this side within reach (an all-shadow box keeps 1)
+        mixed = side[o0:o1, p0:p1] & (na > 0.0) & (na < nw - 1e-6)
+        i, j = np.nonzero(mixed)
+        r = np.minimum(np.rint(softness * (nb[i, j] / na[i, j])), R).astype(np.int64)
+        k = r >= 1
+        i, j, r = i[k], j[k], r[k]
+        den, num = _box_at(z[:2], i + R, j + R, r)
+        out[i + o0, j + p0] = np.clip(num / np.maximum(den, 1.0), 0.0, 1.0)
+    return out
+
+
+def preview_soft_shadow(device, mask, fg_height, bg_height, light, softness, thickness=1.0, *,
+                        progress=None, check_cancelled=None) -> np.ndarray:
+    """A preview's soft shadow: darkness float32 (H, W) in [0, 1] (1 full shadow).
+    light: the light's centre (u, v, h, s); softness: radius over distance (0 for
+    a point light: the hard shadow exactly). Other inputs as ``shadow.hard_shadow``."""
+    dark, dist = hard_shadow_distance(device, mask, fg_height, bg_height, light, thickness,
+                                      progress=progress, check_cancelled=check_cancelled)
+    return penumbra_blur(dark, dist, np.asarray(mask) > 0.5, softness)

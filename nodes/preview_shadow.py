@@ -1,0 +1,60 @@
+"""pixgraph.PreviewShadow: a soft shadow for previews, the hard shadow widened by a penumbra estimate."""
+from __future__ import annotations
+
+from pixgraph_nodes import types as T
+from pixgraph.node import Node, node, param, port
+
+from ._checks import finite_outputs, inside
+from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
+from .ops.lights import light_point
+from .ops.preview_shadow import preview_soft_shadow
+from .ops.softness import softness_of
+
+
+@node("pixgraph.PreviewShadow", version=1)
+class PreviewShadow(Node):
+    """Soft shadow at about the cost of one hard shadow, for previews (the soft shadows
+    declare it as their ``preview`` stand-in): the hard shadow of the light's centre,
+    each edge pixel averaged over a box whose half-size is the light's softness (radius
+    over distance) times the distance to the occluder that blocks it (PCSS's
+    estimate; ``ops/preview_shadow.py``). It follows the light's radius, unlike
+    ``pixgraph.HardShadow``; against ``pixgraph.SoftShadow`` (64 samples) it is an
+    approximation (docs/server.md, "Previews of soft shadows", has the error).
+
+    All inputs share the camera's size; pixel heights must be finite and >= 0
+    (the cutout's inside its mask), else the node stops with an input error. An
+    empty mask casts no shadow (all lit); a point light, or ``method: hard`` (a
+    ``pixgraph.Shadow`` forced hard), gives the hard shadow."""
+
+    class Inputs(ShadowInputs):
+        light: T.Light = port(doc="the light; its radius / distance is the softness")
+
+    class Params:
+        thickness: float = thickness_param()
+        # shared with pixgraph.Shadow, so that its forced hard shadow previews as hard
+        method: str = param("auto", choices=("auto", "hard", "soft", "ssn"),
+                            doc="the stood-in pixgraph.Shadow's method: hard gives the hard shadow, "
+                                "the others the estimate")
+
+    class Outputs:
+        lit: T.Mask = port(doc="1 - darkness")
+        darkness: T.Mask = port(doc="1 = full shadow (what Composite takes)")
+
+    impl_version = "1"
+    # no ``handles``: a stand-in, not one of the shadow methods a shell offers to switch to
+
+    def compute(self, ctx, inputs, params):
+        check_inputs(inputs)
+        light, cam = inputs.light, inputs.camera
+        softness = 0.0
+        if light.is_area and params.method != "hard":
+            try:
+                softness = softness_of(light, cam, inputs.mask, inputs.fg_height)
+            except ValueError as e:      # no cutout pixel below the horizon: no 3D centre
+                if inside(inputs.mask).any():
+                    ctx.log(f"hard shadow: {e}")
+        darkness = preview_soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height,
+                                       light_point(light, cam), softness, params.thickness,
+                                       progress=ctx.progress, check_cancelled=ctx.check_cancelled)
+        finite_outputs(darkness=darkness)
+        return {"lit": (1.0 - darkness).astype(darkness.dtype), "darkness": darkness}
