@@ -98,11 +98,13 @@ class Shadow(Node):
         side = max(H, W) if params.proxy == 0 else params.proxy
         if method == "ssn":
             from .ops import ssn_crop                     # torch: imported only when SSN++ runs
-            from .ssn_soft_shadow import load_shipped
+            from .ssn_soft_shadow import load_shipped, torch_settings
             softness = softness_of(light, cam, inputs.mask, inputs.fg_height)
+            threads, torch_device = torch_settings()
             darkness, _ = ssn_crop.render(ctx.device, load_shipped("ssnpp"), inputs.mask, inputs.fg_height,
                                           inputs.bg_height, light_point(light, cam), disk_extremes(light, cam),
-                                          softness, params.thickness, check_cancelled=ctx.check_cancelled)
+                                          softness, params.thickness, threads=threads, torch_device=torch_device,
+                                          check_cancelled=ctx.check_cancelled)
             finite_outputs(darkness=darkness)
             return {"lit": 1.0 - darkness, "darkness": darkness}
         if method == "hard" or not light.is_area:

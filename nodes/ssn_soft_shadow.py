@@ -43,6 +43,17 @@ def load_shipped(name: str):
     return _load(str(path), path.stat().st_mtime_ns)
 
 
+def torch_settings():
+    """(threads, device) SSN++ runs with: ``ssn.inference_threads()`` and
+    ``ssn.inference_device()`` (the host's PIXGRAPH_TORCH_THREADS and
+    PIXGRAPH_TORCH_DEVICE); a bad setting is an input error naming the variable."""
+    ssn = _ssn()
+    try:
+        return ssn.inference_threads(), ssn.inference_device()
+    except ValueError as e:  # the host's setting, not the node's fault
+        raise InputError(str(e)) from None
+
+
 @node("pixgraph.SoftShadowSSN", version=1)
 class SoftShadowSSN(Node):
     """Soft shadow from SSN++: the 3D-aware buffer channels (cutout pixel height,
@@ -98,10 +109,7 @@ class SoftShadowSSN(Node):
             softness = ssn.softness_of(light, cam, inputs.mask, inputs.fg_height)
         except ValueError as e:
             raise InputError(f"input 'fg_height': {e}") from None
-        try:
-            threads, torch_device = ssn.inference_threads(), ssn.inference_device()
-        except ValueError as e:  # the host's setting, not the node's fault
-            raise InputError(str(e)) from None
+        threads, torch_device = torch_settings()
         model = load_shipped(params.model)
         from .ops import ssn_crop
         darkness, info = ssn_crop.render(ctx.device, model, inputs.mask, inputs.fg_height, inputs.bg_height,

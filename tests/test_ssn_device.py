@@ -73,47 +73,20 @@ def test_the_cpu_path_is_the_default_here(monkeypatch):
     assert 0.0 < float(auto.mean()) < 1.0
 
 
+@pytest.mark.parametrize("graph, args, node", [
+    ("ssn_wall_corner.yaml", [], "node 'shadow' (pixgraph.SoftShadowSSN)"),
+    ("auto_shadow.yaml", ["--set", "shadow.method=ssn"], "node 'shadow' (pixgraph.Shadow)"),
+])
 @pytest.mark.parametrize("variable, value", [(ssn.DEVICE_ENV, "gpu"), (ssn.THREADS_ENV, "many")])
-def test_a_bad_host_setting_is_bad_input(monkeypatch, capsys, variable, value):
-    """The node reports a bad PIXGRAPH_TORCH_DEVICE or PIXGRAPH_TORCH_THREADS as bad
-    input (exit 2) naming the variable, not a crash."""
+def test_a_bad_host_setting_is_bad_input(monkeypatch, capsys, variable, value, graph, args, node):
+    """SSN++ (its own node, or pixgraph.Shadow running it) reports a bad
+    PIXGRAPH_TORCH_DEVICE or PIXGRAPH_TORCH_THREADS as bad input (exit 2) naming the
+    variable, not a crash (pixgraph.Shadow used to fail with exit 1)."""
     from pixgraph.cli import main
 
     monkeypatch.setenv(variable, value)
-    graph = os.path.join(os.path.dirname(__file__), "..", "graphs", "ssn_wall_corner.yaml")
-    code = main(["run", graph, "--no-disk-cache", "-q"])
+    path = os.path.join(os.path.dirname(__file__), "..", "graphs", graph)
+    code = main(["run", path, *args, "--no-disk-cache", "-q"])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1
-    assert "node 'shadow' (pixgraph.SoftShadowSSN)" in err[0] and variable in err[0]
-
-
-def test_a_model_already_on_the_cuda_device_is_not_copied(monkeypatch):
-    """``auto`` and ``cuda`` give ``torch.device("cuda")`` (no index), which torch does not
-    call equal to ``cuda:0``, where a model moved there has its parameters: such a model
-    is run as it is (a copy would double its memory and keep its weights of the first
-    call). No GPU here: a stand-in whose parameters say they are on cuda:0."""
-    class OnCuda0(torch.nn.Module):
-        def parameters(self, recurse=True):
-            yield type("P", (), {"device": torch.device("cuda", 0)})()
-
-        def to(self, *a, **k):
-            raise AssertionError("copied to another device")
-
-    monkeypatch.setattr(torch.cuda, "current_device", lambda: 0)
-    model = OnCuda0()
-    assert ssn.model_on(model, torch.device("cuda")) is model
-    assert ssn.model_on(model, torch.device("cuda", 0)) is model
-
-
-def test_the_device_copy_goes_when_its_model_goes():
-    """The per-device copies do not keep their models alive: a model dropped by its owner
-    (``lab/ssn/methods``' lru_cache of 8 evicting one) is freed with its copy, so no
-    other model can later be taken for it by a reused id()."""
-    import gc
-    import weakref
-    model = ssn.SSN(ssn.SSNConfig(base=4, levels=1)).eval()
-    copy = ssn.model_on(model, torch.device("meta"))
-    gone, copy_gone = weakref.ref(model), weakref.ref(copy)
-    del model, copy
-    gc.collect()
-    assert gone() is None and copy_gone() is None
+    assert code == 2 and len(err) == 1, err
+    assert node in err[0] and variable in err[0]
