@@ -331,7 +331,7 @@ def main(argv=None) -> int:
                 write_figure(sc, shots, os.path.join(a.shots, "page_height_fix.png"))
     if previews:
         import statistics
-        print(f"previews while dragging the handles (512x512 scene, hard-shadow stand-in): median "
+        print(f"previews while dragging the handles (512x512 scene, the soft shadow's preview stand-in): median "
               f"{statistics.median(previews):.0f} ms pointer -> painted, {len(previews)} images; load average "
               f"{os.getloadavg()[0]:.2f}")
     return 0
