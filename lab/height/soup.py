@@ -61,9 +61,11 @@ def pull_toward(start: dict, state: dict, a: float) -> dict:
 
 def recalibrate_bn(model, x: np.ndarray, t: np.ndarray, w: np.ndarray, crops: int, batch: int = 64,
                    seed: int = 0) -> int:
-    """Re-estimate every BatchNorm's running mean and variance as the plain average over
-    ``crops`` augmented crops drawn (seeded) from the training arrays ``x, t, w``
-    (``train.load_splits``'s); the weights are not touched. Returns the crops used."""
+    """Re-estimate every BatchNorm's running mean and variance as the average of the
+    per-batch statistics over ``crops`` augmented crops drawn (seeded) from the training
+    arrays ``x, t, w`` (``train.load_splits``'s), ``batch`` at a time (the mean over all
+    crops when ``crops`` is a multiple of ``batch``, as the default 2,048 / 64 is); the
+    weights are not touched. Returns the crops used."""
     import torch
 
     from .train import augment
