@@ -194,3 +194,17 @@ def test_confidence_heads_pin_and_real_evaluation(tmp_path):
                                             "head_gain_px", "overhang_share", "solidity")
     r2 = p2.predict_full(rgba)
     assert isinstance(r2["use_learned"], bool) and 0.0 <= r2["confidence"] <= 1.0
+
+
+def test_the_heldout_category_is_never_drawn_for_training():
+    """``heldout`` (guitars, dumbbells, ...) exists to validate on kinds the model never
+    saw: no mix draws it, and asking for it by name gives only its own kinds."""
+    from pixgraph_lab.datagen.categories import CATEGORIES
+    from pixgraph_lab.height import real
+    assert "heldout" in CATEGORIES
+    assert "heldout" not in real.CATEGORY_P and "heldout" not in real.CATEGORY_P_REAL
+    # appended last: the other categories' random streams (seeded by their index) unchanged
+    assert CATEGORIES.index("heldout") == len(CATEGORIES) - 1 and CATEGORIES.index("organic") == 6
+    kinds = {generate.make_sample("val", i, seed=3, res=48, mix="real", category="heldout")[1]["object"]
+             for i in range(4)}
+    assert all(k.startswith("heldout/") for k in kinds)

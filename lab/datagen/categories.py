@@ -22,6 +22,10 @@ cylinders, cones, tori, surfaces of revolution, convex prisms):
   creatures whose round head may overhang the body, rounded birds, bath-toy and
   penguin-like figures, fish, random blobs, fruit and gourds, pebbles, cushions,
   bean bags, rounded vases. Generic shapes, none modelled on a test mesh.
+* ``heldout``: kinds no training mix draws (``real.CATEGORY_P`` and
+  ``CATEGORY_P_REAL`` leave it out), for validation on unfamiliar shapes without
+  the test split: guitars, dumbbells, kettlebells, fire hydrants, globes on a stand,
+  snowmen, hourglasses, telescopes on a tripod.
 
 None of pybullet_data's named meshes (duck, teddy, bunny, mug, table, lego,
 soccer ball, ...) is used: they are the held-out test objects.
@@ -38,7 +42,7 @@ import math
 
 import numpy as np
 
-CATEGORIES = ("person", "animal", "figurine", "furniture", "product", "vehicle", "organic")
+CATEGORIES = ("person", "animal", "figurine", "furniture", "product", "vehicle", "organic", "heldout")
 
 
 class Parts:
@@ -849,6 +853,82 @@ def organic(rng):
     return P, "organic/" + kind
 
 
+# ---------------------------------------------------------------- held out of training
+def heldout(rng):
+    """A kind no training mix draws (module doc); none modelled on a test mesh."""
+    u = rng.uniform
+    P = Parts()
+    kind = str(rng.choice(["guitar", "dumbbell", "kettlebell", "hydrant", "globe", "snowman", "hourglass",
+                           "telescope"]))
+    if kind == "guitar":                      # standing on the lower bout, its face to the camera
+        w, t = u(0.3, 0.4), u(0.07, 0.11)
+        P.add(ellipsoid([0, w * 0.5, 0], [w * 0.5, w * 0.5, t / 2]), "wood")
+        P.add(ellipsoid([0, w * 1.05, 0], [w * 0.38, w * 0.36, t / 2]), "wood")
+        L = u(0.45, 0.6)
+        P.add(box([0, w * 1.3 + L / 2, 0], [w * 0.14, L, t * 0.4]), "wood2")
+        P.add(box([0, w * 1.3 + L + 0.06, 0], [w * 0.2, 0.12, t * 0.3]), "wood2")
+    elif kind == "dumbbell":                  # lying, the bar horizontal
+        r, L = u(0.06, 0.11), u(0.25, 0.4)
+        th = u(0.03, 0.06)
+        for x in (-L / 2, L / 2):
+            P.add(cylinder([x - th / 2, r, 0], [x + th / 2, r, 0], r, 20), "metal")
+        P.add(cylinder([-L / 2 - th, r, 0], [L / 2 + th, r, 0], r * 0.2, 12), "metal2")
+    elif kind == "kettlebell":
+        r = u(0.08, 0.14)
+        P.add(ellipsoid([0, r, 0], [r, r * u(0.9, 1.05), r]), "metal")
+        P.add(torus([0, r * 1.9, 0], r * 0.6, r * 0.12, axis=(0, 0, 1)), "metal")
+    elif kind == "hydrant":
+        r, h = u(0.08, 0.12), u(0.4, 0.6)
+        P.add(cylinder([0, 0, 0], [0, h * 0.08, 0], r * 1.4, 16), "paint")
+        P.add(cylinder([0, 0, 0], [0, h * 0.8, 0], r, 16), "paint")
+        P.add(ellipsoid([0, h * 0.8, 0], [r * 1.05, r * 0.8, r * 1.05]), "paint")
+        P.add(cylinder([0, h * 0.8 + r * 0.7, 0], [0, h * 0.8 + r * 1.0, 0], r * 0.25, 6), "metal")
+        for a in (0.0, math.pi):
+            d = np.array([math.cos(a), 0.0, math.sin(a)])
+            P.add(cylinder(np.array([0, h * 0.6, 0]) + d * r * 0.8, np.array([0, h * 0.6, 0]) + d * r * 1.5,
+                           r * 0.3, 10), "metal")
+        P.add(cylinder([0, h * 0.55, r * 0.8], [0, h * 0.55, r * 1.6], r * 0.4, 12), "metal")
+    elif kind == "globe":                     # a sphere held above a round foot by a bent arm
+        R, h = u(0.12, 0.2), u(0.15, 0.3)
+        P.add(cylinder([0, 0, 0], [0, 0.03, 0], R * 0.7, 20), "wood")
+        P.add(capsule([0, 0.03, 0], [0, h, 0], 0.012), "metal")
+        P.add(torus([0, h + R, 0], R * 1.08, 0.01, axis=(0, 0, 1)), "metal")
+        P.add(ellipsoid([0, h + R, 0], [R, R, R], subdiv=3), "paper")
+    elif kind == "snowman":
+        r = [u(0.15, 0.22)]
+        r += [r[0] * u(0.65, 0.8), r[0] * u(0.45, 0.6)]
+        y = 0.0
+        for k, rk in enumerate(r):
+            y += rk * (0.9 if k else 1.0)
+            P.add(ellipsoid([0, y, 0], [rk, rk, rk]), "snow")
+            y += rk * 0.9
+        head_y = y - r[2] * 0.9
+        P.add(cylinder([0, head_y + r[2] * 0.8, 0], [0, head_y + r[2] * 1.5, 0], r[2] * 0.7, 16), "hat")
+        P.add(cylinder([0, head_y, r[2] * 0.9], [0, head_y, r[2] * 1.5], r[2] * 0.12, 8), "carrot")
+        arm_y = r[0] * 1.9 + r[1] * 0.8
+        for sgn in (-1, 1):
+            P.add(capsule([sgn * r[1] * 0.9, arm_y, 0], [sgn * r[1] * 2.2, arm_y + r[1] * u(0.3, 0.9), 0],
+                          0.01), "wood")
+    elif kind == "hourglass":
+        R, h = u(0.06, 0.1), u(0.18, 0.3)
+        P.add(cylinder([0, 0, 0], [0, 0.015, 0], R * 1.3, 6), "wood")
+        P.add(cylinder([0, h - 0.015, 0], [0, h, 0], R * 1.3, 6), "wood")
+        P.add(revolve([(0, 0.015), (R, 0.015), (R * 0.9, h * 0.3), (R * 0.12, h / 2), (R * 0.9, h * 0.7),
+                       (R, h - 0.015), (0, h - 0.015)], 16), "glass")
+        for a in np.arange(3) * 2 * math.pi / 3:
+            P.add(capsule([R * 1.15 * math.cos(a), 0.015, R * 1.15 * math.sin(a)],
+                          [R * 1.15 * math.cos(a), h - 0.015, R * 1.15 * math.sin(a)], 0.008), "wood")
+    else:  # telescope on a tripod
+        h, L = u(0.5, 0.8), u(0.4, 0.7)
+        spread = h * u(0.3, 0.45)
+        for a in np.arange(3) * 2 * math.pi / 3 + u(0, 2 * math.pi):
+            P.add(capsule([spread * math.cos(a), 0.0, spread * math.sin(a)], [0, h, 0], 0.012), "metal")
+        tilt = math.radians(u(15, 45))
+        d = np.array([math.cos(tilt), math.sin(tilt), 0.0]) * L
+        P.add(cylinder([0, h, 0] - d * 0.4, [0, h, 0] + d * 0.6, L * u(0.06, 0.1), 16), "paint")
+    return P, "heldout/" + kind
+
+
 def make_object(category: str, rng: np.random.Generator):
     """(V, F, face material slot, slot names, kind) of a random object of ``category`` (module doc)."""
     if category == "person":
@@ -867,6 +947,8 @@ def make_object(category: str, rng: np.random.Generator):
         P, kind = vehicle(rng)
     elif category == "organic":
         P, kind = organic(rng)
+    elif category == "heldout":
+        P, kind = heldout(rng)
     else:
         raise ValueError(f"unknown category {category!r}; known: {', '.join(CATEGORIES)}")
     V, F, L, names = P.build()
