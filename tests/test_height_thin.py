@@ -114,7 +114,7 @@ def test_the_reviews_stick_gets_its_height(predictor):
     # stick's rows (pin_fade box heights above the foot), so 1 px is float rounding's room.
     from pixgraph_lab.height.thin_study import lost_pixels, stick_figure
     rgba, true, mask, stick = stick_figure()
-    lost = lost_pixels(rgba, 0.5, predictor.work_side)
+    lost = lost_pixels(predictor, rgba)
     assert lost[stick].mean() > 0.95 and not lost[~stick].any()
     r = predictor.predict_full(rgba)
     assert r["work_scale"] == pytest.approx(6.0, abs=0.1)
@@ -140,7 +140,7 @@ def test_a_cutout_without_lost_pixels_gets_the_same_map_as_before(predictor, k):
         a = (s["alpha"] > 0.5).astype(np.float32)
         rgba = np.concatenate([s["image"] * a[..., None], a[..., None]], -1)
         rgba = np.repeat(np.repeat(rgba, k, axis=0), k, axis=1)
-        if lost_pixels(rgba, 0.5, predictor.work_side).any():
+        if lost_pixels(predictor, rgba).any():
             continue
         checked += 1
         new = predictor.predict_full(rgba)
@@ -158,7 +158,7 @@ def test_a_lifted_cutouts_thin_part_is_lifted_with_it(predictor):
     # the hand, a step in the shadow where the stick leaves the hand)
     from pixgraph_lab.height.thin_study import lost_pixels, stick_figure
     rgba, true, mask, stick = stick_figure()
-    lost = lost_pixels(rgba, 0.5, predictor.work_side)
+    lost = lost_pixels(predictor, rgba)
     assert lost.any()
     r = predictor.predict_full(rgba, contact="lifted", lift=300.0)
     err = np.abs(r["height"][lost] - (true[lost] + 300.0))

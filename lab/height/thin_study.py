@@ -175,34 +175,13 @@ def generate(n: int, out: str, seed: int = 24, res: int = RES, start: int = 0) -
               f"{meta['seconds']:.1f} s", flush=True)
 
 
-def lost_pixels(rgba: np.ndarray, threshold: float = 0.5, work_side: int | None = None) -> np.ndarray:
-    """The full-size pixels of ``rgba``'s cutout that ``predict_at_work_size`` finds no
-    work-size mask pixel for (``masked_resize``'s ``lost``), bool (H, W); all False when
-    the cutout is predicted at its own size."""
-    from pixgraph_nodes.ops.height_work_size import (WORK_SIDE, covered_box, shrink_cutout,
-                                                     work_shape)
-    from pixgraph_nodes.ops.learned_height import crop_box
-    from pixgraph_nodes.ops.upsample import masked_resize
-    out = np.zeros(rgba.shape[:2], bool)
-    cut = covered_box(rgba[..., 3])
-    r0, r1, c0, c1 = cut if cut is not None else (0, rgba.shape[0], 0, rgba.shape[1])
-    part = np.ascontiguousarray(rgba[r0:r1, c0:c1], np.float32)
-    mask = np.clip(part[..., 3], 0.0, 1.0) > threshold
-    box = crop_box(mask)
-    if box is None:
-        return out
-    f, shape = work_shape(*mask.shape, box[6], work_side or WORK_SIDE)
-    if f <= 1.0:
-        return out
-    small = shrink_cutout(part, shape)
-    mask_small = np.clip(small[..., 3], 0.0, 1.0) > threshold
-    if not mask_small.any():
-        return out
-    b0, b1, b2, b3 = box[:4]
-    _, lost = masked_resize(np.zeros(shape, np.float32), mask_small.astype(np.float32), mask, mask.shape,
-                            box=(b0, b1, b2, b3), return_lost=True)
-    out[r0 + b0:r0 + b1, c0 + b2:c0 + b3] = lost
-    return out
+def lost_pixels(predictor, rgba: np.ndarray, threshold: float = 0.5) -> np.ndarray:
+    """The full-size pixels of ``rgba``'s cutout that the work-size path finds no
+    work-size mask pixel for, bool (H, W): ``predict_at_work_size``'s ``thin_lost``
+    (``masked_resize``'s ``lost``); all False when the cutout is predicted at its own size."""
+    from pixgraph_nodes.ops.height_work_size import predict_at_work_size
+    r = predict_at_work_size(predictor, rgba, threshold, work_side=predictor.work_side, thin_fill="none")
+    return r.get("thin_lost", np.zeros(rgba.shape[:2], bool))
 
 
 def _samples(folders):
@@ -281,7 +260,7 @@ def measure(folders, out: str, weights: str | None = None, min_lost: int = 50) -
     pred = LearnedHeightPredictor(weights or WEIGHTS)
     rows = []
     for n, (name, rgba, true, tmask, meta) in enumerate(_samples(folders)):
-        lost = lost_pixels(rgba, 0.5, pred.work_side) & tmask
+        lost = lost_pixels(pred, rgba) & tmask
         if n == 0:                     # warm up (first-call costs) before anything is timed
             predict_at_work_size(pred, rgba, 0.5, "ground", 0.0, pred.work_side, False, "none")
         row = {"sample": name, "object": meta.get("object"), "rods": "+".join(meta.get("rods", [])),
@@ -360,7 +339,7 @@ def ordinary(folder: str, out: str, scales=(4, 8), limit: int = 60, weights: str
         meta, rgba, true, mask = read_height_sample(f)
         for k in scales:
             big, tb, mb = enlarge(rgba, true, mask, k)
-            lost = lost_pixels(big, 0.5, pred.work_side)
+            lost = lost_pixels(pred, big)
             row = {"index": meta["index"], "k": k, "lost_px": int(lost.sum()), "lost_in_true": int((lost & mb).sum())}
             for how in ("none", THIN_FILL):
                 h = predict_at_work_size(pred, big, 0.5, "ground", 0.0, pred.work_side, False, how)["height"]
@@ -415,7 +394,7 @@ def time_fill(runs: int = 5) -> list[str]:
     from pixgraph_nodes.ops.upsample import masked_resize
     pred = LearnedHeightPredictor()
     rgba = hairy_figure()
-    lost = lost_pixels(rgba, 0.5, pred.work_side)
+    lost = lost_pixels(pred, rgba)
     mask = rgba[..., 3] > 0.5
     box = crop_box(mask)
     f, shape = work_shape(*mask.shape, box[6], pred.work_side)

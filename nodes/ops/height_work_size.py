@@ -103,7 +103,8 @@ def fill_thin(height: np.ndarray, mask: np.ndarray, lost: np.ndarray, heuristic:
 
 def enlarge_prediction(out: dict, f: float, mask: np.ndarray, mask_small: np.ndarray, contact: str,
                        lift: float, pin_fade, foot_snap, thin_fill=None) -> dict:
-    """``predict_full``'s result at the work size -> at full size (module doc).
+    """``predict_full``'s result at the work size -> at full size (module doc), with
+    ``thin_lost`` (bool, full size): the pixels with no work-size pixel of their own.
 
     ``mask`` / ``mask_small``: the cutout (alpha > threshold) at full and work
     size; ``lift`` [full-size px]; ``pin_fade``, ``foot_snap``: the predictor's;
@@ -113,6 +114,7 @@ def enlarge_prediction(out: dict, f: float, mask: np.ndarray, mask_small: np.nda
     box = nonzero_box(mask)
     thin_fill = THIN_FILL if thin_fill is None else thin_fill
     heur = contact_line_height(mask).astype(np.float32)
+    thin_lost = np.zeros((H, W), bool)
 
     def up(h_small):
         full = np.zeros((H, W), np.float32)
@@ -120,6 +122,7 @@ def enlarge_prediction(out: dict, f: float, mask: np.ndarray, mask_small: np.nda
             r0, r1, c0, c1 = box
             part, lost = masked_resize(np.asarray(h_small, np.float32) * f, mask_small.astype(np.float32),
                                        mask, (H, W), box=box, return_lost=True)
+            thin_lost[r0:r1, c0:c1] = lost
             if lost.any():                              # (on the box: rows are only compared)
                 # the contact line of a cutout standing on the ground, raised by ``lift``
                 # (contact: lifted) like the rest of the map: the pin that follows is a
@@ -141,6 +144,7 @@ def enlarge_prediction(out: dict, f: float, mask: np.ndarray, mask_small: np.nda
             res[k] = float(res[k]) * f
     res["auto_height"] = res["height"] if out.get("use_learned", True) else res["heuristic"]
     res["work_scale"] = f
+    res["thin_lost"] = thin_lost        # the pixels ``fill_thin`` filled
     return res
 
 
@@ -149,7 +153,7 @@ def predict_at_work_size(predictor, rgba: np.ndarray, threshold: float = 0.5, co
                          thin_fill: str | None = None) -> dict:
     """``predictor.predict_at_own_size(rgba, ...)`` (``LearnedHeightPredictor``), a
     cutout whose square crop is larger than ``work_side`` predicted at that size
-    (module doc; ``work_scale`` in the result).
+    (module doc; ``work_scale`` and ``thin_lost`` in the result).
 
     The input is first cut to its covered pixels (alpha > 0) and the maps pasted
     back: a cutout delivered on a canvas much larger than itself (a matte at the
