@@ -243,8 +243,8 @@ def describe(state: ServeState) -> dict:
         tip = light_cls.shadow_tip(a.camera, light, a.top)
         h = state.handles(g.nodes[lid].type)
         if v.get(h["placement"]) == h["tip_placement"] and "azimuth" in h and controls.get("azimuth") is not None:
-            # the light's azimuth in its param's convention (350, not -10: ``_azimuth_near``)
-            controls["azimuth"] = _azimuth_near(state, lid, h, controls["azimuth"])
+            # the light's azimuth in its param's convention (350, not -10: ``_azimuth_in_convention``)
+            controls["azimuth"] = _azimuth_in_convention(state, lid, h, controls["azimuth"])
         out["light"] = {**v, "azimuth_deg": controls.get("azimuth"), "elevation_deg": controls.get("elevation"),
                         "top_uvh": list(a.top) if a.top else None, "tip_uv": list(tip) if tip else None,
                         # what the panel shows for the angle params: the light's own (in the tip
@@ -268,11 +268,19 @@ def _elevation_range(state: ServeState, lid: str, h: dict, light_cls, tip: bool)
     lo, hi = (spec.min, spec.max) if spec is not None else (None, None)
     if not tip and h.get("elevation_min") is not None:   # below it the light is raised to it
         lo = h["elevation_min"] if lo is None else max(lo, h["elevation_min"])
-    geometry = getattr(getattr(light_cls, "tip_at_elevation", None), "elevation_range", None)
-    if tip and geometry is not None:
-        lo = geometry[0] if lo is None else max(lo, geometry[0])
-        hi = round(geometry[1] - 0.01, 2) if hi is None else min(hi, round(geometry[1] - 0.01, 2))
+    ends = _tip_elevation_ends(light_cls)
+    if tip and ends is not None:
+        lo = ends[0] if lo is None else max(lo, ends[0])
+        hi = ends[1] if hi is None else min(hi, ends[1])
     return [lo, hi]
+
+
+def _tip_elevation_ends(light_cls):
+    """(lo, hi) [deg]: the elevations the light type's tip geometry takes
+    (``tip_at_elevation.elevation_range``, [lo, hi)) as they are written, to 0.01 deg:
+    hi is 0.01 under the geometry's; None when the type declares no range."""
+    rng = getattr(getattr(light_cls, "tip_at_elevation", None), "elevation_range", None)
+    return None if rng is None else (rng[0], round(rng[1] - 0.01, 2))
 
 
 def _height_edit(state: ServeState, nid: str) -> dict:
@@ -396,16 +404,16 @@ def _tip_angle_params(state, r, lid, h, light_cls, tip, top) -> dict:
     except ValueError:
         return {}
     el = round(el, 2)
-    ends = getattr(getattr(light_cls, "tip_at_elevation", None), "elevation_range", None)
-    if ends is not None:     # [lo, hi): a tip within 0.005 deg of hi would round to hi itself
-        el = min(max(el, ends[0]), round(ends[1] - 0.01, 2))
+    ends = _tip_elevation_ends(light_cls)
+    if ends is not None:     # a tip within 0.005 deg of the geometry's hi would round to hi itself
+        el = min(max(el, ends[0]), ends[1])
     out = {f"{lid}.{h['elevation']}": el}
     if "azimuth" in h:
-        out[f"{lid}.{h['azimuth']}"] = round(_azimuth_near(state, lid, h, az), 2)
+        out[f"{lid}.{h['azimuth']}"] = round(_azimuth_in_convention(state, lid, h, az), 2)
     return out
 
 
-def _azimuth_near(state: ServeState, lid: str, h: dict, az: float) -> float:
+def _azimuth_in_convention(state: ServeState, lid: str, h: dict, az: float) -> float:
     """The azimuth ``az`` [deg] (the geometry gives (-180, 180]) written in the
     convention of the light's ``azimuth`` param: in [-180, 180) while the param is
     there, in [0, 360) once it is 180 or more, in [-360, 0) below -180, and within

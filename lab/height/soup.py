@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 
 import numpy as np
 
@@ -142,7 +143,6 @@ def main(argv=None) -> int:
     ck = {"model": {k: v.detach().half() if v.is_floating_point() else v for k, v in model.state_dict().items()},
           "config": json.dumps(cfg), "state": {"soup": True}}
     torch.save(ck, a.out + ".tmp")
-    import os
     os.replace(a.out + ".tmp", a.out)
     print(f"{a.out}: {len(a.members)} member(s), pull {a.pull}, BatchNorm re-estimated on {used} crops")
     return 0
