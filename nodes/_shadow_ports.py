@@ -15,6 +15,10 @@ from ._checks import finite, inside, pixel_heights, same_size
 
 THICKNESS_DOC = "how far a ray may pass behind the cutout surface and still be blocked"
 
+#: pixgraph.Shadow's ``method`` choices, which its preview stand-in (pixgraph.PreviewShadow)
+#: declares too: the preview swap keeps the params the stand-in declares
+SHADOW_METHODS = ("auto", "hard", "soft", "ssn")
+
 
 class ShadowInputs:
     """The cutout, both pixel-height maps, the light and the camera."""

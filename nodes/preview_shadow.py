@@ -5,7 +5,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, param, port
 
 from ._checks import finite_outputs, inside
-from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
+from ._shadow_ports import SHADOW_METHODS, ShadowInputs, check_inputs, thickness_param
 from .ops.lights import light_point
 from .ops.preview_shadow import preview_soft_shadow
 from .ops.softness import softness_of
@@ -32,7 +32,7 @@ class PreviewShadow(Node):
     class Params:
         thickness: float = thickness_param()
         # shared with pixgraph.Shadow, so that its forced hard shadow previews as hard
-        method: str = param("auto", choices=("auto", "hard", "soft", "ssn"),
+        method: str = param("auto", choices=SHADOW_METHODS,
                             doc="the stood-in pixgraph.Shadow's method: hard gives the hard shadow, "
                                 "the others the estimate")
 

@@ -7,7 +7,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import InputError, Node, node, param, port
 
 from ._checks import finite_outputs, inside
-from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
+from ._shadow_ports import SHADOW_METHODS, ShadowInputs, check_inputs, thickness_param
 from .ops import choose as C
 from .ops.softness import softness_of
 from .ops.lights import disk_extremes, disk_samples, light_point
@@ -34,7 +34,7 @@ class Shadow(Node):
         light: T.Light = port(doc="the light; its radius / distance is the softness")
 
     class Params:
-        method: str = param("auto", choices=("auto", "hard", "soft", "ssn"),
+        method: str = param("auto", choices=SHADOW_METHODS,
                             doc="auto: cheapest expected to meet max_rmse; or force one")
         max_rmse: float = param(0.06, min=0.0, max=1.0,
                                 doc="auto's accuracy target: RMSE of darkness against ground truth that at "
