@@ -42,7 +42,8 @@ import math
 
 import numpy as np
 
-CATEGORIES = ("person", "animal", "figurine", "furniture", "product", "vehicle", "organic", "heldout")
+CATEGORIES = ("person", "animal", "figurine", "furniture", "product", "vehicle", "organic", "heldout", "flat",
+              "assembly", "heldout2")
 
 
 class Parts:
