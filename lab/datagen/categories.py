@@ -22,6 +22,16 @@ cylinders, cones, tori, surfaces of revolution, convex prisms):
   creatures whose round head may overhang the body, rounded birds, bath-toy and
   penguin-like figures, fish, random blobs, fruit and gourds, pebbles, cushions,
   bean bags, rounded vases. Generic shapes, none modelled on a test mesh.
+* ``flat`` (training, in no mix: made with ``--category flat``): upright thin things standing
+  on the ground, the main panel's thin side 1-10 % of its width: picture frames on an easel or
+  a rear strut, standing mirrors (on a foot or in a cheval frame), folding screens (2-4 panels)
+  and doors in a free-standing frame, flat screens on a foot, rows of 1-5 upright books (the
+  last may lean), boards on an edge (cutting board, surfboard in a stand, skateboard on its
+  tail), A-frame sandwich boards, pegboards on feet;
+* ``assembly`` (training, in no mix): random assemblies of 2-8 primitives (box, cylinder,
+  ellipsoid, capsule, plate, rod, revolved profile; no rings): a base on the ground or a part
+  on 2-4 legs, further parts stacked on top or sticking out of the sides, part sizes spanning
+  10x; every part is held by a lower one and the whole stands (``is_stable``);
 * ``heldout``: kinds no training mix draws (``real.CATEGORY_P`` and
   ``CATEGORY_P_REAL`` leave it out), for validation on unfamiliar shapes without
   the test split: guitars, dumbbells, kettlebells, fire hydrants, globes on a stand,
@@ -930,6 +940,407 @@ def heldout(rng):
     return P, "heldout/" + kind
 
 
+# ---------------------------------------------------------------- flat things (training)
+def _panel(W, H, t, lean=0.0, at=(0.0, 0.0, 0.0), yaw=0.0, ellipse=False):
+    """A flat panel W wide (x), H high (y), t thick (z) standing on its bottom edge at ``at``,
+    its top leaned back (to -z) by ``lean`` [rad] about the bottom edge, then turned by ``yaw``
+    about the vertical; an elliptic disc when ``ellipse``."""
+    R = rot_y(yaw) @ rot_x(-lean)
+    c = np.asarray(at, float) + R @ np.array([0.0, H / 2, 0.0])
+    if ellipse:
+        return ellipsoid(c, [W / 2, H / 2, t / 2], subdiv=3, R=R)
+    return box(c, [W, H, t], R=R)
+
+
+def flat(rng):
+    """Upright thin or flat things standing on the ground (module doc), built facing +z: the
+    main panel's thin side (z) is 1-10 % of its width; the generator adds the yaw."""
+    u = rng.uniform
+    P = Parts()
+    kind = str(rng.choice(["frame", "mirror", "divider", "screen", "books", "board", "sandwich_board",
+                           "pegboard"]))
+    wood = "wood" if rng.random() < 0.6 else "paint"
+    if kind == "frame":                        # a picture frame on an easel or leaning back on a rear strut
+        W = u(0.3, 0.9)
+        H = W * u(0.6, 1.5)
+        t = min(W, H) * u(0.02, 0.08)
+        lean = math.radians(u(8, 18))
+        if rng.random() < 0.5:                 # easel: two front legs, a rear leg, a ledge
+            ledge = H * u(0.1, 0.6)
+            top = ledge + H * math.cos(lean) * u(0.8, 1.1)
+            for s in (-1, 1):
+                x = s * W * u(0.25, 0.4)
+                P.add(cylinder([x * 1.3, 0, 0.02], [x, top, -top * math.tan(lean)], W * 0.015, 8), "wood")
+            P.add(cylinder([0, 0, -top * u(0.5, 0.8)], [0, top * 0.95, -top * math.tan(lean) - t],
+                           W * 0.015, 8), "wood")
+            P.add(box([0, ledge - 0.02 * H, -ledge * math.tan(lean) + t], [W * 0.9, 0.04 * H, t * 3]), "wood")
+            at = (0, ledge, -ledge * math.tan(lean) + t)
+        else:                                  # on its bottom edge, a strut at the back
+            at = (0, 0, 0)
+            y = H * u(0.4, 0.7)
+            p = rot_x(-lean) @ np.array([0, y, -t / 2])
+            P.add(cylinder(p, [0, 0, p[2] - y * u(0.3, 0.5)], W * 0.012, 8), "wood")
+        P.add(_panel(W, H, t, lean, at), wood)                                       # frame / backing
+        fw = u(0.05, 0.15)
+        P.add(_panel(W * (1 - fw), H * (1 - fw), t * 1.2, lean,
+                     np.asarray(at) + rot_x(-lean) @ np.array([0, H * fw / 2, 0.0])), "paper")  # the picture
+    elif kind == "mirror":
+        W = u(0.35, 0.8)
+        H = W * u(1.3, 3.0)
+        t = W * u(0.02, 0.06)
+        oval = rng.random() < 0.4
+        if rng.random() < 0.5:                 # on a foot: the mirror's bottom edge held in a low stand
+            fh = H * u(0.03, 0.1)
+            P.add(box([0, fh / 2, 0], [W * u(0.6, 1.0), fh, W * u(0.25, 0.45)]), "wood")
+            lean = math.radians(u(0, 8))
+            at = (0, fh * 0.5, 0)
+        else:                                  # a cheval frame: two posts on feet, the mirror between them
+            lift = H * u(0.1, 0.3)
+            top = lift + H * u(0.6, 0.9)
+            for s in (-1, 1):
+                x = s * (W / 2 + W * 0.04)
+                P.add(box([x, top / 2, 0], [W * 0.06, top, W * 0.06]), "wood")
+                P.add(box([x, W * 0.02, 0], [W * 0.1, W * 0.04, W * u(0.4, 0.6)]), "wood")
+                P.add(cylinder([x, lift + H / 2, 0], [x - s * W * 0.06, lift + H / 2, 0], W * 0.02, 8), "metal")
+            lean = math.radians(u(-8, 8))        # turned about its pivot at mid-height
+            at = np.array([0, lift + H / 2, 0]) - rot_x(-lean) @ np.array([0, H / 2, 0])
+        P.add(_panel(W, H, t, lean, at, ellipse=oval), wood)
+        fw = u(0.04, 0.12)
+        P.add(_panel(W * (1 - fw), H * (1 - fw * W / H), t * 1.2, lean,
+                     np.asarray(at) + rot_x(-lean) @ np.array([0, W * fw / 2, 0.0]), ellipse=oval), "glass")
+    elif kind == "divider":                    # a folding screen, 2-4 panels zigzag, or a door in a frame
+        n = int(rng.integers(1, 5))
+        H = u(1.5, 2.1)
+        Wp = H * u(0.2, 0.5)
+        t = Wp * u(0.02, 0.08)
+        if n == 1:                             # a free-standing door in its frame, on flat feet
+            fw = Wp * 0.08
+            P.add(_panel(Wp, H, t), wood)
+            for s in (-1, 1):
+                P.add(box([s * (Wp + fw) / 2, (H + fw) / 2, 0], [fw, H + fw, t * 2]), "wood2")
+                P.add(box([s * (Wp + fw) / 2, fw / 4, 0], [fw * 1.2, fw / 2, Wp * u(0.4, 0.7)]), "wood2")
+            P.add(box([0, H + fw / 2, 0], [Wp + 2 * fw, fw, t * 2]), "wood2")
+            P.add(ellipsoid([Wp * 0.38, H * 0.47, t / 2 + Wp * 0.03], [Wp * 0.04] * 3), "metal")
+            kind = "door"
+        else:
+            a = math.radians(u(20, 55))
+            p = np.zeros(3)
+            mat = [wood, "fabric", "paper"][int(rng.integers(3))]
+            for i in range(n):
+                th = a if i % 2 == 0 else -a
+                d = np.array([math.cos(th), 0.0, math.sin(th)])
+                P.add(box(p + d * Wp / 2 + [0, H / 2, 0], [Wp, H, t], R=rot_y(-th)), mat)
+                p = p + d * (Wp + t)
+    elif kind == "screen":                     # a flat screen / monitor on a foot with a neck
+        W = u(0.4, 1.4)
+        H = W * u(0.5, 0.65)
+        t = W * u(0.01, 0.05)
+        neck = H * u(0.05, 0.5)
+        fd = W * u(0.15, 0.3)
+        if rng.random() < 0.6:
+            P.add(box([0, 0.01 * W, -t], [W * u(0.2, 0.4), 0.02 * W, fd]), "plastic")
+        else:
+            P.add(cylinder([0, 0, -t], [0, 0.02 * W, -t], fd / 2, 20), "plastic")
+        P.add(box([0, (neck + H * 0.4) / 2, -t * 0.9], [W * 0.06, neck + H * 0.4, t * 0.8]), "plastic")
+        P.add(_panel(W, H, t, 0.0, (0, neck, 0)), "plastic")
+        P.add(_panel(W * 0.95, H * 0.9, t * 0.3, 0.0, (0, neck + H * 0.05, t * 0.5)), "glass")
+    elif kind == "books":                      # 1-5 books standing in a row, the last may lean on the others
+        n = int(rng.integers(1, 6))
+        x = 0.0
+        hp = None
+        for i in range(n):
+            h = u(0.18, 0.32)
+            d = h * u(0.65, 0.8)
+            tb = d * u(0.03, 0.1)
+            slot = ["paper", "fabric", "leather", "paint"][int(rng.integers(4))]
+            if i == n - 1 and n > 1 and rng.random() < 0.5:
+                a = math.radians(u(8, 30))
+                g = min(hp * math.tan(a), h * math.sin(a))   # it rests on the neighbour's top edge
+                c = np.array([x + g, 0.0, 0.0]) + rot_z(a) @ np.array([tb / 2, h / 2, 0.0])
+                P.add(box(c, [tb, h, d], R=rot_z(a)), slot)
+            else:
+                P.add(box([x + tb / 2, h / 2, 0], [tb, h, d]), slot)
+            x += tb
+            hp = h
+    elif kind == "board":                      # a board on an edge: cutting board, surfboard, skateboard
+        sub = str(rng.choice(["cutting", "surf", "skate"]))
+        if sub == "cutting":
+            W = u(0.25, 0.5)
+            H = W * u(0.6, 1.5)
+            t = min(W, H) * u(0.04, 0.1)
+            lean = math.radians(u(3, 15))
+            P.add(_panel(W, H, t, lean, ellipse=rng.random() < 0.3), "wood")
+            zb = -0.2 * H * math.tan(lean) - t / 2 / math.cos(lean)   # its back at a fifth of its height
+            P.add(box([0, H * 0.1, zb - H * 0.1], [W * 0.5, H * 0.2, H * 0.2]), "ceramic")   # what it leans on
+        elif sub == "surf":
+            W = u(0.45, 0.6)
+            L = W * u(3.0, 5.0)
+            t = W * u(0.05, 0.1)
+            P.add(box([0, L * 0.04, 0], [W * 0.9, L * 0.08, t * 4]), "wood")                # a stand
+            P.add(_panel(W, L, t, math.radians(u(0, 6)), (0, L * 0.02, 0), ellipse=True), "paint")
+            P.add(box([0, L * 0.2, -t], [t * 0.3, L * 0.08, t * 2]), "plastic")                # fin
+        else:
+            L = u(0.7, 0.85)
+            W = L * u(0.22, 0.28)
+            t = W * u(0.05, 0.08)
+            lean = math.radians(u(0, 6))
+            P.add(_panel(W, L, t, lean), "paint")
+            for yy in (0.18, 0.82):
+                c = rot_x(-lean) @ np.array([0, L * yy, -t * 1.5])
+                P.add(box(c, [W * 0.6, W * 0.1, t * 2]), "metal")
+                for s in (-1, 1):
+                    P.add(cylinder(c + [s * W * 0.3, 0, -t - W * 0.1], c + [s * W * 0.42, 0, -t - W * 0.1],
+                                   W * 0.1, 12), "plastic")
+        kind = "board_" + sub
+    elif kind == "sandwich_board":             # an A-frame: two panels meeting at the top
+        W = u(0.4, 0.8)
+        L = W * u(1.2, 2.0)
+        t = W * u(0.02, 0.06)
+        a = math.radians(u(10, 20))
+        top = L * math.cos(a)
+        for s in (1, -1):
+            R = rot_x(-s * a)
+            c = np.array([0, top, 0]) + R @ np.array([0, -L / 2, 0]) + [0, 0, s * t / 2]
+            P.add(box(c, [W, L, t], R=R), wood)
+            P.add(box(c + R @ np.array([0, 0.05 * L, s * t * 0.6]), [W * 0.85, L * 0.75, t * 0.3], R=R), "paper")
+        P.add(cylinder([-W * 0.45, top - t, 0], [W * 0.45, top - t, 0], t, 10), "metal")
+    else:   # pegboard / a wall-less shelf panel on feet, pegs and small shelves on its front
+        W = u(0.4, 1.2)
+        H = W * u(0.8, 2.5)
+        t = min(W, H) * u(0.015, 0.05)
+        lift = H * u(0.02, 0.15)
+        P.add(_panel(W, H, t, 0.0, (0, lift, 0)), wood)
+        fd = max(W, H) * u(0.2, 0.35)
+        for s in (-1, 1):
+            P.add(box([s * W * 0.4, lift / 2 + 0.01, 0], [W * 0.06, lift + 0.02, fd]), "metal")
+        for k in range(int(rng.integers(0, 8))):
+            p = np.array([u(-0.45, 0.45) * W, lift + u(0.1, 0.9) * H, t / 2])
+            P.add(cylinder(p, p + [0, W * 0.02, W * u(0.04, 0.1)], W * 0.008, 6), "metal")
+        for k in range(int(rng.integers(0, 3))):
+            y = lift + u(0.2, 0.9) * H
+            sd = W * u(0.06, 0.12)
+            P.add(box([0, y, t / 2 + sd / 2], [W * u(0.3, 0.8), W * 0.015, sd]), wood)
+    return P, "flat/" + kind
+
+
+# ---------------------------------------------------------------- random assemblies (training)
+ASSEMBLY_PRIMS = ("box", "cylinder", "ellipsoid", "capsule", "plate", "rod", "revolve")
+ASSEMBLY_SLOTS = ("wood", "wood2", "metal", "metal2", "plastic", "paint", "ceramic", "fabric", "glass")
+
+
+def _prim(kind, w, h, d, rng):
+    """A primitive centred on the origin, about w x h x d (x, y, z); y is the axis of the
+    cylinder, capsule, rod and revolved profile."""
+    u = rng.uniform
+    if kind in ("box", "plate"):
+        return box([0, 0, 0], [w, h, d])
+    if kind == "ellipsoid":
+        return ellipsoid([0, 0, 0], [w / 2, h / 2, d / 2])
+    r = min(w, d) / 2
+    if kind in ("cylinder", "rod"):
+        return cylinder([0, -h / 2, 0], [0, h / 2, 0], r, 16 if kind == "cylinder" else 8)
+    if kind == "capsule":
+        r = min(r, h / 2)
+        return capsule([0, -h / 2 + r, 0], [0, h / 2 - r, 0], r)
+    # revolve: flat bottom and top, 2-3 random radii between
+    ys = np.sort(u(0.1, 0.9, int(rng.integers(2, 4))))
+    prof = [(0.0, 0.0), (r * u(0.4, 1.0), 0.0)] + [(r * u(0.25, 1.0), y * h) for y in ys] \
+        + [(r * u(0.3, 1.0), h), (0.0, h)]
+    m = revolve(prof, 20)
+    m.apply_translation([0, -h / 2, 0])
+    return m
+
+
+def _dims(kind, s, rng, aspect=1.5):
+    """(w, h, d) of a part of size ``s``: random proportions (tall and thin to wide and flat);
+    a plate is thin in one of its axes, a rod thin across its length."""
+    u = rng.uniform
+    w, h, d = s * np.exp(u(-0.6, 0.6)), s * np.exp(u(-aspect, aspect)), s * np.exp(u(-0.6, 0.6))
+    if kind == "plate":
+        k = int(rng.integers(3))
+        dims = [w, h, d]
+        dims[k] = max(dims) * u(0.03, 0.1)
+        return tuple(dims)
+    if kind == "rod":
+        h = s * u(1.0, 2.5)
+        w = d = h * u(0.03, 0.08)
+    return w, h, d
+
+
+def _mass(meshes):
+    """(total volume, centre of mass) of solid parts of uniform density."""
+    vol = np.array([abs(m.volume) for m in meshes])
+    com = np.array([m.center_mass for m in meshes])
+    return vol.sum(), (vol[:, None] * com).sum(0) / max(vol.sum(), 1e-12)
+
+
+def is_stable(meshes, rel_margin=0.02):
+    """Whether parts resting on Y = 0 stand: the centre of mass (uniform density) lies over the
+    convex hull of the vertices touching the ground, ``rel_margin`` of the hull's size inside."""
+    from scipy.spatial import ConvexHull, QhullError
+    V = np.concatenate([np.asarray(m.vertices) for m in meshes])
+    if V[:, 1].min() < -1e-9:
+        return False
+    top = V[:, 1].max()
+    foot = V[V[:, 1] <= 1e-3 * top][:, [0, 2]]
+    if len(foot) < 3:
+        return False
+    try:
+        hull = ConvexHull(foot)
+    except QhullError:
+        return False
+    _, com = _mass(meshes)
+    margin = rel_margin * math.sqrt(hull.volume)   # volume of a 2D hull = its area
+    return bool((hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2]).max() <= -margin)
+
+
+def _axis(m, M, h):
+    """The segment (2, 3) of a primitive's own y axis (``_prim``'s frame, half length h/2) after
+    the transform M: points on it are inside the part."""
+    ends = np.array([[0, -h / 2, 0, 1], [0, h / 2, 0, 1]], float) @ M.T
+    return ends[:, :3]
+
+
+def _frame(dirn):
+    """A rotation taking the y axis to ``dirn``, its x axis level (so a plate lying along a
+    level or rising ``dirn``, thin in z, is level across)."""
+    y = np.asarray(dirn, float) / np.linalg.norm(dirn)
+    ref = np.array([0.0, 1.0, 0.0]) if abs(y[1]) < 0.95 else np.array([1.0, 0.0, 0.0])
+    x = np.cross(y, ref)
+    x /= np.linalg.norm(x)
+    return np.c_[x, y, np.cross(x, y)]
+
+
+def assembly(rng):
+    """A random, physically plausible assembly of 2-8 primitives (module doc): a base resting
+    on the ground or a part held up by 2-4 legs, further parts stacked on top (overhangs
+    allowed) or attached to the sides (arms, cantilevered plates); it stands (``is_stable``)."""
+    u = rng.uniform
+    variant = str(rng.choice(["stack", "legs", "cantilever", "mixed"]))
+    n = int(rng.integers(2, 9))
+    mats = [ASSEMBLY_SLOTS[i] for i in rng.choice(len(ASSEMBLY_SLOTS), int(rng.integers(1, 4)), replace=False)]
+    meshes, slots, axes = [], [], []
+
+    def add(m, M, h):
+        meshes.append(m)
+        slots.append(mats[int(rng.integers(len(mats)))])
+        axes.append(_axis(m, M, h))
+
+    def place(m, R, t):
+        M = np.eye(4)
+        M[:3, :3] = R
+        M[:3, 3] = t
+        m.apply_transform(M)
+        return M
+
+    if variant == "legs":                  # a part held up by 2-4 legs, space under it
+        k = str(rng.choice(["box", "plate", "cylinder", "revolve"]))
+        w, h, d = _dims("box", u(0.5, 1.0), rng, aspect=1.0)
+        if k == "plate":
+            h = max(w, d) * u(0.03, 0.1)
+        hl = math.exp(u(math.log(0.2), math.log(1.2)))
+        top = _prim(k, w, h, d, rng)
+        Mt = place(top, np.eye(3), [0, hl + h / 2, 0])
+        nl = int(rng.integers(2, 5))
+        lk = str(rng.choice(["rod", "box", "cylinder"])) if nl > 2 else str(rng.choice(["plate", "box"]))
+        lr = min(w, d) * u(0.04, 0.12)
+        if k in ("cylinder", "revolve"):
+            rr = min(w, d) / 2 * u(0.3, 0.6)
+            ang = np.arange(nl) * 2 * math.pi / nl + u(0, 2 * math.pi)
+            feet = [(rr * math.cos(a), rr * math.sin(a)) for a in ang]
+        elif nl == 2:
+            feet = [(s * w / 2 * u(0.5, 0.85), 0.0) for s in (-1, 1)]
+        elif nl == 3:
+            feet = [(-w / 2 * 0.8, -d / 2 * 0.8), (w / 2 * 0.8, -d / 2 * 0.8), (0.0, d / 2 * 0.8)]
+        else:
+            fx, fz = w / 2 * u(0.6, 0.9), d / 2 * u(0.6, 0.9)
+            feet = [(sx * fx, sz * fz) for sx in (-1, 1) for sz in (-1, 1)]
+        splay = u(0.0, 0.3) if rng.random() < 0.5 else 0.0
+        ytop = hl + 0.4 * h                  # into the held part, below its middle
+        for fx, fz in feet:
+            b = np.array([fx * (1 + splay), 0.0, fz * (1 + splay)])
+            t = np.array([fx, ytop, fz])
+            L = float(np.linalg.norm(t - b))
+            if lk == "plate":               # a slab leg across the part's depth
+                m = box([0, 0, 0], [lr * 0.5, L, d * u(0.5, 0.9)])
+            elif lk == "box":
+                m = box([0, 0, 0], [lr, L, lr if nl > 2 else d * u(0.3, 0.8)])
+            else:
+                m = cylinder([0, -L / 2, 0], [0, L / 2, 0], lr / 2, 8 if lk == "rod" else 14)
+            M = place(m, _frame(t - b), (t + b) / 2)
+            dy = -m.bounds[0][1]             # its lowest point on the ground
+            m.apply_translation([0, dy, 0])
+            M[1, 3] += dy
+            add(m, M, L)
+        add(top, Mt, h)
+        if not is_stable(meshes):           # rare: a top too heavy for its legs; a plain base instead
+            meshes.clear(), slots.clear(), axes.clear()
+            variant = "mixed"
+    if not meshes:                           # a base resting on the ground
+        k = str(rng.choice(["box", "cylinder", "revolve", "plate", "prism"]))
+        w, h, d = _dims("box", u(0.4, 1.0), rng)
+        if k == "prism":                     # a flat-bottomed convex profile extruded along x
+            m = prism([(-d / 2, 0), (d / 2, 0), (u(0.0, 0.5) * d, h * u(0.5, 1.0)), (u(-0.5, 0.0) * d, h)],
+                      -w / 2, w / 2)
+            c = np.asarray(m.vertices).mean(0)
+            M = np.eye(4)
+            M[:3, 3] = [c[0], c[1] / 2, c[2]]   # axis: from half-way up the centroid's height...
+            add(m, M, c[1])                      # ...to the centroid (inside: the prism is convex)
+        else:
+            if k == "plate":
+                dims = [w, h, d]
+                dims[int(rng.integers(3))] = max(dims) * u(0.03, 0.1)
+                w, h, d = dims
+            m = _prim(k, w, h, d, rng)
+            add(m, place(m, np.eye(3), [0, h / 2, 0]), h)
+    p_side = {"stack": 0.15, "legs": 0.3, "cantilever": 0.7, "mixed": 0.5}[variant]
+    for attempt in range(6 * n):
+        if len(meshes) >= n:
+            break
+        k = str(rng.choice(ASSEMBLY_PRIMS))
+        w, h, d = _dims(k, math.exp(u(math.log(0.1), 0.0)), rng)   # part sizes spanning 10x
+        j = int(rng.integers(len(meshes)))
+        Vq = np.asarray(meshes[j].vertices)
+        lo, hi = Vq.min(0), Vq.max(0)
+        if rng.random() < p_side:          # attached to a side: from inside the part outwards, level or up
+            el = math.radians(u(0, 50)) if rng.random() < 0.6 else 0.0
+            az = u(0, 2 * math.pi)
+            dirn = np.array([math.cos(el) * math.cos(az), math.sin(el), math.cos(el) * math.sin(az)])
+            a0, a1 = axes[j]
+            a = a0 + (a1 - a0) * u(0.3, 0.8)
+            L = float(np.linalg.norm((hi - lo)[[0, 2]])) / 2 + h * u(0.4, 1.0)
+            if k == "plate":                # a cantilevered plate, lying level along the arm
+                w, d = max(w, d), min(w, d, h)
+            m = _prim(k, w, L, d, rng)
+            M = place(m, _frame(dirn), a + dirn * L / 2)
+            hk = L
+        else:                               # stacked on the top of a part (may overhang it)
+            topv = Vq[Vq[:, 1] >= hi[1] - 0.05 * (hi[1] - lo[1])]
+            c = topv.mean(0)
+            spread = (topv.max(0) - topv.min(0)) / 2
+            m = _prim(k, w, h, d, rng)
+            R = np.eye(3)
+            if k in ("capsule", "rod", "cylinder") and rng.random() < 0.3:   # lying on it
+                R = rot_y(u(0, math.pi)) @ rot_z(math.pi / 2)
+            mlo = float((np.asarray(m.vertices) @ R.T)[:, 1].min())
+            hm = float((np.asarray(m.vertices) @ R.T)[:, 1].max()) - mlo
+            sink = min(0.1 * (hi[1] - lo[1]), 0.2 * hm)
+            M = place(m, R, [c[0] + u(-0.5, 0.5) * spread[0], hi[1] - sink - mlo, c[2] + u(-0.5, 0.5) * spread[2]])
+            hk = h
+        if m.bounds[0][1] <= lo[1] or not is_stable(meshes + [m]):   # held from below: not hanging under
+            continue                                                   # its part, nor in the ground
+        add(m, M, hk)
+    if len(meshes) < 2:                      # a small part centred on the top (always stands)
+        q = np.asarray(meshes[0].vertices)
+        c = q[q[:, 1] >= q[:, 1].max() - 1e-9].mean(0)
+        m = box([0, 0, 0], [0.1] * 3)
+        add(m, place(m, np.eye(3), [c[0], q[:, 1].max() + 0.04, c[2]]), 0.1)
+    P = Parts()
+    for m, s in zip(meshes, slots):
+        P.add(m, s)
+    return P, "assembly/" + variant
+
+
 def make_object(category: str, rng: np.random.Generator):
     """(V, F, face material slot, slot names, kind) of a random object of ``category`` (module doc)."""
     if category == "person":
@@ -950,6 +1361,10 @@ def make_object(category: str, rng: np.random.Generator):
         P, kind = organic(rng)
     elif category == "heldout":
         P, kind = heldout(rng)
+    elif category == "flat":
+        P, kind = flat(rng)
+    elif category == "assembly":
+        P, kind = assembly(rng)
     else:
         raise ValueError(f"unknown category {category!r}; known: {', '.join(CATEGORIES)}")
     V, F, L, names = P.build()

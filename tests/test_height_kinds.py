@@ -1,0 +1,140 @@
+"""The ``flat`` and ``assembly`` training categories (eighth session): upright thin things
+and random assemblies of primitives. Invariants over many seeds: a flat object's main panel
+is thin and upright; an assembly's parts hold together, each rests on the ground or is held by
+a lower part, and the whole stands (its centre of mass over its footprint)."""
+import numpy as np
+import pytest
+
+pytest.importorskip("trimesh")
+pytest.importorskip("scipy")
+
+from pixgraph_lab.datagen.categories import CATEGORIES, make_object  # noqa: E402
+
+FLAT_KINDS = {"frame", "mirror", "divider", "door", "screen", "books", "board_cutting", "board_surf",
+              "board_skate", "sandwich_board", "pegboard"}
+ASSEMBLY_VARIANTS = {"stack", "legs", "cantilever", "mixed"}
+
+
+def parts_of(V, F):
+    """The vertex index arrays of the mesh's connected pieces (each primitive is one: ``Parts``
+    does not weld vertices across parts)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]])
+    g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(V), len(V)))
+    n, lab = connected_components(g, directed=False)
+    used = np.zeros(len(V), bool)
+    used[F.ravel()] = True
+    return [np.nonzero((lab == k) & used)[0] for k in range(n) if ((lab == k) & used).any()]
+
+
+def test_new_categories_keep_the_fixed_order_and_are_in_no_mix():
+    from pixgraph_lab.height import real
+    assert CATEGORIES[:8] == ("person", "animal", "figurine", "furniture", "product", "vehicle", "organic",
+                              "heldout")
+    assert CATEGORIES.index("flat") == 8 and CATEGORIES.index("assembly") == 9
+    for c in ("flat", "assembly"):
+        assert c not in real.CATEGORY_P and c not in real.CATEGORY_P_REAL
+
+
+def test_flat_objects_have_a_thin_upright_main_panel_and_every_kind_is_drawn():
+    import trimesh
+    kinds = set()
+    for s in range(200):
+        V, F, L, names, kind = make_object("flat", np.random.default_rng([s, 21]))
+        cat, k = kind.split("/")
+        assert cat == "flat" and k in FLAT_KINDS, kind
+        kinds.add(k)
+        assert V[:, 1].min() == 0.0 and L.shape == (len(F),)
+        # the main panel: the piece of the largest surface area
+        pieces = parts_of(V, F)
+        areas = []
+        for idx in pieces:
+            sel = np.isin(F, idx).all(1)
+            areas.append(trimesh.Trimesh(V, F[sel], process=False).area)
+        main = V[pieces[int(np.argmax(areas))]]
+        T, ext = trimesh.bounds.oriented_bounds(main)
+        order = np.argsort(ext)
+        thin, width = ext[order[0]], ext[order[1]]
+        assert thin < 0.15 * width, (s, kind, ext)
+        # upright: the panel's thin axis is near level (leaning back at most ~30 deg)
+        normal = np.linalg.inv(T)[:3, order[0]]
+        assert abs(normal[1]) < 0.5, (s, kind, normal)
+        # facing the camera before the generator's yaw: across the main panel, thin in z
+        if k not in ("books", "divider"):      # a row of books and a zigzag screen turn their panels
+            assert abs(normal[2]) > 0.8, (s, kind, normal)
+    assert kinds == FLAT_KINDS
+
+
+def _boxes(V, pieces):
+    return np.array([[V[i].min(0), V[i].max(0)] for i in pieces])
+
+
+def _overlap(a, b, tol):
+    return bool((a[0] <= b[1] + tol).all() and (b[0] <= a[1] + tol).all())
+
+
+def test_assemblies_hold_together_rest_on_something_and_stand():
+    from scipy.spatial import ConvexHull
+    import trimesh
+    variants, counts = set(), set()
+    for s in range(200):
+        V, F, L, names, kind = make_object("assembly", np.random.default_rng([s, 22]))
+        cat, var = kind.split("/")
+        assert cat == "assembly" and var in ASSEMBLY_VARIANTS, kind
+        variants.add(var)
+        pieces = parts_of(V, F)
+        counts.add(len(pieces))
+        assert 2 <= len(pieces) <= 8, (s, kind, len(pieces))
+        size = np.ptp(V, 0).max()
+        tol = 1e-3 * size
+        B = _boxes(V, pieces)
+        # one connected structure: the parts' boxes, joined where they touch, form one group
+        n = len(pieces)
+        seen, todo = {0}, [0]
+        while todo:
+            i = todo.pop()
+            for j in range(n):
+                if j not in seen and _overlap(B[i], B[j], tol):
+                    seen.add(j)
+                    todo.append(j)
+        assert len(seen) == n, (s, kind)
+        # held from below: every part off the ground is embedded in (its box overlaps by a
+        # positive depth) a part whose lowest point is lower, so a chain of parts reaches the ground
+        for i in range(n):
+            if B[i, 0, 1] <= tol:
+                continue
+            assert any(B[j, 0, 1] < B[i, 0, 1] and
+                       (np.minimum(B[i, 1], B[j, 1]) - np.maximum(B[i, 0], B[j, 0])).min() > 0
+                       for j in range(n) if j != i), (s, kind, i)
+        # it stands: the centre of mass (uniform density, from the closed parts' volumes) lies
+        # inside the convex hull of the points on the ground
+        vol, mom = 0.0, np.zeros(3)
+        for idx in pieces:
+            sel = np.isin(F, idx).all(1)
+            m = trimesh.Trimesh(V, F[sel], process=False)
+            m.remove_unreferenced_vertices()
+            assert m.is_watertight and m.euler_number == 2, (s, kind)   # closed, no hole (no ring)
+            vol += abs(m.volume)
+            mom += abs(m.volume) * m.center_mass
+        com = mom / vol
+        hull = ConvexHull(V[V[:, 1] <= tol][:, [0, 2]])
+        assert (hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2]).max() < 0, (s, kind)
+    assert variants == ASSEMBLY_VARIANTS
+    assert min(counts) == 2 and max(counts) >= 7
+
+
+def test_a_flat_sample_renders_and_is_deterministic():
+    pytest.importorskip("mitsuba")
+    from pixgraph_lab.datagen.raycast import select_variant
+    from pixgraph_lab.height import generate
+    select_variant()
+    for cat in ("flat", "assembly"):
+        arrays, meta = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
+        assert meta["category"] == cat and meta["object"].startswith(cat + "/")
+        mask, h = arrays["mask"], arrays["height"].astype(float)
+        assert mask.sum() > 0.004 * 64 * 64
+        assert (h[~mask] == 0).all() and (h[mask] > 0).all()
+        again, _ = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
+        for k in arrays:
+            assert np.array_equal(again[k], arrays[k]), (cat, k)
