@@ -1082,9 +1082,10 @@ def heldout2(rng):
     else:  # bird_bath: a revolved pedestal and a shallow bowl on top
         hp, rs = u(0.45, 0.8), u(0.04, 0.08)
         r0 = rs * u(2.0, 3.0)
-        P.add(revolve([(0, 0), (r0, 0), (r0 * 0.9, hp * 0.06), (rs * 1.3, hp * 0.15), (rs, hp * 0.5),
-                       (rs * u(1.0, 1.4), hp * 0.85), (rs * u(1.8, 2.6), hp), (0, hp)], 20), "stone")
         rb, bd = u(0.22, 0.4), u(0.05, 0.1)
+        P.add(revolve([(0, 0), (r0, 0), (r0 * 0.9, hp * 0.06), (rs * 1.3, hp * 0.15), (rs, hp * 0.5),
+                       (rs * u(1.0, 1.4), hp * 0.85), (min(rs * u(1.3, 1.8), rb * 0.35), hp), (0, hp)], 20),
+              "stone")
         P.add(revolve([(0, hp), (rb * 0.35, hp), (rb, hp + bd), (rb * 0.93, hp + bd), (0, hp + bd * 0.35)], 28),
               "stone")
         if rng.random() < 0.4:                # on a square plinth
