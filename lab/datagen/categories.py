@@ -1341,6 +1341,169 @@ def assembly(rng):
     return P, "assembly/" + variant
 
 
+# ---------------------------------------------------------------- a second set held out of training
+HELDOUT2_KINDS = ("traffic_cone", "fire_extinguisher", "mailbox", "birdhouse", "park_bench", "wheelbarrow",
+                  "rocking_horse", "bird_bath")
+
+
+def heldout2(rng):
+    """A kind of the second held-out set (module doc): no training mix draws it and no
+    model had been run on it when the eighth session's judging rule was fixed. Each
+    stands on the ground in its natural pose; units are metres-like (the generator rescales)."""
+    u = rng.uniform
+    P = Parts()
+    kind = str(rng.choice(list(HELDOUT2_KINDS)))
+    if kind == "traffic_cone":                # square foot plate, a cone, reflective bands
+        h = u(0.45, 0.9)
+        s, t = h * u(0.5, 0.65), h * u(0.03, 0.06)
+        P.add(box([0, t / 2, 0], [s, t, s]), "plastic")
+        rb, rt = s * u(0.33, 0.43), s * u(0.04, 0.08)
+        P.add(revolve([(0, t), (rb, t), (rt, h), (0, h)], 20), "plastic")
+        for k in range(int(rng.integers(0, 3))):    # 0-2 bands just outside the cone's surface
+            y0 = t + (h - t) * (0.3 + 0.25 * k + u(0, 0.05))
+            y1 = y0 + (h - t) * u(0.07, 0.12)
+            r_at = lambda y: (rb + (rt - rb) * (y - t) / (h - t)) * 1.03 + 0.002  # noqa: E731
+            P.add(revolve([(0, y0), (r_at(y0), y0), (r_at(y1), y1), (0, y1)], 20), "band")
+    elif kind == "fire_extinguisher":         # cylinder body, domed top, valve, carry handle, hose
+        r, h = u(0.06, 0.1), u(0.3, 0.55)
+        P.add(cylinder([0, 0, 0], [0, h, 0], r, 20), "paint")
+        dome = r * u(0.5, 0.8)
+        P.add(ellipsoid([0, h, 0], [r, dome, r]), "paint")
+        top = h + dome
+        P.add(cylinder([0, top - r * 0.2, 0], [0, top + r * 0.6, 0], r * 0.28, 10), "metal")
+        lever = rot_x(u(-0.35, 0.05))
+        P.add(box(np.array([0, top + r * 0.75, -r * 0.2]), [r * 0.28, r * 0.12, r * 1.7], R=lever), "metal")
+        P.add(box([0, top + r * 0.45, -r * 0.3], [r * 0.26, r * 0.1, r * 1.5]), "metal")
+        a = np.array([0, top + r * 0.35, r * 0.25])
+        b = np.array([0, top + r * 0.1, r * 1.25])
+        c = np.array([u(-0.3, 0.3) * r, h * u(0.35, 0.6), r * 1.2])
+        for p, q in ((a, b), (b, c)):
+            P.add(capsule(p, q, r * 0.1, 6), "hose")
+        P.add(cylinder(c, c + [0, -r * 0.5, 0], r * 0.15, 8), "hose")
+    elif kind == "mailbox":                   # a (rounded-top) box on a post, with a foot or in the ground
+        hp, pw = u(0.8, 1.15), u(0.06, 0.1)
+        if rng.random() < 0.5:
+            P.add(box([0, hp / 2, 0], [pw, hp, pw]), "wood")
+        else:
+            P.add(cylinder([0, 0, 0], [0, hp, 0], pw / 2, 12), "wood")
+        if rng.random() < 0.5:                # a foot plate; otherwise the post goes into the ground
+            P.add(box([0, 0.01, 0], [pw * u(3, 5), 0.02, pw * u(3, 5)]), "metal")
+        w, d = u(0.16, 0.28), u(0.3, 0.5)
+        P.add(box([0, hp + 0.01, 0], [w * 0.8, 0.02, d * 0.9]), "wood")
+        y0 = hp + 0.02
+        if rng.random() < 0.5:                # rounded top: a half-cylinder along the box's length
+            hb = w / 2 * u(1.0, 1.5)
+            P.add(box([0, y0 + hb / 2, 0], [w, hb, d]), "box")
+            P.add(cylinder([0, y0 + hb, -d / 2], [0, y0 + hb, d / 2], w / 2, 16), "box")
+            hbox = hb + w / 2
+        else:
+            hbox = u(0.18, 0.3)
+            P.add(box([0, y0 + hbox / 2, 0], [w, hbox, d]), "box")
+        P.add(box([w / 2 + 0.01, y0 + hbox * 0.45, -d * 0.2], [0.01, hbox * 0.5, 0.02]), "flag")
+        P.add(box([w / 2 + 0.01, y0 + hbox * 0.65, -d * 0.1], [0.01, hbox * 0.18, d * 0.2]), "flag")
+    elif kind == "birdhouse":                 # a small house with a pitched roof and a perch, on a pole
+        hp, pr = u(0.9, 1.6), u(0.015, 0.03)
+        P.add(cylinder([0, 0, 0], [0, hp, 0], pr, 10), "pole")
+        if rng.random() < 0.5:                # a round foot; otherwise staked in the ground
+            P.add(cylinder([0, 0, 0], [0, 0.025, 0], pr * u(5, 8), 16), "pole")
+        w, hh, d = u(0.14, 0.25), u(0.15, 0.28), u(0.14, 0.25)
+        P.add(box([0, hp + hh / 2, 0], [w, hh, d]), "wood")
+        ov, rh = u(0.02, 0.05), u(0.6, 1.0) * d / 2
+        yr = hp + hh
+        P.add(prism([(-d / 2 - ov, yr), (d / 2 + ov, yr), (0, yr + rh)], -w / 2 - ov, w / 2 + ov), "roof")
+        hole = w * u(0.12, 0.2)               # entrance hole and perch on the gable (+x) face
+        yh = hp + hh * u(0.55, 0.7)
+        P.add(cylinder([w / 2 - 0.002, yh, 0], [w / 2 + 0.004, yh, 0], hole, 12), "hole")
+        P.add(cylinder([w / 2, yh - hole * 2, 0], [w / 2 + u(0.04, 0.08), yh - hole * 2, 0], 0.006, 6), "pole")
+    elif kind == "park_bench":                # seat and back slats on 2-3 side supports
+        L, hs, sd = u(1.1, 2.0), u(0.4, 0.48), u(0.36, 0.5)
+        n_seat, t = int(rng.integers(3, 6)), u(0.025, 0.04)
+        gap = sd / n_seat
+        for k in range(n_seat):
+            P.add(box([0, hs - t / 2, -sd / 2 + gap * (k + 0.5)], [L, t, gap * 0.8]), "wood")
+        lean = math.radians(u(8, 20))
+        hbk, n_back = u(0.3, 0.5), int(rng.integers(2, 4))
+        Rb = rot_x(-lean)                     # the back leans away from the front (+z)
+        base = np.array([0, hs + 0.05, -sd / 2])
+        for k in range(n_back):
+            c = base + Rb @ np.array([0, hbk * (k + 0.5) / n_back, 0])
+            P.add(box(c, [L, hbk / n_back * 0.7, t], R=Rb), "wood")
+        n_sup = 3 if (L > 1.5 and rng.random() < 0.6) else 2
+        leg = u(0.04, 0.07)
+        for x in np.linspace(-L / 2 + 0.1, L / 2 - 0.1, n_sup):
+            for z in (-sd / 2 + leg / 2, sd / 2 - leg / 2):
+                P.add(box([x, (hs - t) / 2, z], [leg * 0.6, hs - t, leg]), "metal")
+            P.add(box([x, hs - t - 0.02, 0], [leg * 0.6, 0.04, sd]), "metal")
+            P.add(box(base + [x, 0, 0] + Rb @ np.array([0, hbk / 2 - 0.03, 0]), [leg * 0.6, hbk + 0.06, leg],
+                      R=Rb), "metal")
+            if n_sup == 2 and rng.random() < 0.6:    # armrests on the end supports
+                P.add(box([x, hs + 0.22, 0], [leg * 0.8, 0.03, sd * 0.9]), "metal")
+                P.add(box([x, hs + 0.11, sd / 2 - leg], [leg * 0.6, 0.22, leg * 0.6]), "metal")
+    elif kind == "wheelbarrow":               # tray, one wheel at the front (+z), two legs and handles behind
+        wr, tl, tw = u(0.15, 0.21), u(0.6, 0.85), u(0.5, 0.7)
+        td, gl, yh = u(0.18, 0.3), u(0.35, 0.5), u(0.5, 0.68)
+        zf, zb = tl / 2, tl / 2 + gl
+        P.add(cylinder([-u(0.03, 0.05), wr, zf], [u(0.03, 0.05), wr, zf], wr, 18), "tyre")
+        y_at = lambda z: wr + (yh - wr) * (zf - z) / (zf + zb)  # noqa: E731  (the handle's height)
+        yb = y_at(-tl / 2) + 0.03
+        hx = tw * 0.3
+        for sx in (-1, 1):
+            P.add(capsule([sx * 0.05, wr, zf], [sx * hx, yh, -zb], 0.018, 6), "metal")
+            zl = -tl * u(0.2, 0.35)
+            P.add(capsule([sx * hx * 0.9, 0.0, zl], [sx * hx * 0.9, y_at(zl), zl], 0.016, 6), "metal")
+            P.add(capsule([sx * 0.05, wr, zf], [sx * hx * 0.7, yb, zf - tl * 0.3], 0.014, 6), "metal")
+            P.add(capsule([sx * hx, yh, -zb], [sx * hx, yh, -zb + 0.12], 0.025, 6), "grip")
+        bw, bl = tw * 0.7, tl * 0.7
+        P.add(box([0, yb + 0.01, 0], [bw, 0.02, bl]), "tray")
+        a, b = math.radians(u(15, 30)), math.radians(u(20, 40))
+        for sx in (-1, 1):
+            P.add(box([sx * (bw / 2 + td * math.tan(a) / 2), yb + td / 2, 0], [0.02, td / math.cos(a), tl * 0.85],
+                      R=rot_z(-sx * a)), "tray")
+            P.add(box([0, yb + td / 2, sx * (bl / 2 + td * math.tan(b) / 2)], [tw * 0.85, td / math.cos(b), 0.02],
+                      R=rot_x(sx * b)), "tray")
+    elif kind == "rocking_horse":             # a horse of ellipsoids and capsules on two curved rockers
+        R, span, hw = u(1.0, 1.8), u(0.8, 1.2), u(0.15, 0.22)
+        T = math.asin(span / 2 / R)
+        rk = lambda z: R - math.sqrt(R * R - z * z)  # noqa: E731  (the rocker's height at z)
+        ts = np.linspace(-T, T, 9)
+        for sx in (-1, 1):
+            pts = [np.array([sx * hw, R - R * math.cos(a), R * math.sin(a)]) for a in ts]
+            for p, q in zip(pts[:-1], pts[1:]):
+                P.add(capsule(p, q, u(0.015, 0.025), 6), "wood")
+        for z in (-span * 0.3, span * 0.3):
+            P.add(cylinder([-hw, rk(z) + 0.02, z], [hw, rk(z) + 0.02, z], 0.015, 8), "wood")
+        yb, bl, bw, bh = u(0.5, 0.7), u(0.28, 0.4), u(0.1, 0.14), u(0.12, 0.17)
+        P.add(ellipsoid([0, yb, 0], [bw, bh, bl]), "body")
+        for sx in (-1, 1):
+            for sz in (-1, 1):
+                z = sz * bl * u(0.5, 0.7)
+                foot = np.array([sx * hw, rk(z * 1.3) + 0.02, z * 1.3])
+                P.add(capsule([sx * bw * 0.55, yb - bh * 0.4, z], foot, u(0.025, 0.035), 6), "body")
+        neck0 = np.array([0, yb + bh * 0.5, bl * 0.7])
+        neck1 = neck0 + np.array([0, u(0.18, 0.28), u(0.05, 0.14)])
+        P.add(capsule(neck0, neck1, bw * 0.6, 8), "body")
+        hl = u(0.12, 0.18)
+        P.add(ellipsoid(neck1 + [0, 0, hl * 0.5], [bw * 0.5, bw * 0.55, hl], R=rot_x(u(0.2, 0.6))), "body")
+        for sx in (-1, 1):
+            P.add(capsule(neck1 + [sx * bw * 0.3, bw * 0.4, 0], neck1 + [sx * bw * 0.35, bw * 0.4 + 0.06, -0.01],
+                          0.012, 5), "body")
+        P.add(capsule(neck0 + [0, bh * 0.3, -0.04], neck1 + [0, bw * 0.5, -0.05], 0.02, 5), "mane")
+        P.add(capsule([0, yb + bh * 0.3, -bl * 0.95], [0, yb - bh * u(0.5, 1.2), -bl * 1.2], 0.02, 5), "mane")
+        P.add(ellipsoid([0, yb + bh * 0.9, -bl * 0.1], [bw * 1.05, bh * 0.25, bl * 0.35]), "saddle")
+    else:  # bird_bath: a revolved pedestal and a shallow bowl on top
+        hp, rs = u(0.45, 0.8), u(0.04, 0.08)
+        r0 = rs * u(2.0, 3.0)
+        rb, bd = u(0.22, 0.4), u(0.05, 0.1)
+        P.add(revolve([(0, 0), (r0, 0), (r0 * 0.9, hp * 0.06), (rs * 1.3, hp * 0.15), (rs, hp * 0.5),
+                       (rs * u(1.0, 1.4), hp * 0.85), (min(rs * u(1.3, 1.8), rb * 0.35), hp), (0, hp)], 20),
+              "stone")
+        P.add(revolve([(0, hp), (rb * 0.35, hp), (rb, hp + bd), (rb * 0.93, hp + bd), (0, hp + bd * 0.35)], 28),
+              "stone")
+        if rng.random() < 0.4:                # on a square plinth
+            P.add(box([0, -0.03, 0], [r0 * 2.4, 0.06, r0 * 2.4]), "stone2")
+    return P, "heldout2/" + kind
+
+
 def make_object(category: str, rng: np.random.Generator):
     """(V, F, face material slot, slot names, kind) of a random object of ``category`` (module doc)."""
     if category == "person":
@@ -1365,6 +1528,8 @@ def make_object(category: str, rng: np.random.Generator):
         P, kind = flat(rng)
     elif category == "assembly":
         P, kind = assembly(rng)
+    elif category == "heldout2":
+        P, kind = heldout2(rng)
     else:
         raise ValueError(f"unknown category {category!r}; known: {', '.join(CATEGORIES)}")
     V, F, L, names = P.build()
