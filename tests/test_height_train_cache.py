@@ -50,3 +50,37 @@ def test_cache_grows_with_the_snapshot(tmp_path, monkeypatch):
     again = train.load_split(str(tmp_path), "train", 16)        # unchanged: read from the cache
     np.testing.assert_array_equal(again["x"], grown["x"])
     assert calls == []                                          # nothing cropped again
+
+
+def test_training_batches_are_the_host_indexed_crops(tmp_path, monkeypatch):
+    """train.main holds the crops on the training device and gathers each step's batch
+    there (eighth session): the batches handed to ``augment`` are exactly the float32
+    crops that indexing the host arrays with the same seeded rng gives, step after step,
+    across a resume (the rng state is restored from ``last.pt``)."""
+    import torch
+    for split, ks in (("train", (0, 1, 2, 3, 4)), ("val", (5,))):
+        (tmp_path / split).mkdir()
+        for k in ks:
+            write_sample(tmp_path / split / f"{k:05d}.npz", k)
+    seen = []
+    real = train.augment
+
+    def recording(x, t, w, gen):
+        seen.append(tuple(v.detach().cpu().clone() for v in (x, t, w)))
+        return real(x, t, w, gen)
+
+    monkeypatch.setattr(train, "augment", recording)
+    args = ["--data", str(tmp_path), "--out", str(tmp_path / "run"), "--size", "16", "--base", "4",
+            "--levels", "2", "--batch", "3", "--steps", "4", "--val-every", "2", "--seed", "7"]
+    assert train.main(args + ["--minutes", "0"]) == 0     # one step, then a checkpoint
+    assert train.main(args) == 0                          # resumed: steps 2-4
+    host = train.load_split(str(tmp_path), "train", 16)
+    rng = np.random.default_rng(7)
+    assert len(seen) == 4
+    for x, t, w in seen:
+        idx = rng.integers(5, size=3)
+        for got, k in ((x, "x"), (t, "t"), (w, "w")):
+            assert got.dtype == torch.float32
+            np.testing.assert_array_equal(got.numpy(), host[k][idx].astype(np.float32))
+    # the five crops differ, so a batch drawn with other indices would not match
+    assert len({host["x"][i].tobytes() for i in range(5)}) == 5
