@@ -138,3 +138,23 @@ def test_a_flat_sample_renders_and_is_deterministic():
         again, _ = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
         for k in arrays:
             assert np.array_equal(again[k], arrays[k]), (cat, k)
+
+
+def test_is_stable_on_boxes_with_a_known_centre_of_mass():
+    """``categories.is_stable`` on cases worked by hand: a base 1 x 0.1 x 1 with a block of
+    the same volume held at x = X above it has its centre of mass at x = X / 2 over a unit
+    square of ground contacts (margin 0.02 x sqrt(area) = 0.02); sunk below the ground, or
+    on an edge (fewer than three ground points), nothing stands."""
+    from pixgraph_lab.datagen.categories import box, is_stable
+    base = lambda: box([0, 0.05, 0], [1, 0.1, 1])                   # noqa: E731
+    block = lambda X: box([X, 0.35, 0], [0.2, 0.5, 1])               # noqa: E731  (volume 0.1, y 0.1-0.6)
+    assert is_stable([base()])
+    assert is_stable([base(), block(0.9)])                           # centre at 0.45: inside by 0.05
+    assert not is_stable([base(), block(0.98)])                      # at 0.49: inside, but by < 0.02
+    assert is_stable([base(), block(0.98)], rel_margin=0.0)
+    assert not is_stable([base(), block(1.1)], rel_margin=0.0)       # at 0.55: outside the foot
+    assert not is_stable([box([0, 0.45, 0], [1, 1, 1])])              # 0.05 below the ground
+    from pixgraph_lab.datagen.categories import prism
+    edge = prism([(-0.5, 0.5), (0.5, 0.5), (0.0, 0.0)], -0.5, 0.5)   # a wedge standing on its edge
+    assert not is_stable([edge])                                     # two ground points: no area
+    assert is_stable([prism([(-0.5, 0.0), (0.5, 0.0), (0.0, 0.5)], -0.5, 0.5)])   # on its face
