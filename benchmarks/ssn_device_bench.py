@@ -4,10 +4,16 @@
 
 For the CPU and, where torch finds one, the first CUDA device (the choice
 ``PIXGRAPH_TORCH_DEVICE`` makes, ``nodes/ops/ssn.inference_device``), it runs
-``ssn.predict`` on one fixed input (the buffer channels of a seeded scene-like
-input: a disc-shaped cutout's pixel heights, its hard shadow and a ground plane
-at ``--size``^2) and reports the median and min over ``--runs`` after two
-warm-ups, and the largest difference of each device's darkness from the CPU's.
+``ssn.predict`` on one fixed input at ``--size``^2 (``scene_buffers``: each channel
+the network reads filled by its name, not by the renderer: the disc's 0/1 mask for
+a name with "mask", "cutout" or "alpha" -- so ``cutout_height`` gets the mask --,
+an ellipse of hard shadow beside it for "shadow" / "hard", the disc's pixel
+heights for "height", "dist" or "ph" -- so ``relative_distance`` gets them --,
+small smooth values otherwise, each plus seeded noise) and reports the median and
+min over ``--runs`` after two warm-ups, and the largest difference of each
+device's darkness from the CPU's. The input only has to be the same on every
+device; ``benchmarks/ssn_bench.py`` times the node on the example scene's real
+buffers (it needs OpenCL).
 Needs torch only (no OpenCL), so it runs on a GPU machine with the repo's
 ``nodes`` importable as ``pixgraph_nodes``. Nothing here is asserted by the tests.
 """
@@ -27,8 +33,9 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def scene_buffers(channels, size: int) -> dict[str, np.ndarray]:
-    """Plausible values for every channel the network reads: a disc cutout standing
-    on a ground plane, its pixel heights (px), a hard shadow to its right."""
+    """A value for every channel in ``channels``, chosen by the channel's name (module
+    doc; the first rule that matches wins): a disc standing on the ground, its pixel
+    heights [px], an ellipse of hard shadow to its right, seeded noise of 1e-3."""
     yy, xx = np.mgrid[0:size, 0:size].astype(np.float32)
     r = size * 0.18
     cx, cy = size * 0.45, size * 0.55
@@ -61,7 +68,9 @@ def main(argv=None) -> int:
     model = ssn.load_model(a.weights)
     buffers = scene_buffers(model.config.channels, a.size)
     devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
-    print(f"torch {torch.__version__}; CUDA: {torch.cuda.get_device_name(0) if torch.cuda.is_available() else 'none'}; "
+    from _machine import cpu_model              # benchmarks/ (on sys.path when run as a script)
+    cuda = torch.cuda.get_device_name(0) if torch.cuda.is_available() else "none"
+    print(f"{cpu_model()}; torch {torch.__version__}; CUDA: {cuda}; "
           f"CPU threads for inference {ssn.inference_threads()}; input {a.size}^2, channels {model.config.channels}")
     ref = None
     for dev in devices:
