@@ -66,13 +66,19 @@ PATHS = {
 }
 
 
-def upper_bound(diff, n_boot: int = 10000, seed: int = 0, level: float = 0.95) -> float:
-    """The upper end of the two-sided ``level`` percentile bootstrap interval of
+def interval(diff, n_boot: int = 10000, seed: int = 0, level: float = 0.95) -> tuple[float, float]:
+    """The two-sided ``level`` percentile bootstrap interval (lower, upper) of
     mean(``diff``) (samples resampled with replacement, ``n_boot`` times)."""
     d = np.asarray(diff, np.float64)
     rng = np.random.default_rng(seed)
     means = d[rng.integers(0, len(d), size=(n_boot, len(d)))].mean(1)
-    return float(np.quantile(means, 0.5 + level / 2))
+    lo, hi = np.quantile(means, [0.5 - level / 2, 0.5 + level / 2])
+    return float(lo), float(hi)
+
+
+def upper_bound(diff, n_boot: int = 10000, seed: int = 0, level: float = 0.95) -> float:
+    """The upper end of ``interval``."""
+    return interval(diff, n_boot, seed, level)[1]
 
 
 def noninferiority(rows, new: str, old: str, scales, margin: float, time_ratio: float = 0.75):
