@@ -51,3 +51,6 @@ def test_main_reads_two_run_folders(tmp_path, capsys):
     assert "| all | 3 | 3.000 | 2.333 | 4.000 | 66.7 % | 100.0 % |" in out
     assert "| c/p | 2 | 3.500 | 2.500 | 4.000 | 50.0 % | 100.0 % |" in out
     assert "A - B: +0.667 px" in out
+    assert paired.main([str(tmp_path / "a"), str(tmp_path / "b"), "--exclude", "c/q"]) == 0
+    out = capsys.readouterr().out
+    assert "| all | 2 | 3.500 | 2.500 | 4.000 | 50.0 % | 100.0 % |" in out and "| c/q |" not in out

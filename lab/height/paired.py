@@ -3,6 +3,7 @@
 
     python -m pixgraph_lab.height.paired runs/u_h8b runs/u_h8a
     python -m pixgraph_lab.height.paired runs/u_h8b          # against its own --baseline column
+    python -m pixgraph_lab.height.paired runs/heldout_h8b --exclude heldout/guitar
 
 Reads ``A/heights.csv`` and ``B/heights.csv`` (the same samples in the same order:
 checked by their ``object`` column) and prints, over all samples and per ``object``
@@ -11,7 +12,8 @@ run, its ``mae_baseline``: the checkpoint given to ``--baseline``) and the conta
 line, and the share of samples on which each learned map beats the contact line;
 then the mean of the paired differences A - B [px] with its 95 % percentile
 bootstrap interval (10,000 resamples of the samples, seed 0:
-``scale_study.interval``).
+``scale_study.interval``). ``--exclude OBJECT`` (repeatable) leaves that kind's
+samples out of everything.
 """
 from __future__ import annotations
 
@@ -49,13 +51,20 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("a", help="an evaluate_real output folder (its heights.csv)")
     ap.add_argument("b", nargs="?", help="another on the same samples; without it, A's baseline column")
+    ap.add_argument("--exclude", action="append", default=[], metavar="OBJECT",
+                    help="leave out the samples of this object column value (e.g. heldout/guitar)")
     args = ap.parse_args(argv)
     from .evaluate_real import _read
     a_rows = _read(os.path.join(args.a, "heights.csv"))
     b_rows = _read(os.path.join(args.b, "heights.csv")) if args.b else None
+    keep = [r["object"] not in args.exclude for r in a_rows]
+    a_rows = [r for r, k in zip(a_rows, keep) if k]
+    if b_rows is not None:
+        b_rows = [r for r, k in zip(b_rows, keep) if k] if len(b_rows) == len(keep) else b_rows
     rows, (m, lo, hi) = compare(a_rows, b_rows)
     bn = args.b or f"{args.a} (baseline)"
-    print(f"A = {args.a}, B = {bn}; MAE in px\n")
+    ex = f"; without {', '.join(args.exclude)}" if args.exclude else ""
+    print(f"A = {args.a}, B = {bn}; MAE in px{ex}\n")
     print("| kind | n | A | B | contact line | A beats the contact line | B beats it |\n|---|---|---|---|---|---|---|")
     for g, n, ma, mb, mh, wa, wb in rows:
         print(f"| {g} | {n} | {ma:.3f} | {mb:.3f} | {mh:.3f} | {100 * wa:.1f} % | {100 * wb:.1f} % |")
