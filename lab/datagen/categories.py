@@ -941,11 +941,12 @@ def heldout(rng):
 
 
 # ---------------------------------------------------------------- flat things (training)
-def _panel(W, H, t, lean=0.0, at=(0.0, 0.0, 0.0), yaw=0.0, ellipse=False):
-    """A flat panel W wide (x), H high (y), t thick (z) standing on its bottom edge at ``at``,
-    its top leaned back (to -z) by ``lean`` [rad] about the bottom edge, then turned by ``yaw``
-    about the vertical; an elliptic disc when ``ellipse``."""
-    R = rot_y(yaw) @ rot_x(-lean)
+def _panel(W, H, t, lean=0.0, at=(0.0, 0.0, 0.0), ellipse=False):
+    """A flat panel W wide (x), H high (y), t thick (z) (scene units, as every part here:
+    the generator rescales the object) standing on its bottom edge at ``at``, its top
+    leaned back (to -z) by ``lean`` [rad] about the bottom edge; an elliptic disc when
+    ``ellipse``."""
+    R = rot_x(-lean)
     c = np.asarray(at, float) + R @ np.array([0.0, H / 2, 0.0])
     if ellipse:
         return ellipsoid(c, [W / 2, H / 2, t / 2], subdiv=3, R=R)
