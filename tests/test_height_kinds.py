@@ -124,7 +124,7 @@ def test_assemblies_hold_together_rest_on_something_and_stand():
     assert min(counts) == 2 and max(counts) >= 7
 
 
-def test_a_flat_sample_renders_and_is_deterministic():
+def test_a_flat_and_an_assembly_sample_render_and_are_deterministic():
     pytest.importorskip("mitsuba")
     from pixgraph_lab.datagen.raycast import select_variant
     from pixgraph_lab.height import generate
