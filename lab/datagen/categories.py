@@ -35,7 +35,11 @@ cylinders, cones, tori, surfaces of revolution, convex prisms):
 * ``heldout``: kinds no training mix draws (``real.CATEGORY_P`` and
   ``CATEGORY_P_REAL`` leave it out), for validation on unfamiliar shapes without
   the test split: guitars, dumbbells, kettlebells, fire hydrants, globes on a stand,
-  snowmen, hourglasses, telescopes on a tripod.
+  snowmen, hourglasses, telescopes on a tripod;
+* ``heldout2`` (``HELDOUT2_KINDS``): a second set no mix draws, built for judging the
+  eighth session's candidates by someone who did not build ``flat`` or ``assembly``:
+  traffic cones, fire extinguishers, mailboxes on a post, birdhouses on a pole, park
+  benches, wheelbarrows, rocking horses, bird baths.
 
 None of pybullet_data's named meshes (duck, teddy, bunny, mug, table, lego,
 soccer ball, ...) is used: they are the held-out test objects.
