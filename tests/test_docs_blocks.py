@@ -9,10 +9,12 @@ cache keys (which depend on the code) are compared by shape, everything else
 exactly. The ``pip install``/``pip uninstall`` lines themselves are not run.
 """
 import contextlib
+import importlib
 import io
 import os
 import re
 import shlex
+import shutil
 import sys
 import textwrap
 
@@ -143,6 +145,11 @@ def test_the_pack_installs_and_its_transcripts_print_what_the_page_says(vignette
     assert round(float(srgb[100, 160]), 2) == 0.74 and round(float(srgb[0, 0]), 2) == 0.59
     vig = vignette_pack / "pixgraph_vignette" / "vignette.py"
     vig.write_text(vig.read_text().replace('impl_version = "1"', 'impl_version = "2"'))
+    # the edit keeps the file's size, and on a fast machine its second: Python would take the
+    # bytecode cached at the first import as still valid (it checks size and whole-second
+    # mtime) and import impl_version "1" again
+    shutil.rmtree(vig.parent / "__pycache__", ignore_errors=True)
+    importlib.invalidate_caches()
     for m in [m for m in sys.modules if m.startswith("pixgraph_vignette")]:
         del sys.modules[m]
     want, got = _transcript(bumped, vignette_pack)
