@@ -138,13 +138,26 @@ def cold_starts(graph: str, n: int) -> tuple[list[float], list[float]]:
     return listening, first
 
 
+def _say_error(response: httpx.Response) -> None:
+    """An error answer raised with the server's own words (its JSON names the node and
+    field), not only its status: a run failing once in many is then explained."""
+    if response.is_error:
+        response.read()
+        raise httpx.HTTPStatusError(f"{response.request.method} {response.request.url.path}: "
+                                    f"{response.status_code} {response.text[:1000]}",
+                                    request=response.request, response=response)
+
+
+SAY_ERRORS = {"response": [_say_error]}
+
+
 def drag(url: str, steps: int, method: str, offset: float) -> tuple[list[float], list[float], float]:
     """Preview latencies over one drag (at the client, and inside the server's
     handler), then the final render's latency."""
     # TCP_NODELAY as browsers set it: httpx writes a POST's headers and body separately,
     # and without it the body waits for the server's delayed ACK (~40 ms)
     nodelay = httpx.HTTPTransport(socket_options=[(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)])
-    with httpx.Client(base_url=url, timeout=300, transport=nodelay) as c:
+    with httpx.Client(base_url=url, timeout=300, transport=nodelay, event_hooks=SAY_ERRORS) as c:
         c.post("/api/params", json={"types": {"shadow": METHODS[method]}}).raise_for_status()
         c.post("/api/render", json={"mode": "final"}).raise_for_status()      # warm: nothing upstream runs
         seq, times, server, last = 0, [], [], None
@@ -231,7 +244,7 @@ def photo_drags(url: str, files: dict, width: int, height: int, steps: int, scal
     height's (node fg_h of graphs/own_photo.yaml), set with the open."""
     nodelay = httpx.HTTPTransport(socket_options=[(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)])
     rows = []
-    with httpx.Client(base_url=url, timeout=900, transport=nodelay) as c:
+    with httpx.Client(base_url=url, timeout=900, transport=nodelay, event_hooks=SAY_ERRORS) as c:
         paths = {}
         for role, path in files.items():
             with open(path, "rb") as f:
