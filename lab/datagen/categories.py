@@ -1509,32 +1509,19 @@ def heldout2(rng):
     return P, "heldout2/" + kind
 
 
+#: the categories whose generator returns (Parts, kind); person and animal fill a Parts given
+#: to them (they also build the figurines' small people and animals)
+_BUILDERS = {"figurine": figurine, "furniture": furniture, "product": product, "vehicle": vehicle,
+             "organic": organic, "heldout": heldout, "flat": flat, "assembly": assembly, "heldout2": heldout2}
+
+
 def make_object(category: str, rng: np.random.Generator):
     """(V, F, face material slot, slot names, kind) of a random object of ``category`` (module doc)."""
-    if category == "person":
+    if category in ("person", "animal"):
         P = Parts()
-        kind = person(rng, parts=P)
-    elif category == "animal":
-        P = Parts()
-        kind = animal(rng, parts=P)
-    elif category == "figurine":
-        P, kind = figurine(rng)
-    elif category == "furniture":
-        P, kind = furniture(rng)
-    elif category == "product":
-        P, kind = product(rng)
-    elif category == "vehicle":
-        P, kind = vehicle(rng)
-    elif category == "organic":
-        P, kind = organic(rng)
-    elif category == "heldout":
-        P, kind = heldout(rng)
-    elif category == "flat":
-        P, kind = flat(rng)
-    elif category == "assembly":
-        P, kind = assembly(rng)
-    elif category == "heldout2":
-        P, kind = heldout2(rng)
+        kind = (person if category == "person" else animal)(rng, parts=P)
+    elif category in _BUILDERS:
+        P, kind = _BUILDERS[category](rng)
     else:
         raise ValueError(f"unknown category {category!r}; known: {', '.join(CATEGORIES)}")
     V, F, L, names = P.build()
