@@ -1,10 +1,13 @@
 """What the shadow-family nodes share (not a node module: its name starts with _):
-their five inputs, the ``thickness`` param and the check of those inputs.
+their five inputs, their two outputs, the ``thickness`` param, the check of those
+inputs and the preview stand-in of the soft ones.
 
 ``HardShadow``, ``SoftShadow``, ``SoftShadowSSN``, ``Shadow`` and
 ``BufferChannels`` declare ``class Inputs(ShadowInputs)`` (a node may restate one
 port to give it its own doc), ``thickness: float = thickness_param()`` and call
-``check_inputs(inputs)`` before they trace anything.
+``check_inputs(inputs)`` before they trace anything; the shadow nodes (``PreviewShadow``
+too) declare ``class Outputs(ShadowOutputs)``, so a preview stand-in has the ports of
+the node it stands in for by construction.
 """
 from __future__ import annotations
 
@@ -20,6 +23,12 @@ THICKNESS_DOC = "how far a ray may pass behind the cutout surface and still be b
 SHADOW_METHODS = ("auto", "hard", "soft", "ssn")
 
 
+#: the node type that stands in for the soft shadows (SoftShadow, SoftShadowSSN, Shadow) in
+#: previews: a soft shadow at about one hard shadow's cost that follows the light's radius
+#: (benchmarks/preview_shadow_bench.py; docs/server.md, "Previews of soft shadows")
+SOFT_PREVIEW = "pixgraph.PreviewShadow"
+
+
 class ShadowInputs:
     """The cutout, both pixel-height maps, the light and the camera."""
 
@@ -28,6 +37,13 @@ class ShadowInputs:
     bg_height: T.PixelHeight = port(doc="background pixel height [px]")
     light: T.Light = port(doc="the light")
     camera: T.Camera = port(doc="camera that converts the light to pixel-height space")
+
+
+class ShadowOutputs:
+    """The shadow twice: as light seen and as darkness (what Composite takes)."""
+
+    lit: T.Mask = port(doc="1 - darkness")
+    darkness: T.Mask = port(doc="1 - lit: 1 = full shadow (what Composite takes)")
 
 
 def thickness_param(doc: str = THICKNESS_DOC):

@@ -5,7 +5,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, port
 
 from ._checks import finite_outputs
-from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
+from ._shadow_ports import ShadowInputs, ShadowOutputs, check_inputs, thickness_param
 from .ops.lights import light_point
 from .ops.shadow import hard_shadow
 
@@ -25,9 +25,8 @@ class HardShadow(Node):
     class Params:
         thickness: float = thickness_param()
 
-    class Outputs:
+    class Outputs(ShadowOutputs):
         lit: T.Mask = port(doc="1 = lit, 0 = shadow")
-        darkness: T.Mask = port(doc="1 - lit: 1 = full shadow (what Composite takes)")
 
     impl_version = "1"
     #: shells may switch this node among the registered types declaring the same handles kind

@@ -5,7 +5,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, param, port
 
 from ._checks import finite_outputs, inside
-from ._shadow_ports import SHADOW_METHODS, ShadowInputs, check_inputs, thickness_param
+from ._shadow_ports import SHADOW_METHODS, ShadowInputs, ShadowOutputs, check_inputs, thickness_param
 from .ops.lights import light_point
 from .ops.preview_shadow import preview_soft_shadow
 from .ops.softness import softness_of
@@ -36,9 +36,8 @@ class PreviewShadow(Node):
                             doc="the stood-in pixgraph.Shadow's method: hard gives the hard shadow, "
                                 "the others the estimate")
 
-    class Outputs:
-        lit: T.Mask = port(doc="1 - darkness")
-        darkness: T.Mask = port(doc="1 = full shadow (what Composite takes)")
+    class Outputs(ShadowOutputs):
+        """The shared two (``_shadow_ports.ShadowOutputs``): those of the nodes it stands in for."""
 
     impl_version = "1"
     # no ``handles``: a stand-in, not one of the shadow methods a shell offers to switch to

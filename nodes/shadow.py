@@ -7,7 +7,8 @@ from pixgraph_nodes import types as T
 from pixgraph.node import InputError, Node, node, param, port
 
 from ._checks import finite_outputs, inside
-from ._shadow_ports import SHADOW_METHODS, ShadowInputs, check_inputs, thickness_param
+from ._shadow_ports import (SHADOW_METHODS, SOFT_PREVIEW, ShadowInputs, ShadowOutputs, check_inputs,
+                            thickness_param)
 from .ops import choose as C
 from .ops.softness import softness_of
 from .ops.lights import disk_extremes, disk_samples, light_point
@@ -44,17 +45,14 @@ class Shadow(Node):
         proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px, longer side",
                            doc="classical shadows of images longer than this are traced at this size (0: never)")
 
-    class Outputs:
-        lit: T.Mask = port(doc="1 - darkness")
-        darkness: T.Mask = port(doc="1 = full shadow (what Composite takes)")
+    class Outputs(ShadowOutputs):
+        """The shared two (``_shadow_ports.ShadowOutputs``)."""
 
     # the choice depends on the shipped table: a new table is a new implementation
     # the result depends on the shipped table and, through method ssn, on SSN++'s weights and inference
     impl_version = "1+table." + C.table_digest() + "+ssn." + SoftShadowSSN.impl_version
-    #: a cheaper node type with the same ports that stands in for this one in previews: a soft
-    #: shadow at about one hard shadow's cost that follows the light's radius
-    #: (benchmarks/preview_shadow_bench.py; docs/server.md, "Previews of soft shadows")
-    preview = "pixgraph.PreviewShadow"
+    #: a cheaper node type with the same ports that stands in for this one in previews
+    preview = SOFT_PREVIEW
     #: shells may switch this node among the registered types declaring the same handles kind
     handles = {"kind": "shadow"}
 

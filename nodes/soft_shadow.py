@@ -7,7 +7,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, param, port
 
 from ._checks import finite_outputs
-from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
+from ._shadow_ports import SOFT_PREVIEW, ShadowInputs, ShadowOutputs, check_inputs, thickness_param
 from .ops.lights import disk_samples, light_point
 from .ops.upsample import AUTO_MAX_SIDE, lit_and_darkness, proxy_soft_shadow_parts
 
@@ -35,15 +35,12 @@ class SoftShadow(Node):
                            doc="images whose longer side exceeds this are traced on a copy of this longer side "
                                "and enlarged edge-aware against the full-resolution mask (0: never)")
 
-    class Outputs:
+    class Outputs(ShadowOutputs):
         lit: T.Mask = port(doc="fraction of the light seen, 1 = fully lit")
-        darkness: T.Mask = port(doc="1 - lit: 1 = full shadow (what Composite takes)")
 
     impl_version = "1"
-    #: a cheaper node type with the same ports that stands in for this one in previews: a soft
-    #: shadow at about one hard shadow's cost that follows the light's radius
-    #: (benchmarks/preview_shadow_bench.py; docs/server.md, "Previews of soft shadows")
-    preview = "pixgraph.PreviewShadow"
+    #: a cheaper node type with the same ports that stands in for this one in previews
+    preview = SOFT_PREVIEW
     #: shells may switch this node among the registered types declaring the same handles kind
     handles = {"kind": "shadow"}
 

@@ -10,7 +10,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import InputError, Node, node, param, port
 
 from ._checks import finite_outputs, inside
-from ._shadow_ports import ShadowInputs, check_inputs, thickness_param
+from ._shadow_ports import SOFT_PREVIEW, ShadowInputs, ShadowOutputs, check_inputs, thickness_param
 from .ops.lights import disk_extremes, light_point
 
 WEIGHTS = pathlib.Path(__file__).parent / "weights"
@@ -83,18 +83,15 @@ class SoftShadowSSN(Node):
         thickness: float = thickness_param(doc="occluder thickness of the buffer channels' hard shadows, "
                                             "in pixels of the network's window (the trained scale)")
 
-    class Outputs:
-        lit: T.Mask = port(doc="1 - darkness")
-        darkness: T.Mask = port(doc="soft shadow, 1 = full shadow (what Composite takes)")
+    class Outputs(ShadowOutputs):
+        """The shared two (``_shadow_ports.ShadowOutputs``)."""
 
     # bump when the shipped weights or the inference change (2: NHWC layout; 3: softness clamped to 1;
     # 4: window at the trained scale, softness clamped to the trained range; 5: v2 weights;
     # 6: v3 weights)
     impl_version = "6"
-    #: a cheaper node type with the same ports that stands in for this one in previews: a soft
-    #: shadow at about one hard shadow's cost that follows the light's radius
-    #: (benchmarks/preview_shadow_bench.py; docs/server.md, "Previews of soft shadows")
-    preview = "pixgraph.PreviewShadow"
+    #: a cheaper node type with the same ports that stands in for this one in previews
+    preview = SOFT_PREVIEW
     #: shells may switch this node among the registered types declaring the same handles kind
     handles = {"kind": "shadow"}
 
