@@ -186,7 +186,8 @@ def test_the_page_preview_changes_with_the_softness_slider(tmp_path):
                 f"() => {{ const l = window.pixgraphShown.at(-1); return l && l.mode === 'preview' && l.seq > {seq}"
                 f" && Number(document.getElementById('softness').value) > {value - 0.1}"
                 f" && Number(document.getElementById('softness').value) < {value + 0.1}; }}", timeout=120000)
-            page.wait_for_timeout(300)           # the newest edit's preview, not one in flight before it
+            # the newest edit's preview, not one in flight before it: wait for the page's queue
+            page.wait_for_function("(q => !q.inflight && !q.pending)(window.pixgraphQueue())", timeout=120000)
             return shown(page), float(page.evaluate("document.getElementById('softness').value"))
 
         page.mouse.move(x(0.3), y)
