@@ -51,6 +51,9 @@ image distance from an object point down to its foot on the ground).
 
    ``h'(u, v) = h(u, v) + max(0, g - v_c(u) - h(u, v_c(u)))``
 
+   ``g`` is never below the object's lowest row (``g <= max v_c``): the columns
+   that reach down to the contact stay on the ground (float the object with
+   ``lift``), so an object whose columns all end on one row is never raised.
    Columns reaching down to ``g`` or below, and columns the input already puts
    high enough, are unchanged; at ``overhang = 0`` no column is raised (``g`` is
    the highest bottom). Lying, ``h(u, v_c(u)) = 0.5`` and the raise is applied
@@ -201,13 +204,13 @@ def column_bottoms(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def overhang_raise(height: np.ndarray, mask: np.ndarray, overhang: float) -> np.ndarray:
     """The per-column raise ``c(u) = max(0, g - v_c(u) - h(u, v_c(u)))`` (W,) [px] with
-    ``g = min v_c + overhang`` (module doc, step 2a); 0 for ``overhang <= 0``."""
+    ``g = min(min v_c + overhang, max v_c)`` (module doc, step 2a); 0 for ``overhang <= 0``."""
     m = np.asarray(mask, bool)
     h = np.asarray(height, np.float64)
     cols, vc = column_bottoms(m)
     if float(overhang) <= 0 or not cols.any():
         return np.zeros(m.shape[1])
-    g = vc[cols].min() + float(overhang)
+    g = min(vc[cols].min() + float(overhang), vc[cols].max())
     hb = h[np.clip((vc - 0.5).astype(int), 0, m.shape[0] - 1), np.arange(m.shape[1])]
     return np.where(cols, np.maximum(0.0, g - vc - hb), 0.0)
 
