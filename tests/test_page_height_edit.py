@@ -321,3 +321,49 @@ def test_the_new_contact_ring_is_grabbable_when_the_foot_is_on_the_photos_bottom
         assert graph_params(url)["place"]["foot"] == [320, 480]      # the cutout did not move
         assert not errors, errors
         page.close()
+
+
+def test_the_overhang_diamond_raises_the_hanging_columns_and_undoes(browser, tmp_path):
+    """Lying down (each column's lowest pixel on the ground), the overhang's diamond sits on
+    the lowest pixel of the column that ends highest; pulled 10 px up, that pixel is
+    10 / k image px higher (less than its column's bottom is above the lowest row: the
+    ground row never goes below that) (ops.height_edit.overhang_for_height), the image changes, the
+    param is saved in the graph; Ctrl+Z takes the drag back in one step."""
+    graph = edit_graph(str(tmp_path))
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        k = page.evaluate("window.pixgraphView.state.k")
+        seq = last_seq(page)
+        page.check("#lying")
+        wait_final(page, seq)
+        e = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        ou, ov, h, h0 = e["overhang"]
+        assert h == pytest.approx(0.5, abs=0.01) and h0 == pytest.approx(h)   # lying: on the ground
+        assert page.locator("#overhang-handle").is_visible()
+        x, y = centre(page, "#overhang-handle")
+        assert (x, y) == pytest.approx(screen(page, *to_canvas(e, ou, ov)), abs=1.5)
+        before = shown(page)
+        drag(page, (x, y), (x, y - 10), hold_for_preview=True)
+        want = h + 10 / k / e["frame"][2]
+        over = graph_params(url)["edit"]["overhang"]
+        assert over == pytest.approx(he.overhang_for_height(want), abs=0.6) and over > 5
+        e2 = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        assert e2["overhang"][:2] == e["overhang"][:2] and e2["overhang"][2] == pytest.approx(want, abs=0.6)
+        after = shown(page)
+        assert np.abs(after - before).mean(axis=2).max() > 0.05          # the hanging part's shadow moved
+        keep(page, "height_edit_overhang.png")
+        page.fill("#save-name", "edited.yaml")
+        page.click("#save")
+        page.wait_for_function("document.getElementById('status').textContent.startsWith('saved')", timeout=60000)
+        from pixgraph_serve.state import ServeState
+        saved = ServeState(str(tmp_path / "edited.yaml"))
+        assert {n["id"]: n["values"] for n in saved.info()["nodes"]}["edit"]["overhang"] == over
+        seq = last_seq(page)
+        page.locator("#stage").click(position={"x": 5, "y": 5})          # the page has the focus, no field
+        page.keyboard.press("Control+z")
+        wait_final(page, seq)
+        assert graph_params(url)["edit"]["overhang"] == 0.0
+        assert np.abs(shown(page) - before).max() < 1.5 / 255            # the image before the drag
+        assert centre(page, "#overhang-handle") == pytest.approx((x, y), abs=0.5)
+        assert not errors, errors
+        page.close()
