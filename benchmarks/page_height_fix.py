@@ -284,18 +284,22 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f}")
     if a.explore:
-        gains, old_gains, no_over, rows = [], [], [], []
+        gains, old_gains, no_over, zero, rows = [], [], [], [], []
         for idx in (int(x) for x in a.explore.split(",")):
             with tempfile.TemporaryDirectory(prefix="pixgraph-hfix-") as d:
                 sc = build_scene(os.path.join(a.shadows, f"{idx:05d}.npz"), d)
                 for method in ("contact_line", "learned"):
                     best, _, every = choose_plan(sc, method)
                     before, after = every["none"][1], every[best][1]
-                    gains.append(1 - after["rmse"] / before["rmse"])
-                    old = min((v[1]["rmse"] for k, v in every.items() if k not in NEW_PLANS + OVERHANG_PLANS))
-                    old_gains.append(1 - old / before["rmse"])
+
+                    def removed(rmse):   # no shadow error to remove (no shadow outside the cutout): 0 % removed
+                        return 1 - rmse / before["rmse"] if before["rmse"] > 0 else 0.0
+                    gains.append(removed(after["rmse"]))
+                    old_gains.append(removed(min(v[1]["rmse"] for k, v in every.items()
+                                                 if k not in NEW_PLANS + OVERHANG_PLANS)))
                     wo = min(every, key=lambda k: every[k][1]["rmse"] if k not in OVERHANG_PLANS else np.inf)
-                    no_over.append(1 - every[wo][1]["rmse"] / before["rmse"])
+                    no_over.append(removed(every[wo][1]["rmse"]))
+                    zero.append(before["rmse"] == 0)
                     rows.append(f"| {idx} {sc['object'].removeprefix('named:')} | {method.replace('_', ' ')} | {best} | "
                                 f"{before['rmse']:.3f} -> {after['rmse']:.3f} ({gains[-1]:.0%}) | "
                                 f"{before['iou']:.2f} -> {after['iou']:.2f} | {wo} {every[wo][1]['rmse']:.3f} "
@@ -317,6 +321,11 @@ def main(argv=None) -> int:
               f"(min {w.min():.0%}, max {w.max():.0%}); >= 30 % in {int((w >= 0.3).sum())}; "
               f"the overhang's plans: median {100 * (np.median(g) - np.median(w)):+.1f} points, "
               f">= 30 % in {int((g >= 0.3).sum()) - int((w >= 0.3).sum()):+d}")
+        if any(zero):
+            z = ~np.array(zero)
+            print(f"{int((~z).sum())} case(s) with no shadow error before (counted as 0 % removed above); without "
+                  f"them: median {np.median(g[z]):.0%} with the overhang's plans, {np.median(w[z]):.0%} without; "
+                  f">= 30 % in {int((g[z] >= 0.3).sum())} / {int((w[z] >= 0.3).sum())} of {int(z.sum())}")
         o = np.array(old_gains)
         print(f"without the plans of NEW_PLANS and OVERHANG_PLANS (foot depth, lying thickness, overhang): "
               f"median {np.median(o):.0%} (min {o.min():.0%}, max {o.max():.0%}); >= 30 % in {int((o >= 0.3).sum())}")
