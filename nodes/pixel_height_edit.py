@@ -1,5 +1,5 @@
-"""pixgraph.PixelHeightEdit: fix a cutout's pixel height by hand (contact points, overhang, foot depth, tilt,
-lying down, lift)."""
+"""pixgraph.PixelHeightEdit: fix a cutout's pixel height by hand (contact points, foot depth, tilt, lying
+down, lift)."""
 from __future__ import annotations
 
 import numpy as np
@@ -27,11 +27,7 @@ class PixelHeightEdit(Node):
     offset, linear in u, that puts the contact points at height 0; ``upright``
     replaces it by the height above the ground line through the points. ``lying``: the
     object lies on the ground (each column's lowest pixel on it, nowhere higher than
-    ``thickness`` px; 0 = half the silhouette's median column extent). ``overhang``
-    puts the ground under parts hanging in the air (a mug's handle, a duck's tail, a
-    bunny's ears) on one row: the column whose lowest pixel is highest gets that pixel
-    ``overhang`` px above the ground, and every column ending above that ground row is
-    raised as a whole until its lowest pixel is that high (0: off). ``foot_depth``
+    ``thickness`` px; 0 = half the silhouette's median column extent). ``foot_depth``
     moves the ground under the object's body that many rows in front of (> 0, toward
     the camera) or behind (< 0) its contact: a body point's height grows by it, ramped
     in over the lowest ``2 |foot_depth|`` px of height so the contact stays at 0 (a
@@ -48,8 +44,7 @@ class PixelHeightEdit(Node):
     (drag it up: taller, down: shorter, by leaning the object; lying down, the same
     handle sets the thickness), the body's ground point as the foot-depth handle (a
     circle on the pixel nearest the mask's centroid: drag it up, the body is taller),
-    the overhang's ground point as a diamond on the lowest pixel of the highest-ending
-    column (drag it up: the hanging parts are higher), and "lying down" as a toggle.
+    and "lying down" as a toggle.
     """
 
     class Inputs:
@@ -75,16 +70,12 @@ class PixelHeightEdit(Node):
         foot_depth: float = param(0.0, unit="px",
                                   doc="the ground under the body lies this many rows in front of (> 0) or "
                                       "behind (< 0) the contact; its heights grow by it (not when lying)")
-        overhang: float = param(0.0, min=0.0, unit="px",
-                                doc="the highest-ending column's lowest pixel is this high; columns ending "
-                                    "above that ground row are raised to it (a handle, a tail; 0: off)")
 
     class Outputs:
         height: T.PixelHeight = port(doc="edited pixel height [px], 0 outside the mask")
 
     # 2: defaults pass through; 3: shift is a per-column offset; 4: close points: their mean; 5: foot_depth
-    # 6: points up to EDGE_SLACK px outside the cutout are put on its edge
-    impl_version = "7"   # 7: overhang
+    impl_version = "6"   # 6: points up to EDGE_SLACK px outside the cutout are put on its edge
 
     #: what a shell's page draws (read by pixgraph_serve): contact points, the tilt handle
     #: (lying: the thickness), the body's foot-depth ring, the lying toggle, by these
@@ -93,13 +84,12 @@ class PixelHeightEdit(Node):
     #: pixels on the canvas (``frame`` maps them)
     handles = {"kind": "height_edit", "points": "contact_points", "mode": "contact_mode", "tilt": "tilt",
                "elevation": "elevation", "lying": "lying", "lift": "lift", "depth": "foot_depth",
-               "thickness": "thickness", "overhang": "overhang", "mask": "mask", "output": "height",
+               "thickness": "thickness", "mask": "mask", "output": "height",
                "placed_by": ("foot", "scale", "flip")}
     #: the geometry of those handles (ops/height_edit.py), for shells that do not import nodes
     frame = staticmethod(height_edit.placed_frame)
     top_point = staticmethod(height_edit.top_point)
     body_point = staticmethod(height_edit.body_point)
-    overhang_point = staticmethod(height_edit.overhang_point)
     foot_point = staticmethod(foot_of_mask)
 
     def compute(self, ctx, inputs, params):
@@ -125,7 +115,6 @@ class PixelHeightEdit(Node):
         try:
             return {"height": edit_pixel_height(h, m > 0.5, P, params.contact_mode, params.tilt,
                                                 params.elevation, params.lying, params.thickness, params.lift,
-                                                params.foot_depth, params.overhang)}
+                                                params.foot_depth)}
         except ValueError as e:
-            name = next((n for n in ("foot_depth", "overhang") if n in str(e)), "tilt")
-            raise InputError(f"param '{name}': {e}") from None
+            raise InputError(f"param '{'foot_depth' if 'foot_depth' in str(e) else 'tilt'}': {e}") from None

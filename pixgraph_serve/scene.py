@@ -28,9 +28,7 @@ attribute, a dict with a ``kind``):
   handle, ``foot_point(mask)`` the cutout's foot (where new contact points start);
   optional: ``depth`` and ``thickness`` name params of a body handle and of the top
   handle when lying, ``body_point(mask, edited, tilt, elevation, lift, depth)`` its point
-  (asked for only while not lying; None: no body handle); ``overhang`` names the param of a
-  second height handle at ``overhang_point(mask, edited, tilt, elevation, lift, depth)``
-  (depth 0 while lying; None: no such handle);
+  (asked for only while not lying; None: no body handle);
 - any other kind (``shadow``): a node the page may switch between the types of
   that kind (``ServeState.alternatives``).
 
@@ -310,23 +308,17 @@ def _height_edit(state: ServeState, nid: str) -> dict:
     else:
         foot = [(box[0] + box[2]) / 2, box[3]] if box else [cols / 2, rows]
     names = {k: h.get(k, k) for k in ("points", "mode", "tilt", "elevation", "lying", "lift")}
-    names.update({k: h[k] for k in ("depth", "thickness", "overhang") if k in h})     # optional handles
+    names.update({k: h[k] for k in ("depth", "thickness") if k in h})     # optional handles
     top = spec.cls.top_point(mask, edited, v[names["tilt"]], v[names["elevation"]], v[names["lift"]])
     body = None     # the body handle; none while lying (the foot depth does not apply then)
     if "depth" in names and not v[names["lying"]] and getattr(spec.cls, "body_point", None) is not None:
         body = spec.cls.body_point(mask, edited, v[names["tilt"]], v[names["elevation"]], v[names["lift"]],
                                    v[names["depth"]])
-    over = None     # the overhang handle (its point's height before the foot depth, tilt and lift)
-    if "overhang" in names and getattr(spec.cls, "overhang_point", None) is not None:
-        depth = 0.0 if v[names["lying"]] or "depth" not in names else v[names["depth"]]
-        over = spec.cls.overhang_point(mask, edited, v[names["tilt"]], v[names["elevation"]], v[names["lift"]],
-                                       depth)
     # the nodes whose output the edit edits (not its coverage): the page opens their params
     sources = sorted({ref.node for port, ref in inst.inputs.items() if port != h.get("mask", "mask")})
     return {"id": nid, "params": names, "values": {k: v[p] for k, p in names.items()},
             "frame": [sx, tx, sy, ty], "size": [cols, rows], "foot": foot, "place": place,
-            "top": list(top) if top else None, "body": list(body) if body else None,
-            "overhang": list(over) if over else None, "sources": sources}
+            "top": list(top) if top else None, "body": list(body) if body else None, "sources": sources}
 
 
 # -- what a drag means -------------------------------------------------------------------

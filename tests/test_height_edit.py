@@ -380,8 +380,7 @@ def test_the_simulated_users_plans_moved_to_the_lab_unchanged():
     bench = _page_height_fix()
     for name in ("PLANS", "NEW_PLANS", "OTHER", "plan_method", "plan_params", "true_contacts", "known_heights"):
         assert getattr(bench, name) is getattr(ep, name), name
-    assert len(ep.PLANS) == 20 + len(ep.OVERHANG_PLANS) == 30 and set(ep.NEW_PLANS) <= set(ep.PLANS)
-    assert bench.OVERHANG_PLANS is ep.OVERHANG_PLANS and not set(ep.OVERHANG_PLANS) & set(ep.NEW_PLANS)
+    assert len(ep.PLANS) == 20 and set(ep.NEW_PLANS) <= set(ep.PLANS)
     assert ep.plan_method(ep.PLANS["other method + depth"], "learned") == "contact_line"
     H, W = 100, 60
     u, v = grid(H, W)
@@ -401,12 +400,6 @@ def test_the_simulated_users_plans_moved_to_the_lab_unchanged():
     assert out["depth"] == {"foot_depth": pytest.approx(10.1)}
     assert out["1 contact + depth + top"]["foot_depth"] == pytest.approx(10.6)
     assert out["other method"] == {}
-    # the notch's columns end on row 85: the diamond on (10.5, 84.5), dragged to its true
-    # height 1.2 x 5.5 + 0.1 x 10 = 7.6 px (the contact line gave it 5.5); the ground row is
-    # never below the lowest row (89.5), so the notch's bottom needs at most 5 px: the
-    # contact line's 5.5 stays
-    assert out["overhang"] == {"overhang": pytest.approx(7.6)}
-    assert ep.edit_with(pred, seen, out["overhang"])[84, 10] == pytest.approx(5.5, abs=1e-4)
 
 
 def test_true_contacts_options_give_real_photos_old_plans():
@@ -429,111 +422,3 @@ def test_true_contacts_options_give_real_photos_old_plans():
     # a foot pixel (true height < 1 px) wins over everything else, whatever the options
     true_h[50, 30] = 0.5
     assert true_contacts(true_h, mask, 3, fallback_rows=2, v_at=1.0) == [(30.5, 51.0)]
-
-
-def mug(H=100, W=80):
-    """A body (columns 30-69, ending on row 90) and a handle hanging at its side
-    (columns 10-29, rows 30-59: its lowest pixels' centres on row 59.5)."""
-    m = np.zeros((H, W), bool)
-    m[20:90, 30:70] = True
-    m[30:60, 10:30] = True
-    return m
-
-
-def test_overhang_puts_the_ground_under_a_hanging_handle_on_one_row():
-    m = mug()
-    _, v = grid(*m.shape)
-    # lying (each column's lowest pixel on the ground): the handle's columns too
-    flat = he.edit_pixel_height(np.zeros(m.shape), m, lying=True, thickness=1000.0)
-    assert flat[59, 15] == pytest.approx(0.5)
-    out = he.edit_pixel_height(np.zeros(m.shape), m, lying=True, thickness=1000.0, overhang=12.0)
-    # g = 59.5 + 12 = 71.5: the handle's heights are its distance above that row
-    np.testing.assert_allclose(out[30:60, 10:30], (71.5 - v)[30:60, 10:30], atol=1e-4)
-    # the body's columns end below g: unchanged, its contact at the ground (0.5 px: a pixel's centre)
-    np.testing.assert_allclose(out[:, 30:70], flat[:, 30:70], atol=1e-6)
-    assert out[89, 50] == pytest.approx(0.5)
-    # under the thickness cap: the handle's top is not taller than the thickness
-    capped = he.edit_pixel_height(np.zeros(m.shape), m, lying=True, thickness=30.0, overhang=12.0)
-    assert capped[m].max() == pytest.approx(30.0) and capped[59, 15] == pytest.approx(12.0)
-
-
-def test_overhang_recovers_a_known_handle_from_the_contact_and_keeps_what_is_high_enough():
-    """A true map whose handle stands on row 75 (its ground, 15.5 px below its lowest
-    pixels' centres) and whose body is the contact line: from a map that puts the handle's
-    bottom on the ground (a learned map pinned there), the overhang dragged to the handle
-    pixel's true height gives the true map everywhere; a map that already has the handle
-    high enough is left as it is; 0 passes the input through."""
-    m = mug()
-    _, v = grid(*m.shape)
-    true = np.where(m, np.where(np.arange(80)[None, :] < 30, 75.0 - v, 90.0 - v), 0.0)
-    low = np.where(m, np.where(np.arange(80)[None, :] < 30, 60.0 - v, 90.0 - v), 0.0)
-    u, vv, h, h0 = he.overhang_point(m, low)
-    assert (u, vv) == (10.5, 59.5) and h == h0 == pytest.approx(0.5)
-    o = he.overhang_for_height(float(true[59, 10]))
-    assert o == pytest.approx(15.5)
-    np.testing.assert_allclose(he.edit_pixel_height(low, m, overhang=o), true, atol=1e-4)
-    np.testing.assert_array_equal(he.edit_pixel_height(true, m, overhang=o), true.astype(np.float32))
-    assert he.is_identity(overhang=0.0)
-    np.testing.assert_array_equal(he.edit_pixel_height(low, m, overhang=0.0), low.astype(np.float32))
-
-
-def test_overhang_never_lifts_a_flat_bottomed_object_off_the_ground():
-    m = np.zeros((60, 40), bool)
-    m[10:50, 5:35] = True                                # every column ends on row 50
-    h = contact_line_height(m.astype(np.float32))
-    out = he.edit_pixel_height(h, m, overhang=25.0)
-    np.testing.assert_allclose(out, h, atol=1e-5)
-    assert he.overhang_point(m, h) is None               # nothing hangs: no handle
-    # a taller drag than the object's column spread: the ground stays on the lowest row
-    mm = mug()
-    out = he.edit_pixel_height(np.zeros(mm.shape), mm, lying=True, thickness=1000.0, overhang=500.0)
-    assert out[89, 50] == pytest.approx(0.5) and out[59, 15] == pytest.approx(30.0)
-
-
-@pytest.mark.parametrize("depth,tilt,lift", [(0.0, 0.0, 0.0), (6.0, 15.0, 2.0), (-4.0, -10.0, 0.0)])
-def test_overhang_point_and_overhang_for_height_invert_the_edit(depth, tilt, lift):
-    m = mug()
-    _, v = grid(*m.shape)
-    low = np.where(m, np.where(np.arange(80)[None, :] < 30, 60.0 - v, 90.0 - v), 0.0)
-    g = he.tilt_gain(tilt, 25.0)
-    for target in (12.0, 22.0):                          # within the handle's 30 px above the lowest row
-        o = he.overhang_for_height(target, g, lift, depth)
-        out = he.edit_pixel_height(low, m, tilt_deg=tilt, elevation_deg=25.0, lift=lift, foot_depth=depth,
-                                   overhang=o)
-        u, vv, h, h0 = he.overhang_point(m, out, tilt, 25.0, lift, depth)
-        assert float(out[int(vv), int(u)]) == pytest.approx(target, abs=1e-3) and h == pytest.approx(target, abs=1e-3)
-        assert h0 == pytest.approx(o, abs=1e-3)
-    # dragged below the pixel's own height: 0, the map as it was
-    assert he.overhang_for_height(lift - 3.0, g, lift, depth) == 0.0
-
-
-def test_node_overhang_param_round_trips_in_a_saved_graph_and_scales_in_previews(tmp_path):
-    from pixgraph.session import Session
-    from pixgraph.node import ParamError
-    m = mug().astype(np.float32)
-    with pytest.raises(ParamError, match="overhang"):
-        run(np.zeros(m.shape, np.float32), m, overhang=-1.0)
-    g = tmp_path / "g.yaml"
-    g.write_text("""pixgraph: 1
-nodes:
-  m: {type: pixgraph.InputMask}
-  h: {type: pixgraph.InputPixelHeight}
-  e: {type: pixgraph.PixelHeightEdit, inputs: {height: h.height, mask: m.mask},
-      params: {lying: true, thickness: 1000, overhang: 12}}
-outputs: {out: e.height}
-""")
-    s = Session()
-    graph = s.load(g)
-    saved = tmp_path / "saved.yaml"
-    from pixgraph import fileio
-    fileio.dump(graph, saved)
-    assert "overhang: 12" in saved.read_text()
-    again = s.load(saved)
-    assert again.nodes["e"].params["overhang"] == 12
-    _, v = grid(*m.shape)
-    out = s.run(again, bind={"m": m, "h": np.zeros(m.shape, np.float32)})["out"]
-    np.testing.assert_allclose(out[30:60, 10:30], (71.5 - v)[30:60, 10:30], atol=1e-4)
-    # a half-size preview: the overhang (px) scales with the image: g = 29.5 + 6
-    half = s.run(again, bind={"m": m[::2, ::2].copy(), "h": np.zeros((50, 40), np.float32)}, scale=0.5)["out"]
-    _, v2 = grid(50, 40)
-    np.testing.assert_allclose(half[15:30, 5:15], (35.5 - v2)[15:30, 5:15], atol=1e-4)

@@ -139,9 +139,8 @@ def test_scene_describes_the_edit_in_the_cutouts_pixels(photo_state):
     assert s["roles"]["height_edit"] == "edit" and e["place"] == "place"
     assert e["size"] == [159, 285]
     assert e["values"] == {"points": [], "mode": "shift", "tilt": 0.0, "elevation": 20.0, "lying": False,
-                           "lift": 0.0, "depth": 0.0, "thickness": 0.0, "overhang": 0.0}
+                           "lift": 0.0, "depth": 0.0, "thickness": 0.0}
     assert e["params"]["depth"] == "foot_depth" and e["params"]["thickness"] == "thickness"
-    assert e["params"]["overhang"] == "overhang"
     sx, tx, sy, ty = e["frame"]
     foot = s["place"]["foot"]
     assert sx == sy == pytest.approx(s["place"]["scale"])
@@ -161,13 +160,6 @@ def test_scene_describes_the_edit_in_the_cutouts_pixels(photo_state):
     d2 = (ys - ys.mean()) ** 2 + (xs - xs.mean()) ** 2
     assert cov[int(bv), int(bu)] and (int(bv) - ys.mean()) ** 2 + (int(bu) - xs.mean()) ** 2 == pytest.approx(d2.min())
     assert bh == pytest.approx(float(out[int(bv), int(bu)])) and bh == pytest.approx(bh0) and bh > 10
-    # the overhang's diamond: the lowest covered pixel of the column whose lowest covered pixel
-    # is highest (the leftmost of ties), its edited height
-    ou, ov, oh, oh0 = e["overhang"]
-    cols = np.flatnonzero(cov.any(0))
-    bottoms = np.array([np.flatnonzero(cov[:, c]).max() for c in cols])
-    assert int(ou) == cols[np.argmin(bottoms)] and int(ov) == bottoms.min() and bottoms.min() < bottoms.max()
-    assert oh == pytest.approx(float(out[int(ov), int(ou)])) and oh == pytest.approx(oh0)
 
 
 

@@ -84,24 +84,10 @@ PLANS = {
     "other method + depth": ["switch", "depth"],
     "other method + depth + top": ["switch", "depth", "top"],
     "other method + top + depth": ["switch", "top", "depth"],
-    # the overhang's diamond (the lowest pixel of the highest-ending column) dragged until
-    # that pixel's height is its true one (ninth session)
-    "overhang": ["overhang"],
-    "lying + overhang": ["lying", "overhang"],
-    "lying + thickness + overhang": ["lying", "thickness", "overhang"],
-    "other method + overhang": ["switch", "overhang"],
-    "1 contact + overhang": ["contact:1", "overhang"],
-    "depth + overhang": ["depth", "overhang"],
-    "top + overhang": ["top", "overhang"],
-    "depth + top + overhang": ["depth", "top", "overhang"],
-    "other method + depth + overhang": ["switch", "depth", "overhang"],
-    "other method + top + overhang": ["switch", "top", "overhang"],
 }
 #: the plans added with the foot-depth ring and the lying thickness drag (fourth session)
 NEW_PLANS = ("lying + thickness", "depth", "depth + top", "top + depth", "1 contact + depth + top",
              "other method + depth", "other method + depth + top", "other method + top + depth")
-#: the plans added with the overhang's diamond (ninth session; docs/own-photo.md's rule)
-OVERHANG_PLANS = tuple(k for k, v in PLANS.items() if "overhang" in v)
 #: the other height method of each (the ``switch`` action)
 OTHER = {"learned": "contact_line", "contact_line": "learned"}
 
@@ -115,13 +101,11 @@ def plan_params(plan: list, known_h: np.ndarray, mask: np.ndarray, edited) -> di
     """The edit's params after the plan's actions, in order (``known_h``: the heights the
     user knows [px], ``edited(params)``: the edited map with those params, params named as
     the node's: ``contact_points``, ``contact_mode``, ``tilt`` [deg], ``lying``,
-    ``thickness`` [px], ``foot_depth`` [px], ``overhang`` [px]). ``top`` drags the tilt
-    handle until the top's height is its true one, ``thickness`` (lying) the same square,
-    ``depth`` the body's ring until the body point's height is its true one, ``overhang``
-    the overhang's diamond until its pixel's height is its true one (the node's
-    elevation: 20 deg)."""
-    from pixgraph_nodes.ops.height_edit import (body_point, depth_for_height, overhang_for_height, overhang_point,
-                                                thickness_for_height, tilt_for_height, tilt_gain, top_point)
+    ``thickness`` [px], ``foot_depth`` [px]). ``top`` drags the tilt handle until the top's
+    height is its true one, ``thickness`` (lying) the same square, ``depth`` the body's
+    ring until the body point's height is its true one (the node's elevation: 20 deg)."""
+    from pixgraph_nodes.ops.height_edit import (body_point, depth_for_height, thickness_for_height, tilt_for_height,
+                                                tilt_gain, top_point)
     p = {}
     for act in plan:
         if act.startswith("contact:"):
@@ -145,13 +129,6 @@ def plan_params(plan: list, known_h: np.ndarray, mask: np.ndarray, edited) -> di
             true_body = body_point(mask, known_h)
             if body is not None and true_body is not None:
                 p["foot_depth"] = round(depth_for_height(body[3], true_body[2], g), 2)
-        elif act == "overhang":
-            g = tilt_gain(p.get("tilt", 0.0), 20.0)
-            d = 0.0 if p.get("lying") else p.get("foot_depth", 0.0)
-            point = overhang_point(mask, edited({k: v for k, v in p.items() if k != "overhang"}), p.get("tilt", 0.0),
-                                   20.0, 0.0, d)
-            if point is not None:
-                p["overhang"] = round(overhang_for_height(float(known_h[int(point[1]), int(point[0])]), g, 0.0, d), 2)
     return p
 
 
@@ -163,5 +140,4 @@ def edit_with(height: np.ndarray, mask: np.ndarray, params: dict) -> np.ndarray:
     return edit_pixel_height(height, mask, [(pts[i], pts[i + 1]) for i in range(0, len(pts), 2)],
                              contact_mode=params.get("contact_mode", "shift"), tilt_deg=params.get("tilt", 0.0),
                              elevation_deg=20.0, lying=params.get("lying", False),
-                             thickness=params.get("thickness", 0.0), foot_depth=params.get("foot_depth", 0.0),
-                             overhang=params.get("overhang", 0.0))
+                             thickness=params.get("thickness", 0.0), foot_depth=params.get("foot_depth", 0.0))

@@ -37,31 +37,6 @@ image distance from an object point down to its foot on the ground).
    column extent of the silhouette. Replaces steps 1's result (contact points
    are ignored: every column touches the ground).
 
-2a. **Overhang** ``overhang`` [px] (0: off): parts that hang above the ground
-   (a mug's handle, a duck's tail, a bunny's ears over its body) have their
-   column's lowest pixel in the air, but a contact-line guess, a learned map
-   pinned at the bottom or lying down puts that pixel on the ground. The
-   overhang puts the ground under such columns on one image row ``g``: the
-   column whose lowest pixel is highest in the image (``u*``, the handle's
-   column, ``overhang_point``) gets its lowest pixel at height ``overhang``, so
-   ``g = v_c(u*) + overhang`` with ``v_c(u)`` the centre row of column ``u``'s
-   lowest mask pixel; every column whose lowest pixel lies above ``g`` is raised
-   as a whole until that pixel is at least ``g - v_c(u)`` high (its ground
-   point on row ``g``):
-
-   ``h'(u, v) = h(u, v) + max(0, g - v_c(u) - h(u, v_c(u)))``
-
-   ``g`` is never below the object's lowest row (``g <= max v_c``): the columns
-   that reach down to the contact stay on the ground (float the object with
-   ``lift``), so an object whose columns all end on one row is never raised.
-   Columns reaching down to ``g`` or below, and columns the input already puts
-   high enough, are unchanged; at ``overhang = 0`` no column is raised (``g`` is
-   the highest bottom). Lying, ``h(u, v_c(u)) = 0.5`` and the raise is applied
-   before the thickness cap (``min(v_bottom(u) - v + c(u), thickness)``: a
-   mug's handle's top stays at the mug's top). The page's handle is the lowest
-   pixel of column ``u*`` with a guide down to its ground point; dragging it
-   sets ``overhang`` (``overhang_for_height``: steps 2b-4 inverted at that pixel).
-
 2b. **Foot depth** ``foot_depth`` [px] (not when lying): where the ground under
    the object's body lies, relative to its contact. A map from the contact
    line (or a learned one) puts the foot of every point of a column on the
@@ -101,7 +76,7 @@ image distance from an object point down to its foot on the ground).
    contact is ``lift`` px above the ground).
 
 Finally heights are clipped to >= 0 and set to 0 outside ``mask``. With nothing
-to edit (no contact points, no overhang, no foot depth, not lying, no tilt, no lift) the input passes through
+to edit (no contact points, no foot depth, not lying, no tilt, no lift) the input passes through
 unchanged (``is_identity``): a graph with the node at its defaults renders exactly
 as one without it.
 
@@ -175,9 +150,8 @@ def ground_line(points) -> tuple[float, float]:
     return float(a), float(b)
 
 
-def lying_height(mask: np.ndarray, thickness: float = 0.0, raise_cols: np.ndarray | None = None) -> np.ndarray:
-    """``min(v_bottom(u) - v + c(u), thickness)`` over the mask (module doc, steps 2 and
-    2a) [px]; ``raise_cols`` the overhang's ``c(u)`` (W,), default 0."""
+def lying_height(mask: np.ndarray, thickness: float = 0.0) -> np.ndarray:
+    """``min(v_bottom(u) - v, thickness)`` over the mask (module doc, step 2) [px]."""
     m = np.asarray(mask, bool)
     H, W = m.shape
     cols = m.any(0)
@@ -189,60 +163,7 @@ def lying_height(mask: np.ndarray, thickness: float = 0.0, raise_cols: np.ndarra
     if thickness <= 0:
         thickness = 0.5 * float(np.median((bottom - top)[cols]))
     v = np.arange(H)[:, None] + 0.5
-    c = np.zeros(W) if raise_cols is None else np.asarray(raise_cols, np.float64)
-    return np.where(m, np.minimum(np.maximum(bottom[None, :] - v, 0.0) + c[None, :], thickness), 0.0)
-
-
-def column_bottoms(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(cols, vc): which columns hold mask pixels (W,) bool, and the centre row ``v_c(u)``
-    [px] of each one's lowest mask pixel (W,) (module doc, step 2a; 0 where empty)."""
-    m = np.asarray(mask, bool)
-    H = m.shape[0]
-    cols = m.any(0)
-    return cols, np.where(cols, H - np.argmax(m[::-1], axis=0) - 0.5, 0.0)
-
-
-def overhang_raise(height: np.ndarray, mask: np.ndarray, overhang: float) -> np.ndarray:
-    """The per-column raise ``c(u) = max(0, g - v_c(u) - h(u, v_c(u)))`` (W,) [px] with
-    ``g = min(min v_c + overhang, max v_c)`` (module doc, step 2a); 0 for ``overhang <= 0``."""
-    m = np.asarray(mask, bool)
-    h = np.asarray(height, np.float64)
-    cols, vc = column_bottoms(m)
-    if float(overhang) <= 0 or not cols.any():
-        return np.zeros(m.shape[1])
-    g = min(vc[cols].min() + float(overhang), vc[cols].max())
-    hb = h[np.clip((vc - 0.5).astype(int), 0, m.shape[0] - 1), np.arange(m.shape[1])]
-    return np.where(cols, np.maximum(0.0, g - vc - hb), 0.0)
-
-
-def overhang_point(mask: np.ndarray, edited: np.ndarray, tilt_deg: float = 0.0, elevation_deg: float = 20.0,
-                   lift: float = 0.0, depth: float = 0.0) -> tuple[float, float, float, float] | None:
-    """(u, v, h, h0) [px] of the overhang handle: the centre of the lowest covered pixel
-    (coverage > 0.5) of the column whose lowest covered pixel is highest in the image
-    (the leftmost of ties), its edited height ``h`` and ``h0``, its height before the
-    foot depth, tilt and lift (``h = g f_D(h0) + lift``, steps 2b-4: the value
-    ``overhang`` gives it where it raises its column); None for an empty mask or a
-    mask whose columns all end on one row (nothing hangs)."""
-    m = np.asarray(mask)
-    m = (m[..., 0] if m.ndim == 3 else m) > 0.5
-    cols, vc = column_bottoms(m)
-    if not cols.any() or np.ptp(vc[cols]) < 1.0:
-        return None
-    c = int(np.flatnonzero(cols)[np.argmin(vc[cols])])
-    r = int(vc[c] - 0.5)
-    e = np.asarray(edited)
-    h = float((e[..., 0] if e.ndim == 3 else e)[r, c])
-    h0 = foot_depth_inverse(max(0.0, (h - float(lift)) / tilt_gain(tilt_deg, elevation_deg)), depth)
-    return c + 0.5, r + 0.5, h, h0
-
-
-def overhang_for_height(target: float, gain: float = 1.0, lift: float = 0.0, depth: float = 0.0) -> float:
-    """The overhang [px] that gives the overhang handle's pixel the height ``target`` [px]
-    (``target = gain f_D(overhang) + lift``, steps 2b-4 inverted), at least 0 (a drag
-    below the pixel's own height leaves the map as it is)."""
-    if gain <= 0:
-        return 0.0
-    return max(0.0, foot_depth_inverse(max(0.0, (float(target) - float(lift)) / float(gain)), depth))
+    return np.where(m, np.minimum(np.maximum(bottom[None, :] - v, 0.0), thickness), 0.0)
 
 
 def foot_depth_height(height: np.ndarray, depth: float) -> np.ndarray:
@@ -317,10 +238,10 @@ def tilt_gain(tilt_deg: float, elevation_deg: float) -> float:
 
 
 def is_identity(points=(), tilt_deg: float = 0.0, lying: bool = False, lift: float = 0.0,
-                foot_depth: float = 0.0, overhang: float = 0.0) -> bool:
+                foot_depth: float = 0.0) -> bool:
     """True when ``edit_pixel_height`` has nothing to do: the input passes through (module doc)."""
     return (len(points) == 0 and not lying and float(tilt_deg) == 0.0 and float(lift) == 0.0
-            and float(foot_depth) == 0.0 and float(overhang) <= 0.0)
+            and float(foot_depth) == 0.0)
 
 
 def placed_frame(mask: np.ndarray, foot, scale: float, flip: bool = False) -> tuple[float, float, float, float]:
@@ -373,14 +294,11 @@ def tilt_for_height(h0: float, target: float, lift: float = 0.0, elevation_deg: 
 
 def edit_pixel_height(height: np.ndarray, mask: np.ndarray, points=(), contact_mode: str = "shift",
                       tilt_deg: float = 0.0, elevation_deg: float = 20.0, lying: bool = False,
-                      thickness: float = 0.0, lift: float = 0.0, foot_depth: float = 0.0,
-                      overhang: float = 0.0) -> np.ndarray:
+                      thickness: float = 0.0, lift: float = 0.0, foot_depth: float = 0.0) -> np.ndarray:
     """The edited pixel height (H, W) float32 [px] (module doc)."""
     if not math.isfinite(float(foot_depth)):
         raise ValueError(f"foot_depth must be finite, got {foot_depth}")
-    if not math.isfinite(float(overhang)):
-        raise ValueError(f"overhang must be finite, got {overhang}")
-    if is_identity(points, tilt_deg, lying, lift, foot_depth, overhang):
+    if is_identity(points, tilt_deg, lying, lift, foot_depth):
         if np.shape(height) != np.shape(mask):
             raise ValueError(f"height {np.shape(height)} and mask {np.shape(mask)} differ in size")
         return np.asarray(height, np.float32)
@@ -394,8 +312,7 @@ def edit_pixel_height(height: np.ndarray, mask: np.ndarray, points=(), contact_m
     H, W = h.shape
     v, u = np.mgrid[0:H, 0:W] + 0.5
     if lying:
-        # the overhang's raise from the uncapped lying map (each column's lowest pixel at 0.5)
-        h = lying_height(m, thickness, overhang_raise(lying_height(m, np.inf), m, overhang))
+        h = lying_height(m, thickness)
     elif len(P) and contact_mode == "upright":
         a, b = ground_line(P)
         h = a + b * u - v
@@ -403,7 +320,6 @@ def edit_pixel_height(height: np.ndarray, mask: np.ndarray, points=(), contact_m
         cols = np.flatnonzero(m.any(axis=0))
         h = h - contact_correction(h, P, float(cols[-1] - cols[0] + 1) if len(cols) else None)
     if not lying:
-        h = np.where(m, h, 0.0)
-        h = foot_depth_height(h + overhang_raise(h, m, overhang)[None, :], foot_depth)
+        h = foot_depth_height(np.where(m, h, 0.0), foot_depth)
     h = tilt_gain(tilt_deg, elevation_deg) * h + float(lift)
     return np.where(m, np.maximum(h, 0.0), 0.0).astype(np.float32)

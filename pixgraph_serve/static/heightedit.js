@@ -11,10 +11,6 @@
 //     nearest the cutout's centroid), a guide down to the ground under it; pulled up
 //     the body's ground moves toward the camera (the body is taller), pushed down
 //     behind the contact (shorter);
-//   overhang (orange diamond, when the node declares `overhang`): on the lowest pixel of
-//     the column that ends highest (a mug's handle, a duck's tail), a guide down to
-//     the ground under it; pulled up, the parts hanging in the air are raised (their
-//     ground on one row), pushed back down to the pixel's own height, off;
 //   "lying down" and "upright" (contact_mode) toggles in the toolbar.
 // The shadow follows every drag through the page's preview renders.
 "use strict";
@@ -70,18 +66,6 @@ function depthFor(h0, target, vals) {
   const g = gain(vals);
   if (h0 <= 0 || g <= 0) return 0;
   return round(Math.min(h0 / 2, Math.max(-h0 / 2, (target - (vals.lift || 0)) / g - h0)), 2);
-}
-
-// The overhang [px] that gives the overhang handle's pixel the height `target`: the
-// foot depth (not while lying), tilt and lift inverted, at least 0
-// (ops.height_edit.overhang_for_height and foot_depth_inverse).
-function overhangFor(target, vals) {
-  const g = gain(vals), d = vals.lying ? 0 : (vals.depth || 0);
-  if (g <= 0) return 0;
-  const e = Math.max(0, (target - (vals.lift || 0)) / g);
-  if (d === 0) return round(e, 2);
-  const end = 2 * Math.abs(d);
-  return round(Math.max(0, e >= end + d ? e - d : e * end / (end + d)), 2);
 }
 
 // a vertical drag of a point at (u, v) whose ground point is `h` below it [cutout px]:
@@ -163,15 +147,6 @@ function drawHeightEdit(s) {
       (target) => param(e, "depth", depthFor(h0, target, vals)));
     el.setAttribute("title", "the body: drag up = its ground lies in front of the contact (taller), "
       + "down = behind it (shorter)");
-  }
-  if (e.overhang && e.params.overhang) {
-    // the lowest pixel of the column that ends highest: pulled up, the parts hanging in
-    // the air (whose columns end above its ground row) are raised
-    const [ou, ov, h] = e.overhang;
-    const el = heightHandle(e, "overhang", "overhang-handle", [ou, ov, h], "rect",   // a diamond (style.css)
-      (target) => param(e, "overhang", overhangFor(target, vals)));
-    el.setAttribute("title", "a part hanging in the air (a handle, a tail): drag up = its ground is lower "
-      + "(the hanging parts are higher)");
   }
 }
 
