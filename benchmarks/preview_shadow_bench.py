@@ -12,7 +12,12 @@ same working resolution:
             stand-in before PreviewShadow);
   soft2/4/8 SoftShadow's own math with 2, 4 or 8 light samples;
   pcss      pixgraph.PreviewShadow: the hard shadow widened by the penumbra
-            estimate softness x blocker distance (ops/preview_shadow.py).
+            estimate softness x blocker distance (ops/preview_shadow.py);
+  pcss_aniso the same with the background's penumbra stretched along its long
+            axis (``penumbra_blur``'s geometry: the light's disk extremes
+            through the blocker onto the receiver's tangent plane), the
+            candidate of issue 24's note (docs/server.md has the rule it met or
+            missed).
 
 Accuracy, over the example graphs with a soft shadow (graphs/wall_corner_shadow,
 ground_shadow, steps_shadow, auto_shadow at the page's working resolution 0.5:
@@ -49,14 +54,14 @@ from _machine import cpu_model
 from pixgraph.session import Session
 from pixgraph_nodes.ops import preview_shadow as P
 from pixgraph_nodes.ops import shadow as S
-from pixgraph_nodes.ops.lights import disk_samples, light_point
+from pixgraph_nodes.ops.lights import disk_extremes, disk_samples, light_point
 from pixgraph_nodes.ops.softness import softness_of
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 GRAPHS = ("wall_corner_shadow", "ground_shadow", "steps_shadow", "auto_shadow", "own_photo")
 INPUTS = ("mask", "fg_height", "bg_height", "light", "camera")
 WORK = 0.5
-CANDIDATES = ("hard", "soft2", "soft4", "soft8", "pcss")
+CANDIDATES = ("hard", "soft2", "soft4", "soft8", "pcss", "pcss_aniso")
 
 
 def load(session, path):
@@ -85,10 +90,12 @@ def candidate(name, device, scene, mask, fg, light, cam):
     if name.startswith("soft"):
         n = int(name[4:])
         return 1.0 - scene.soft_shadow(disk_samples(light, cam, n, 0) if light.is_area else light_point(light, cam)[None])
-    if name == "pcss":
+    if name in ("pcss", "pcss_aniso"):
         soft = softness_of(light, cam, mask, fg) if light.is_area else 0.0
-        dark, dist = scene.hard_shadow_distance(light_point(light, cam))
-        return P.penumbra_blur(dark, dist, np.asarray(mask) > 0.5, soft)
+        lp = light_point(light, cam)
+        dark, dist = scene.hard_shadow_distance(lp)
+        geometry = (scene.prep.bg, lp, disk_extremes(light, cam)) if name == "pcss_aniso" else None
+        return P.penumbra_blur(dark, dist, np.asarray(mask) > 0.5, soft, geometry)
     raise ValueError(name)
 
 

@@ -128,7 +128,68 @@ def _box_at(z: np.ndarray, i: np.ndarray, j: np.ndarray, r: np.ndarray) -> np.nd
     return z[:, i1, j1] - z[:, i0, j1] - z[:, i1, j0] + z[:, i0, j0]
 
 
-def penumbra_blur(darkness, distance, inside, softness: float) -> np.ndarray:
+def penumbra_axes(u, v, h, grad_u, grad_v, blocker, light, extremes):
+    """The penumbra a disk light casts at receiver points: the half-axes of the
+    ellipse the light's disk maps to on the receiver, seen through the blocker.
+
+    u, v, h: receiver pixel centres and pixel height [px] (arrays of one shape);
+    grad_u, grad_v: the receiver surface's slope dh/du, dh/dv there (0 on the
+    ground); blocker: the distance [px, (u, v, h) space] from the receiver to the
+    blocking point along the march toward ``light``, the light's centre
+    ``(u, v, h, s)``; extremes: (4, 4) the disk's right, left, top and bottom
+    points in pixel-height space (``lights.disk_extremes``).
+
+    The blocking point b lies on the receiver's march; the shadow of b cast from
+    an extreme point E falls where the line E-b meets the receiver's tangent plane
+    (a projective statement, so it holds for ``s = -1`` and lights at infinity
+    too); its offset from the receiver, half of right minus left and of top minus
+    bottom, are two conjugate half-axes of the penumbra's ellipse (first order in
+    the light's size). Returns ``(major, minor, cos, sin)``: the half-axes [px] and
+    the unit direction of the major one in the image; non-finite where the
+    geometry degenerates (the caller falls back to the square box).
+    """
+    L = np.asarray(light, np.float64)
+    E = np.asarray(extremes, np.float64)
+    sgn = -1.0 if L[3] < 0 else 1.0
+    u, v, h = (np.asarray(x, np.float64) for x in (u, v, h))
+    gu, gv = np.asarray(grad_u, np.float64), np.asarray(grad_v, np.float64)
+    du, dv, dh = L[0] - u, L[1] - v, L[2] - h
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = sgn * np.asarray(blocker, np.float64) / np.sqrt(du * du + dv * dv + dh * dh)
+        bu, bv, bh = u + t * du, v + t * dv, h + t * dh
+        # the tangent plane h' = h + gu (u' - u) + gv (v' - v) at the receiver
+        rhs = h - bh + gu * (bu - u) + gv * (bv - v)
+        off = []
+        for e in E[:4]:
+            wu, wv, wh = bu - e[0], bv - e[1], bh - e[2]
+            lam = rhs / (wh - gu * wu - gv * wv)
+            off.append((bu + lam * wu - u, bv + lam * wv - v))
+        a1u, a1v = (off[0][0] - off[1][0]) / 2, (off[0][1] - off[1][1]) / 2
+        a2u, a2v = (off[2][0] - off[3][0]) / 2, (off[2][1] - off[3][1]) / 2
+        # principal axes of {x a1 + y a2 : x^2 + y^2 <= 1}: eigen of [a1 a2][a1 a2]^T
+        p, q, r = a1u * a1u + a2u * a2u, a1u * a1v + a2u * a2v, a1v * a1v + a2v * a2v
+        m, d = (p + r) / 2, np.hypot((p - r) / 2, q)
+        major, minor = np.sqrt(m + d), np.sqrt(np.maximum(m - d, 0.0))
+        ang = 0.5 * np.arctan2(2 * q, p - r)
+    return major, minor, np.cos(ang), np.sin(ang)
+
+
+def _receiver_slope(bg: np.ndarray, i: np.ndarray, j: np.ndarray):
+    """dh/du, dh/dv of the background height map at pixels (i, j): central
+    differences (one-sided at the image's border)."""
+    H, W = bg.shape
+    jm, jp = np.maximum(j - 1, 0), np.minimum(j + 1, W - 1)
+    im, ip = np.maximum(i - 1, 0), np.minimum(i + 1, H - 1)
+    gu = (bg[i, jp] - bg[i, jm]) / np.maximum(jp - jm, 1)
+    gv = (bg[ip, j] - bg[im, j]) / np.maximum(ip - im, 1)
+    return gu.astype(np.float64), gv.astype(np.float64)
+
+
+#: most boxes a stretched penumbra is swept with (``penumbra_blur`` with a geometry)
+MAX_BOXES = 6
+
+
+def penumbra_blur(darkness, distance, inside, softness: float, geometry=None) -> np.ndarray:
     """The soft shadow estimated from a hard one (module docstring, steps 1-2).
 
     darkness: float (H, W) in [0, 1], the hard shadow (1 shadow); distance: float
@@ -136,6 +197,12 @@ def penumbra_blur(darkness, distance, inside, softness: float) -> np.ndarray:
     (H, W), the cutout (its pixels average only cutout pixels, the others only
     background pixels; outside the image counts as neither); softness: light
     radius over distance (>= 0).
+    geometry: None (the square box of half-size ``softness x d``), or
+    ``(bg_height, light, extremes)``: the background's pixel heights (H, W) [px],
+    the light's centre (4,) and its disk's extreme points (4, 4) in pixel-height
+    space; then the background's penumbra is stretched (module docstring, step 2'):
+    ``penumbra_axes`` gives each pixel's ellipse and the box is swept along its
+    major axis (the cutout's self-shadow keeps the square box).
     Returns darkness float32 (H, W) in [0, 1]; softness 0 returns ``darkness``.
     """
     dark = np.clip(np.asarray(darkness, np.float32), 0.0, 1.0)
@@ -153,7 +220,24 @@ def penumbra_blur(darkness, distance, inside, softness: float) -> np.ndarray:
     if softness == 0.0 or not shadowed.any():
         return out
     cap = max(1, int(MAX_REACH * max(H, W)))
-    reach = min(cap, math.ceil(softness * float(dist[shadowed].max())))
+    reach = softness * float(dist[shadowed].max())
+    search = min(max(1, int(MAX_REACH * max(H, W))), math.ceil(reach))    # step 1's reach
+    if geometry is not None:
+        bg, light, extremes = geometry
+        bg = np.asarray(bg, np.float32)
+        if bg.shape != dark.shape:
+            raise ValueError(f"geometry's bg_height must have the darkness's shape {dark.shape}, got {bg.shape}")
+        # the longest half-axis over the background's shadow (every 3rd row and column:
+        # the reach only bounds the boxes) sets the reach
+        si, sj = np.nonzero(shadowed[::3, ::3] & ~inside[::3, ::3])
+        si, sj = si * 3, sj * 3
+        if si.size:
+            gu, gv = _receiver_slope(bg, si, sj)
+            major = penumbra_axes(sj + 0.5, si + 0.5, bg[si, sj], gu, gv, dist[si, sj], light, extremes)[0]
+            major = major[np.isfinite(major)]
+            if major.size:
+                reach = max(reach, 1.0 + float(major.max()))
+    reach = min(cap, math.ceil(reach))
     if reach < 1:
         return out
     R = reach
@@ -177,7 +261,17 @@ def penumbra_blur(darkness, distance, inside, softness: float) -> np.ndarray:
         # both shadow and light of this side within reach (an all-shadow box keeps 1)
         mixed = side[o0:o1, p0:p1] & (na > 0.0) & (na < nw - 1e-6)
         i, j = np.nonzero(mixed)
-        r = np.minimum(np.rint(softness * (nb[i, j] / na[i, j])), R).astype(np.int64)
+        dbar = nb[i, j] / na[i, j]
+        if geometry is not None and side is not inside:
+            if 1 <= search < R:     # the blocker search keeps step 1's reach: the swept box is longer
+                e = R - search
+                _, na_s, nb_s = _box_fixed(z[:, e:z.shape[1] - e, e:z.shape[2] - e], search)
+                near = na_s[i, j] > 0
+                dbar = np.where(near, nb_s[i, j] / np.where(near, na_s[i, j], 1.0), dbar)
+            out[i + o0, j + p0] = _swept_boxes(z, i, j, i + o0, j + p0, dbar, softness, R, bg, light, extremes,
+                                               out[i + o0, j + p0])
+            continue
+        r = np.minimum(np.rint(softness * dbar), R).astype(np.int64)
         k = r >= 1
         i, j, r = i[k], j[k], r[k]
         den, num = _box_at(z[:2], i + R, j + R, r)
@@ -185,11 +279,50 @@ def penumbra_blur(darkness, distance, inside, softness: float) -> np.ndarray:
     return out
 
 
+def _swept_boxes(z, i, j, gi, gj, dbar, softness, R, bg, light, extremes, keep):
+    """Step 2': the darkness at crop pixels (i, j) (image pixels (gi, gj)) averaged over
+    n square boxes of half-size ``round(minor)`` whose centres are spread evenly along the
+    major axis so that together they span ``major`` each way (n = 1 + ceil((major -
+    minor) / minor), at most MAX_BOXES; their sums added, so overlaps count twice, as a
+    disk's middle weighs more). Pixels whose ellipse is under a pixel keep ``keep``."""
+    gu, gv = _receiver_slope(bg, gi, gj)
+    major, minor, cu, cv = penumbra_axes(gj + 0.5, gi + 0.5, bg[gi, gj], gu, gv, dbar, light, extremes)
+    bad = ~(np.isfinite(major) & np.isfinite(minor) & np.isfinite(cu) & np.isfinite(cv))
+    iso = softness * dbar
+    major = np.minimum(np.where(bad, iso, major), R)
+    minor = np.minimum(np.where(bad, iso, minor), major)
+    cu, cv = np.where(bad, 1.0, cu), np.where(bad, 0.0, cv)
+    k = np.rint(major) >= 1
+    res = np.asarray(keep, np.float32).copy()
+    i, j, major, minor, cu, cv = i[k], j[k], major[k], minor[k], cu[k], cv[k]
+    n = np.minimum(MAX_BOXES, 1 + np.ceil((major - minor) / np.maximum(minor, 0.5))).astype(np.int64)
+    # box half-size: the minor axis, at least half the centres' spacing (no gaps)
+    spacing = np.where(n > 1, 2.0 * (major - minor) / np.maximum(n - 1, 1), 0.0)
+    r = np.minimum(np.maximum(np.rint(minor), np.ceil(spacing / 2)), R).astype(np.int64)
+    span = np.maximum(major - r, 0.0)
+    den = np.zeros(i.shape, np.float64)
+    num = np.zeros(i.shape, np.float64)
+    for m in range(int(n.max()) if n.size else 0):
+        sel = m < n
+        tau = np.where(n > 1, 2.0 * m / np.maximum(n - 1, 1) - 1.0, 0.0)[sel]
+        lim = (R - r)[sel]
+        oi = np.clip(np.rint(tau * span[sel] * cv[sel]), -lim, lim).astype(np.int64)
+        oj = np.clip(np.rint(tau * span[sel] * cu[sel]), -lim, lim).astype(np.int64)
+        d_, n_ = _box_at(z[:2], i[sel] + R + oi, j[sel] + R + oj, r[sel])
+        den[sel] += d_
+        num[sel] += n_
+    res[k] = np.clip(num / np.maximum(den, 1.0), 0.0, 1.0)
+    return res
+
+
 def preview_soft_shadow(device, mask, fg_height, bg_height, light, softness, thickness=1.0, *,
-                        progress=None, check_cancelled=None) -> np.ndarray:
+                        extremes=None, progress=None, check_cancelled=None) -> np.ndarray:
     """A preview's soft shadow: darkness float32 (H, W) in [0, 1] (1 full shadow).
     light: the light's centre (u, v, h, s); softness: radius over distance (0 for
-    a point light: the hard shadow exactly). Other inputs as ``shadow.hard_shadow``."""
+    a point light: the hard shadow exactly); extremes: None (the square box) or the
+    disk's extreme points (4, 4) (``lights.disk_extremes``: the stretched penumbra of
+    ``penumbra_blur``'s geometry). Other inputs as ``shadow.hard_shadow``."""
     dark, dist = hard_shadow_distance(device, mask, fg_height, bg_height, light, thickness,
                                       progress=progress, check_cancelled=check_cancelled)
-    return penumbra_blur(dark, dist, np.asarray(mask) > 0.5, softness)
+    geometry = None if extremes is None else (bg_height, light, extremes)
+    return penumbra_blur(dark, dist, np.asarray(mask) > 0.5, softness, geometry)
