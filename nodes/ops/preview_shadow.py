@@ -114,18 +114,22 @@ def _sat(a: np.ndarray) -> np.ndarray:
     return z
 
 
-def _box_fixed(z: np.ndarray, r: int) -> np.ndarray:
-    """Sums over the boxes of half-size r around the pixels of a table's image that lie
-    at least r pixels inside it: (k, h - 2r, w - 2r)."""
-    n = 2 * r + 1
-    return z[:, n:, n:] - z[:, :-n, n:] - z[:, n:, :-n] + z[:, :-n, :-n]
+def _box_fixed(z: np.ndarray, ri: int, rj: int) -> np.ndarray:
+    """Sums over the boxes of half-sizes ri (rows) and rj (columns) around the pixels of a
+    table's image that lie at least that far inside it: (k, h - 2 ri, w - 2 rj)."""
+    ni, nj = 2 * ri + 1, 2 * rj + 1
+    return z[:, ni:, nj:] - z[:, :-ni, nj:] - z[:, ni:, :-nj] + z[:, :-ni, :-nj]
 
 
 def _box_at(z: np.ndarray, i: np.ndarray, j: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Sums over the boxes of half-size r[m] around pixels (i[m], j[m]) of a table's
     image (k, ...), boxes inside it."""
-    i0, i1, j0, j1 = i - r, i + r + 1, j - r, j + r + 1
-    return z[:, i1, j1] - z[:, i0, j1] - z[:, i1, j0] + z[:, i0, j0]
+    w = z.shape[2]
+    i0, i1, j0, j1 = (i - r) * w, (i + r + 1) * w, j - r, j + r + 1
+    a, b, c, d = i1 + j1, i0 + j1, i1 + j0, i0 + j0
+    # np.take on each flat plane: several times faster than fancy indexing of (k, h, w)
+    return np.stack([np.take(p, a) - np.take(p, b) - np.take(p, c) + np.take(p, d)
+                     for p in z.reshape(z.shape[0], -1)])
 
 
 def penumbra_axes(u, v, h, grad_u, grad_v, blocker, light, extremes):
@@ -149,40 +153,46 @@ def penumbra_axes(u, v, h, grad_u, grad_v, blocker, light, extremes):
     geometry degenerates (the caller falls back to the square box).
     """
     L = np.asarray(light, np.float64)
-    E = np.asarray(extremes, np.float64)
+    E = np.asarray(extremes, np.float32)[:4, :3, None]             # (4, 3, 1)
     sgn = -1.0 if L[3] < 0 else 1.0
-    u, v, h = (np.asarray(x, np.float64) for x in (u, v, h))
-    gu, gv = np.asarray(grad_u, np.float64), np.asarray(grad_v, np.float64)
-    du, dv, dh = L[0] - u, L[1] - v, L[2] - h
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = sgn * np.asarray(blocker, np.float64) / np.sqrt(du * du + dv * dv + dh * dh)
-        bu, bv, bh = u + t * du, v + t * dv, h + t * dh
-        # the tangent plane h' = h + gu (u' - u) + gv (v' - v) at the receiver
-        rhs = h - bh + gu * (bu - u) + gv * (bv - v)
-        off = []
-        for e in E[:4]:
-            wu, wv, wh = bu - e[0], bv - e[1], bh - e[2]
-            lam = rhs / (wh - gu * wu - gv * wv)
-            off.append((bu + lam * wu - u, bv + lam * wv - v))
-        a1u, a1v = (off[0][0] - off[1][0]) / 2, (off[0][1] - off[1][1]) / 2
-        a2u, a2v = (off[2][0] - off[3][0]) / 2, (off[2][1] - off[3][1]) / 2
+    f32 = np.float32
+    u, v, h = (np.asarray(x, f32) for x in (u, v, h))
+    gu, gv = np.asarray(grad_u, f32), np.asarray(grad_v, f32)
+    du, dv, dh = f32(L[0]) - u, f32(L[1]) - v, f32(L[2]) - h
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        t = (f32(sgn) * np.asarray(blocker, f32)) / np.sqrt(du * du + dv * dv + dh * dh)
+        tu, tv, th = t * du, t * dv, t * dh                   # b - r
+        # the tangent plane h' = h + gu (u' - u) + gv (v' - v) at the receiver r; the line
+        # b + lam (b - E) meets it at lam = (gu tu + gv tv - th) / ((b - E)_h - g . (b - E)_uv)
+        rhs = gu * tu + gv * tv - th
+        wu, wv, wh = (u + tu) - E[:, 0], (v + tv) - E[:, 1], (h + th) - E[:, 2]   # (4, N)
+        lam = rhs / (wh - gu * wu - gv * wv)
+        ou, ov = tu + lam * wu, tv + lam * wv                     # offsets from r, (4, N)
+        a1u, a1v = (ou[0] - ou[1]) * f32(0.5), (ov[0] - ov[1]) * f32(0.5)
+        a2u, a2v = (ou[2] - ou[3]) * f32(0.5), (ov[2] - ov[3]) * f32(0.5)
         # principal axes of {x a1 + y a2 : x^2 + y^2 <= 1}: eigen of [a1 a2][a1 a2]^T
         p, q, r = a1u * a1u + a2u * a2u, a1u * a1v + a2u * a2v, a1v * a1v + a2v * a2v
-        m, d = (p + r) / 2, np.hypot((p - r) / 2, q)
-        major, minor = np.sqrt(m + d), np.sqrt(np.maximum(m - d, 0.0))
-        ang = 0.5 * np.arctan2(2 * q, p - r)
-    return major, minor, np.cos(ang), np.sin(ang)
+        m, hp = (p + r) * f32(0.5), (p - r) * f32(0.5)
+        d = np.sqrt(hp * hp + q * q)             # (np.hypot is ten times slower)
+        major, minor = np.sqrt(m + d), np.sqrt(np.maximum(m - d, f32(0.0)))
+        # the major eigenvector: (d + (p - r)/2, q), or (q, d - (p - r)/2) when p < r
+        xu, xv = np.where(hp >= 0, d + hp, q), np.where(hp >= 0, q, d - hp)
+        n = np.sqrt(xu * xu + xv * xv)
+        cu, cv = np.where(n > 0, xu / n, f32(1.0)), np.where(n > 0, xv / n, f32(0.0))
+    return major, minor, cu, cv
 
 
 def _receiver_slope(bg: np.ndarray, i: np.ndarray, j: np.ndarray):
-    """dh/du, dh/dv of the background height map at pixels (i, j): central
-    differences (one-sided at the image's border)."""
+    """``(h, dh/du, dh/dv)`` of the background height map at pixels (i, j), float32:
+    central differences (one-sided at the image's border)."""
     H, W = bg.shape
+    flat = bg.reshape(-1)
     jm, jp = np.maximum(j - 1, 0), np.minimum(j + 1, W - 1)
     im, ip = np.maximum(i - 1, 0), np.minimum(i + 1, H - 1)
-    gu = (bg[i, jp] - bg[i, jm]) / np.maximum(jp - jm, 1)
-    gv = (bg[ip, j] - bg[im, j]) / np.maximum(ip - im, 1)
-    return gu.astype(np.float64), gv.astype(np.float64)
+    row, col = i * W, j
+    gu = (np.take(flat, row + jp) - np.take(flat, row + jm)) / np.maximum(jp - jm, 1).astype(np.float32)
+    gv = (np.take(flat, ip * W + col) - np.take(flat, im * W + col)) / np.maximum(ip - im, 1).astype(np.float32)
+    return np.take(flat, row + col), gu, gv
 
 
 #: most boxes a stretched penumbra is swept with (``penumbra_blur`` with a geometry)
@@ -220,98 +230,115 @@ def penumbra_blur(darkness, distance, inside, softness: float, geometry=None) ->
     if softness == 0.0 or not shadowed.any():
         return out
     cap = max(1, int(MAX_REACH * max(H, W)))
-    reach = softness * float(dist[shadowed].max())
-    search = min(max(1, int(MAX_REACH * max(H, W))), math.ceil(reach))    # step 1's reach
+    search = min(cap, math.ceil(softness * float(dist[shadowed].max())))     # step 1's reach
+    if search < 1:
+        return out
+    reach_i = reach_j = search
     if geometry is not None:
         bg, light, extremes = geometry
-        bg = np.asarray(bg, np.float32)
+        bg = np.ascontiguousarray(bg, np.float32)
         if bg.shape != dark.shape:
             raise ValueError(f"geometry's bg_height must have the darkness's shape {dark.shape}, got {bg.shape}")
-        # the longest half-axis over the background's shadow (every 3rd row and column:
-        # the reach only bounds the boxes) sets the reach
-        si, sj = np.nonzero(shadowed[::3, ::3] & ~inside[::3, ::3])
-        si, sj = si * 3, sj * 3
+        # the background's boxes reach as far as the ellipses of its shadowed pixels
+        # extend along each image axis (on a grid of at most about 4000 of them: the
+        # reach only bounds the boxes), one pixel more
+        src = shadowed & ~inside
+        step = max(1, math.ceil(math.sqrt(np.count_nonzero(src) / 4000.0)))
+        si, sj = np.nonzero(src[::step, ::step])
+        si, sj = si * step, sj * step
         if si.size:
-            gu, gv = _receiver_slope(bg, si, sj)
-            major = penumbra_axes(sj + 0.5, si + 0.5, bg[si, sj], gu, gv, dist[si, sj], light, extremes)[0]
-            major = major[np.isfinite(major)]
-            if major.size:
-                reach = max(reach, 1.0 + float(major.max()))
-    reach = min(cap, math.ceil(reach))
-    if reach < 1:
-        return out
-    R = reach
-    for side in (~inside, inside):
+            hb, gu, gv = _receiver_slope(bg, si, sj)
+            a, b, cu, cv = penumbra_axes(sj + 0.5, si + 0.5, hb, gu, gv, dist[si, sj], light, extremes)
+            ext_u = np.sqrt((a * cu) ** 2 + (b * cv) ** 2)
+            ext_v = np.sqrt((a * cv) ** 2 + (b * cu) ** 2)
+            ok = np.isfinite(ext_u) & np.isfinite(ext_v)
+            if ok.any():
+                reach_j = min(cap, max(search, math.ceil(1.0 + float(ext_u[ok].max()))))
+                reach_i = min(cap, max(search, math.ceil(1.0 + float(ext_v[ok].max()))))
+    for side, swept in ((~inside, geometry is not None), (inside, False)):
         src = shadowed & side
         if not src.any():
             continue
+        Ri, Rj = (reach_i, reach_j) if swept else (search, search)
         rows, cols = np.flatnonzero(src.any(axis=1)), np.flatnonzero(src.any(axis=0))
-        # the pixels that may change lie within reach of a shadowed pixel; they read up
-        # to reach farther: a zero-padded crop, so that every box lies inside it
-        o0, o1 = max(0, rows[0] - R), min(H, rows[-1] + 1 + R)
-        p0, p1 = max(0, cols[0] - R), min(W, cols[-1] + 1 + R)
-        r0, r1, c0, c1 = max(0, o0 - R), min(H, o1 + R), max(0, p0 - R), min(W, p1 + R)
-        planes = np.zeros((3, o1 - o0 + 2 * R, p1 - p0 + 2 * R), np.float32)
-        at = (slice(None), slice(r0 - o0 + R, r1 - o0 + R), slice(c0 - p0 + R, c1 - p0 + R))
+        # the pixels that may change lie within step 1's reach of a shadowed pixel; they
+        # read up to Ri rows and Rj columns farther: a zero-padded crop, so that every box
+        # lies inside it
+        o0, o1 = max(0, rows[0] - search), min(H, rows[-1] + 1 + search)
+        p0, p1 = max(0, cols[0] - search), min(W, cols[-1] + 1 + search)
+        r0, r1, c0, c1 = max(0, o0 - Ri), min(H, o1 + Ri), max(0, p0 - Rj), min(W, p1 + Rj)
+        planes = np.zeros((3, o1 - o0 + 2 * Ri, p1 - p0 + 2 * Rj), np.float32)
+        at = (slice(None), slice(r0 - o0 + Ri, r1 - o0 + Ri), slice(c0 - p0 + Rj, c1 - p0 + Rj))
         wgt = side[r0:r1, c0:c1]
         planes[at] = [wgt, np.where(src[r0:r1, c0:c1], dark[r0:r1, c0:c1], 0.0),
                       np.where(src[r0:r1, c0:c1], dark[r0:r1, c0:c1] * dist[r0:r1, c0:c1], 0.0)]
         z = _sat(planes)
-        nw, na, nb = _box_fixed(z, R)                    # (o1 - o0, p1 - p0) each
-        # both shadow and light of this side within reach (an all-shadow box keeps 1)
+        ei, ej = Ri - search, Rj - search
+        nw, na, nb = _box_fixed(z[:, ei:z.shape[1] - ei, ej:z.shape[2] - ej], search, search)
+        # both shadow and light of this side within step 1's reach (an all-shadow box
+        # keeps 1; a swept box reaches farther but changes only these pixels)
         mixed = side[o0:o1, p0:p1] & (na > 0.0) & (na < nw - 1e-6)
         i, j = np.nonzero(mixed)
         dbar = nb[i, j] / na[i, j]
-        if geometry is not None and side is not inside:
-            if 1 <= search < R:     # the blocker search keeps step 1's reach: the swept box is longer
-                e = R - search
-                _, na_s, nb_s = _box_fixed(z[:, e:z.shape[1] - e, e:z.shape[2] - e], search)
-                near = na_s[i, j] > 0
-                dbar = np.where(near, nb_s[i, j] / np.where(near, na_s[i, j], 1.0), dbar)
-            out[i + o0, j + p0] = _swept_boxes(z, i, j, i + o0, j + p0, dbar, softness, R, bg, light, extremes,
+        if swept:
+            out[i + o0, j + p0] = _swept_boxes(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes,
                                                out[i + o0, j + p0])
             continue
-        r = np.minimum(np.rint(softness * dbar), R).astype(np.int64)
+        r = np.minimum(np.rint(softness * dbar), search).astype(np.int64)
         k = r >= 1
         i, j, r = i[k], j[k], r[k]
-        den, num = _box_at(z[:2], i + R, j + R, r)
+        den, num = _box_at(z[:2], i + Ri, j + Rj, r)
         out[i + o0, j + p0] = np.clip(num / np.maximum(den, 1.0), 0.0, 1.0)
     return out
 
 
-def _swept_boxes(z, i, j, gi, gj, dbar, softness, R, bg, light, extremes, keep):
-    """Step 2': the darkness at crop pixels (i, j) (image pixels (gi, gj)) averaged over
-    n square boxes of half-size ``round(minor)`` whose centres are spread evenly along the
-    major axis so that together they span ``major`` each way (n = 1 + ceil((major -
-    minor) / minor), at most MAX_BOXES; their sums added, so overlaps count twice, as a
-    disk's middle weighs more). Pixels whose ellipse is under a pixel keep ``keep``."""
-    gu, gv = _receiver_slope(bg, gi, gj)
-    major, minor, cu, cv = penumbra_axes(gj + 0.5, gi + 0.5, bg[gi, gj], gu, gv, dbar, light, extremes)
+def _swept_boxes(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes, keep):
+    """Step 2': the darkness at crop pixels (i, j) (image pixels (i + o0, j + p0); the
+    crop's tables z are padded by Ri rows and Rj columns) averaged over n square boxes
+    of half-size ``round(minor)`` whose centres are spread evenly along the major axis
+    so that together they span ``major`` each way (n = 1 + ceil((major - minor) /
+    minor), at most MAX_BOXES; their sums added, so overlaps count twice, as a disk's
+    middle weighs more). Where the geometry degenerates the square box of half-size
+    ``softness x dbar``; pixels whose ellipse is under a pixel keep ``keep``."""
+    gi, gj = i + o0, j + p0
+    hb, gu, gv = _receiver_slope(bg, gi, gj)
+    major, minor, cu, cv = penumbra_axes(gj + 0.5, gi + 0.5, hb, gu, gv, dbar, light, extremes)
     bad = ~(np.isfinite(major) & np.isfinite(minor) & np.isfinite(cu) & np.isfinite(cv))
-    iso = softness * dbar
-    major = np.minimum(np.where(bad, iso, major), R)
-    minor = np.minimum(np.where(bad, iso, minor), major)
-    cu, cv = np.where(bad, 1.0, cu), np.where(bad, 0.0, cv)
-    k = np.rint(major) >= 1
+    if bad.any():
+        iso = (softness * dbar).astype(np.float32)
+        major, minor = np.where(bad, iso, major), np.where(bad, iso, minor)
+        cu, cv = np.where(bad, np.float32(1.0), cu), np.where(bad, np.float32(0.0), cv)
+    major = np.minimum(major, np.float32(max(Ri, Rj)))
+    minor = np.minimum(minor, major)
     res = np.asarray(keep, np.float32).copy()
-    i, j, major, minor, cu, cv = i[k], j[k], major[k], minor[k], cu[k], cv[k]
-    n = np.minimum(MAX_BOXES, 1 + np.ceil((major - minor) / np.maximum(minor, 0.5))).astype(np.int64)
+    n = np.minimum(MAX_BOXES, 1 + np.floor(0.5 + (major - minor) / np.maximum(minor, np.float32(0.5))))
+    n = np.where(np.rint(major) >= 1, n, 0).astype(np.int64)      # 0: under a pixel, kept
+    # the pixels in order of decreasing n: box m is summed over a prefix of them
+    order = np.concatenate([np.flatnonzero(n == c) for c in range(MAX_BOXES, 0, -1)])
+    if order.size == 0:
+        return res
+    i, j, major, minor, cu, cv, n = (x[order] for x in (i, j, major, minor, cu, cv, n))
     # box half-size: the minor axis, at least half the centres' spacing (no gaps)
-    spacing = np.where(n > 1, 2.0 * (major - minor) / np.maximum(n - 1, 1), 0.0)
-    r = np.minimum(np.maximum(np.rint(minor), np.ceil(spacing / 2)), R).astype(np.int64)
-    span = np.maximum(major - r, 0.0)
+    gap = np.maximum(n - 1, 1).astype(np.float32)
+    spacing = np.where(n > 1, 2.0 * (major - minor) / gap, np.float32(0.0))
+    r = np.minimum(np.maximum(np.rint(minor), np.ceil(spacing / 2)), min(Ri, Rj)).astype(np.int64)
+    span = np.where(n > 1, np.maximum(major - r, np.float32(0.0)), np.float32(0.0))
+    # centre m of n: -span + m 2 span / (n - 1) along (cu, cv), clipped so the box stays in the tables
+    su, sv = span * cu, span * cv
+    du, dv = 2.0 * su / gap, 2.0 * sv / gap
+    lo_i, hi_i, lo_j, hi_j = r - Ri, Ri - r, r - Rj, Rj - r
+    ci, cj = i + Ri, j + Rj
+    count = np.bincount(n, minlength=MAX_BOXES + 1)[::-1].cumsum()[::-1]    # count[m]: pixels with n >= m
     den = np.zeros(i.shape, np.float64)
     num = np.zeros(i.shape, np.float64)
-    for m in range(int(n.max()) if n.size else 0):
-        sel = m < n
-        tau = np.where(n > 1, 2.0 * m / np.maximum(n - 1, 1) - 1.0, 0.0)[sel]
-        lim = (R - r)[sel]
-        oi = np.clip(np.rint(tau * span[sel] * cv[sel]), -lim, lim).astype(np.int64)
-        oj = np.clip(np.rint(tau * span[sel] * cu[sel]), -lim, lim).astype(np.int64)
-        d_, n_ = _box_at(z[:2], i[sel] + R + oi, j[sel] + R + oj, r[sel])
-        den[sel] += d_
-        num[sel] += n_
-    res[k] = np.clip(num / np.maximum(den, 1.0), 0.0, 1.0)
+    for m in range(int(n[0])):
+        c = count[m + 1]
+        oi = np.clip(np.rint(m * dv[:c] - sv[:c]), lo_i[:c], hi_i[:c]).astype(np.int64)
+        oj = np.clip(np.rint(m * du[:c] - su[:c]), lo_j[:c], hi_j[:c]).astype(np.int64)
+        d_, n_ = _box_at(z[:2], ci[:c] + oi, cj[:c] + oj, r[:c])
+        den[:c] += d_
+        num[:c] += n_
+    res[order] = np.clip(num / np.maximum(den, 1.0), 0.0, 1.0)
     return res
 
 
