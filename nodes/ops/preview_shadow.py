@@ -311,7 +311,7 @@ def _swept_boxes(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes, k
     major = np.minimum(major, np.float32(max(Ri, Rj)))
     minor = np.minimum(minor, major)
     res = np.asarray(keep, np.float32).copy()
-    n = np.minimum(MAX_BOXES, 1 + np.floor(0.5 + (major - minor) / np.maximum(minor, np.float32(0.5))))
+    n = np.minimum(MAX_BOXES, 1 + np.ceil((major - minor) / np.maximum(minor, np.float32(0.5))))
     n = np.where(np.rint(major) >= 1, n, 0).astype(np.int64)      # 0: under a pixel, kept
     # the pixels in order of decreasing n: box m is summed over a prefix of them
     order = np.concatenate([np.flatnonzero(n == c) for c in range(MAX_BOXES, 0, -1)])
