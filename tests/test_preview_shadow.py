@@ -219,6 +219,84 @@ def test_stretched_penumbra_keeps_the_guarantees():
         P.penumbra_blur(dark, dist, inside, soft, (bg[:10], light, ext))
 
 
+# -- SSN++'s thickness in the preview (its window's pixels, not the image's) ----------------------
+
+def _tall_figure_scene():
+    """The figure, 1.6x, on a 512 x 512 image under CAM: about 430 px tall, so SSN++'s
+    window brings it to the trained 120 px at a scale of about 0.28 network px per image px."""
+    from pixgraph_nodes.ops import lights as L
+    from test_geometry_shadows import CAM
+
+    mask, fg, bg = figure(512, 512, scale=1.6)
+    light = L.from_controls((0.0, 0.0, -3.0), 30.0, 35.0, 3.0, radius=0.4)
+    return mask, fg, bg, light, CAM
+
+
+def _preview_node(device, mask, fg, bg, light, cam, **params):
+    from pixgraph.node import Namespace
+    from pixgraph_nodes.preview_shadow import PreviewShadow
+    from test_geometry_shadows import Ctx
+
+    ins = Namespace({"mask": mask, "fg_height": fg, "bg_height": bg, "light": light, "camera": cam})
+    return PreviewShadow().compute(Ctx(device), ins, Namespace(PreviewShadow.spec.coerce_params(params)))["darkness"]
+
+
+def test_ssn_thickness_is_read_in_the_windows_pixels(device):
+    """PreviewShadow with ``method: ssn`` (what SoftShadowSSN's stand-in gets) reads
+    ``thickness`` as SSN++ does, in pixels of the network's window: the image's
+    thickness is it divided by the window's scale, here 120 px (the trained object
+    height) over the cutout's 430-odd rows, about 0.28: 4 window px are about 14 image
+    px. Read as image px (any other method), the shadow differs in hundreds of pixels."""
+    from pixgraph_nodes.ops.lights import light_point
+    from pixgraph_nodes.ops.softness import softness_of
+
+    mask, fg, bg, light, cam = _tall_figure_scene()
+    rows = np.flatnonzero((mask > 0.5).any(axis=1))
+    k = 120.0 / (rows[-1] - rows[0] + 1)
+    assert 0.2 < k < 0.35
+    soft = softness_of(light, cam, mask, fg)
+    want = P.preview_soft_shadow(device, mask, fg, bg, light_point(light, cam), soft, 4.0 / k)
+    unmapped = P.preview_soft_shadow(device, mask, fg, bg, light_point(light, cam), soft, 4.0)
+    got = _preview_node(device, mask, fg, bg, light, cam, method="ssn", thickness=4.0)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(_preview_node(device, mask, fg, bg, light, cam, method="soft", thickness=4.0),
+                                  unmapped)
+    assert (np.abs(want - unmapped) > 0.1).sum() > 300, int((np.abs(want - unmapped) > 0.1).sum())
+
+
+@pytest.mark.parametrize("object_px", [30, 64, 100, 121, 430, 900])
+def test_window_scale_is_the_scale_ssn_crop_chooses(object_px):
+    """softness.window_scale (torch-free, for the preview) is the scale SSN++'s own window
+    choice (ssn_crop.choose_window) gives when the shadow's extent is the cutout's
+    (within its rounding to whole pixels)."""
+    pytest.importorskip("torch")
+    from pixgraph_nodes.ops import ssn_crop
+    from pixgraph_nodes.ops.softness import window_scale
+
+    H, W = 1000, 800
+    mask = np.zeros((H, W), np.float32)
+    mask[50:50 + object_px, 300:340] = 1.0
+    win = ssn_crop.choose_window(H, W, (300, 50, 340, 50 + object_px), float(object_px))
+    assert window_scale(mask) == pytest.approx(win.ky, rel=0.01)
+    assert window_scale(np.zeros((4, 4), np.float32)) == 1.0
+
+
+def test_the_preview_swap_tells_the_stand_in_ssns_unit(state):
+    """The served preview of SoftShadowSSN is PreviewShadow with its thickness and
+    ``method: ssn`` (SoftShadowSSN's ``preview_params``); SoftShadow's keeps only the
+    shared params (its thickness is in image pixels)."""
+    pytest.importorskip("torch")
+    assert state.preview_graph().nodes["shadow"].params.get("method") is None
+    state.set_type("shadow", "pixgraph.SoftShadowSSN")
+    try:
+        state.set_params({"shadow.thickness": 5})
+        prev = state.preview_graph().nodes["shadow"]
+        assert prev.type == "pixgraph.PreviewShadow"
+        assert dict(prev.params) == {"thickness": 5, "method": "ssn"}
+    finally:
+        state.set_type("shadow", "pixgraph.SoftShadow")
+
+
 @pytest.fixture(scope="module")
 def state(tmp_path_factory):
     return ServeState(copy_scene(str(tmp_path_factory.mktemp("preview"))))
