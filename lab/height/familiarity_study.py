@@ -1,4 +1,4 @@
-"""Does the network's own feature space know an unfamiliar shape? (docs/height.md,
+"""Does the network's own feature space know an unfamiliar shape? (docs/height-record.md,
 "Measured: a familiarity signal from the network's features", ninth session).
 
     python -m pixgraph_lab.height.familiarity_study --data data/hsnap \\
