@@ -55,6 +55,6 @@ def test_every_section_reference_names_a_section_of_its_doc():
 
 
 def test_the_pattern_reads_a_reference_broken_over_comment_lines():
-    text = '#: own pixels (docs/height.md, "Measured: large\n#: cutouts at 512 px")'
+    text = "#: own pixels (docs/" + 'height.md, "Measured: large\n#: cutouts at 512 px")'   # split: not a reference here
     m = REF.search(text)
     assert m and m.group(1) == "height.md" and norm(m.group(2)) == "Measured: large cutouts at 512 px"
