@@ -24,8 +24,8 @@ that blocks it (:func:`hard_shadow_distance`, one march per pixel, as
    ``round(softness * mean d)`` around it (a box over a straight hard edge gives
    the linear ramp a disk light's penumbra roughly is).
 
-2'. (a candidate the node does not use: docs/server.md, "tried and left out")
-   with a geometry, a background pixel's box is stretched along the penumbra's
+2'. (a candidate the node does not use, tried and left out: docs/server.md,
+   "A stretched penumbra") with a geometry, a background pixel's box is stretched along the penumbra's
    long axis in the image: :func:`penumbra_axes` casts the blocking point from
    the disk's 4 extreme points onto the receiver's tangent plane, which gives
    the penumbra's ellipse, and the pixel averages over a few square boxes of
