@@ -94,7 +94,9 @@ def candidate(name, device, scene, mask, fg, light, cam):
         soft = softness_of(light, cam, mask, fg) if light.is_area else 0.0
         lp = light_point(light, cam)
         dark, dist = scene.hard_shadow_distance(lp)
-        geometry = (scene.prep.bg, lp, disk_extremes(light, cam)) if name == "pcss_aniso" else None
+        geometry = None
+        if name == "pcss_aniso":
+            geometry = (scene.prep.bg, lp, disk_extremes(light, cam))
         return P.penumbra_blur(dark, dist, np.asarray(mask) > 0.5, soft, geometry)
     raise ValueError(name)
 
