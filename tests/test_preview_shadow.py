@@ -191,12 +191,14 @@ def test_stretched_penumbra_of_a_pole_on_the_ground(device, name):
     assert rmse(square, ref) < rmse(dark, ref)
 
 
-def test_stretched_penumbra_keeps_the_guarantees():
-    """With a geometry: softness 0 (a point light) gives the hard shadow exactly; the
-    darkness stays in [0, 1]; the umbra's core stays 1 and no shadow spreads farther than
-    step 1's reach (softness x max d), though the boxes are longer; a bad geometry is refused."""
+@pytest.mark.parametrize("light", LIGHTS)
+def test_stretched_penumbra_keeps_the_guarantees(light):
+    """With a geometry (any light: behind the camera plane, at infinity): softness 0 (a
+    point light) gives the hard shadow exactly; the darkness stays finite in [0, 1]; the
+    umbra's core stays 1 and no shadow spreads farther than step 1's reach (softness x
+    max d), though the boxes are longer; a bad geometry is refused."""
     mask, fg, bg = figure(96, 128)
-    light = np.array(LIGHTS[0], np.float32)
+    light = np.array(light, np.float32)
     dark, dist = P.hard_shadow_distance_ref(mask, fg, bg, light, 2.0)
     inside = mask > 0.5
     ext = np.array([light + (6, 0, 0, 0), light - (6, 0, 0, 0), light + (0, 0, 6, 0), light - (0, 0, 6, 0)],
@@ -212,7 +214,7 @@ def test_stretched_penumbra_keeps_the_guarantees():
     side = ~inside
     core = side & (dark == 1) & ~ndimage.binary_dilation(side & (dark == 0), box)
     far = side & ~ndimage.binary_dilation(side & (dark > 0), box)
-    assert core.sum() >= 50
+    assert core.sum() + far.sum() > 1000
     np.testing.assert_array_equal(out[core], 1.0)
     np.testing.assert_array_equal(out[far], 0.0)
     with pytest.raises(ValueError, match="bg_height"):
