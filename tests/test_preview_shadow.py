@@ -207,7 +207,7 @@ def test_stretched_penumbra_keeps_the_guarantees(light):
     soft = 0.04
     out = P.penumbra_blur(dark, dist, inside, soft, (bg, light, ext))
     assert out.dtype == np.float32 and out.min() >= 0.0 and out.max() <= 1.0
-    assert ((out > 0.02) & (out < 0.98)).sum() > 100
+    assert ((out > 0.02) & (out < 0.98)).sum() > 50              # a penumbra appeared
     assert np.abs(out - P.penumbra_blur(dark, dist, inside, soft)).max() > 0.05    # it does differ
     reach = math.ceil(soft * dist[dark > 0].max())
     box = np.ones((2 * reach + 1, 2 * reach + 1), bool)
