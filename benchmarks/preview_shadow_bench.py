@@ -1,6 +1,6 @@
 """Preview stand-ins for the soft shadows, against the final soft shadow (not a test).
 
-    python benchmarks/preview_shadow_bench.py [--runs 7] [--quick]
+    python benchmarks/preview_shadow_bench.py [--runs 7] [--quick] [--blur-alone N]
 
 While a handle or slider moves, the page shows previews: the graph at a working
 resolution with every soft-shadow node swapped for its ``preview`` stand-in
@@ -175,15 +175,44 @@ def timing(session, runs, quick):
     return out
 
 
+def blur_alone(session, reps):
+    """The penumbra estimate alone (``penumbra_blur``, square box against the stretched
+    one), alternated ``reps`` times on the 816 x 612 scenes' traced hard shadow: wall
+    medians and the median of the paired differences."""
+    for method in ("contact_line", "learned"):
+        (mask, fg, bg, light, cam), thickness = photo_scene(session, method)
+        scene = P.PreviewScene(session.device, mask, fg, bg, thickness)
+        soft = softness_of(light, cam, mask, fg) if light.is_area else 0.0
+        lp = light_point(light, cam)
+        dark, dist = scene.hard_shadow_distance(lp)
+        inside = np.asarray(mask) > 0.5
+        geometry = (scene.prep.bg, lp, disk_extremes(light, cam))
+        t = {"pcss": [], "pcss_aniso": []}
+        for _ in range(reps):
+            for c, g in (("pcss", None), ("pcss_aniso", geometry)):
+                t0 = time.perf_counter()
+                P.penumbra_blur(dark, dist, inside, soft, g)
+                t[c].append(time.perf_counter() - t0)
+        extra = statistics.median(a - b for a, b in zip(t["pcss_aniso"], t["pcss"]))
+        print(f"  own_photo 816x612 {method:12s} penumbra_blur alone: pcss {1e3 * statistics.median(t['pcss']):.1f} ms"
+              f"  pcss_aniso {1e3 * statistics.median(t['pcss_aniso']):.1f} ms  (+{1e3 * extra:.1f} ms)", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=7, help="timed calls per stand-in and scene")
     ap.add_argument("--quick", action="store_true", help="two graphs, one light, one height: a smoke run")
+    ap.add_argument("--blur-alone", type=int, default=0, metavar="N",
+                    help="only time penumbra_blur alone, square against stretched, alternated N times")
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     session = Session()
     print(f"machine: {cpu_model()}; {platform.python_version()}; device {session.device.name}")
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    if args.blur_alone:
+        blur_alone(session, args.blur_alone)
+        print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        return 0
     print(f"accuracy against SoftShadow (64 samples) at work {WORK} (rmse/IoU of darkness > 0.3):")
     rows = accuracy(session, args.quick)
     print(f"\nsummary over {len(rows)} scenes:   RMSE mean / max      IoU mean / min")
