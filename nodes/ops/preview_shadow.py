@@ -25,12 +25,12 @@ that blocks it (:func:`hard_shadow_distance`, one march per pixel, as
    the linear ramp a disk light's penumbra roughly is).
 
 2'. (a candidate the node does not use, tried and left out: docs/server.md,
-   "A stretched penumbra") with a geometry, a background pixel's box is stretched along the penumbra's
-   long axis in the image: :func:`penumbra_axes` casts the blocking point from
-   the disk's 4 extreme points onto the receiver's tangent plane, which gives
-   the penumbra's ellipse, and the pixel averages over a few square boxes of
-   half-size the minor half-axis spread along the major one
-   (``benchmarks/preview_shadow_bench.py``'s ``pcss_aniso``).
+   "A stretched penumbra") with a geometry, a background pixel's box is
+   stretched along the penumbra's long axis in the image: :func:`penumbra_axes`
+   casts the blocking point from the disk's 4 extreme points onto the
+   receiver's tangent plane, which gives the penumbra's ellipse, and the pixel
+   averages over a few square boxes of half-size the minor half-axis spread
+   along the major one (``benchmarks/preview_shadow_bench.py``'s ``pcss_aniso``).
 
 Both are box sums over summed-area tables, restricted to the pixels of the
 receiver's own side of the cutout's outline (the shadow on the background and
@@ -218,8 +218,9 @@ def penumbra_blur(darkness, distance, inside, softness: float, geometry=None) ->
     geometry: None (the square box of half-size ``softness x d``), or
     ``(bg_height, light, extremes)``: the background's pixel heights (H, W) [px],
     the light's centre (4,) and its disk's extreme points (4, 4) in pixel-height
-    space; then the background's penumbra is stretched (module docstring, step 2'; only
-    the pixels step 1 would change change, so the module docstring's guarantees hold):
+    space; then the background's penumbra is stretched (module docstring, step 2';
+    only the pixels step 1 would change change, so the module docstring's
+    guarantees hold):
     ``penumbra_axes`` gives each pixel's ellipse and the box is swept along its
     major axis (the cutout's self-shadow keeps the square box).
     Returns darkness float32 (H, W) in [0, 1]; softness 0 returns ``darkness``.
