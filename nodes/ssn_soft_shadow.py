@@ -92,6 +92,9 @@ class SoftShadowSSN(Node):
     impl_version = "6"
     #: a cheaper node type with the same ports that stands in for this one in previews
     preview = SOFT_PREVIEW
+    #: ... told that this node's thickness is in pixels of SSN++'s window (the stand-in,
+    #: pixgraph.PreviewShadow, converts it to image pixels with the window's scale)
+    preview_params = {"method": "ssn"}
     #: shells may switch this node among the registered types declaring the same handles kind
     handles = {"kind": "shadow"}
 

@@ -365,6 +365,13 @@ class Node:
         a cheaper stand-in for interactive previews (e.g. the type id of a node
         with the same ports, as the soft shadows name the hard shadow); None: the
         node itself previews. The engine never reads it; shells may.
+    ``preview_params = None``
+        how this node's params map onto its ``preview`` stand-in's: a mapping of
+        param values the stand-in gets on top of the params it shares with this
+        node (a shell that swaps in the stand-in keeps those of this node's params
+        the stand-in declares, then sets these), e.g. to tell the stand-in the unit
+        a shared param is in here, which the stand-in converts from its inputs;
+        None: the shared params alone. The engine never reads it; shells may.
     ``handles = None``
         what an interactive shell may draw and drag for this node: a mapping with
         a ``kind`` (``"light"``, ``"background"``...) and the names of the params
@@ -378,6 +385,7 @@ class Node:
     disk_cache: ClassVar[bool] = True
     uses_scale: ClassVar[bool] = False
     preview: ClassVar[Any] = None
+    preview_params: ClassVar[Any] = None
     handles: ClassVar[Any] = None
 
     def compute(self, ctx, inputs: "Namespace", params: "Namespace") -> dict[str, Any]:
