@@ -28,7 +28,9 @@ class PreviewShadow(Node):
     (``pixgraph.SoftShadowSSN`` declares it for its stand-in, a ``pixgraph.Shadow``
     forced to ssn keeps it) ``thickness`` is in pixels of SSN++'s window, as SSN++
     reads it, and is divided by the window's scale (``softness.window_scale``: the
-    cutout's height brought to the trained 64-120 px) to image pixels."""
+    cutout's height brought to the trained 64-120 px) to image pixels; in a scaled
+    run (the page's previews) first by the run's scale, which the engine multiplied
+    it by (the param is declared in image pixels for the other methods)."""
 
     class Inputs(ShadowInputs):
         light: T.Light = port(doc="the light; its radius / distance is the softness")
@@ -44,8 +46,11 @@ class PreviewShadow(Node):
     class Outputs(ShadowOutputs):
         """The shared two (``_shadow_ports.ShadowOutputs``): those of the nodes it stands in for."""
 
-    # 2: method ssn reads thickness in SSN++'s window pixels
-    impl_version = "2"
+    # 2: method ssn reads thickness in SSN++'s window pixels; 3: and undoes a scaled run's
+    # factor on it (window pixels do not scale)
+    impl_version = "3"
+    # a scaled run multiplies ``thickness`` (declared in image px): method ssn divides it back
+    uses_scale = True
     # no ``handles``: a stand-in, not one of the shadow methods a shell offers to switch to
 
     def compute(self, ctx, inputs, params):
@@ -59,8 +64,8 @@ class PreviewShadow(Node):
                 if inside(inputs.mask).any():
                     ctx.log(f"hard shadow: {e}")
         thickness = params.thickness
-        if params.method == "ssn":       # SSN++'s thickness is in its window's pixels
-            thickness = thickness / window_scale(inputs.mask)
+        if params.method == "ssn":       # SSN++'s thickness is in its window's pixels, which do not scale
+            thickness = thickness / ctx.scale / window_scale(inputs.mask)
         darkness = preview_soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height,
                                        light_point(light, cam), softness, thickness,
                                        progress=ctx.progress, check_cancelled=ctx.check_cancelled)

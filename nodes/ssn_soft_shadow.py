@@ -80,8 +80,10 @@ class SoftShadowSSN(Node):
 
     class Params:
         model: str = param("ssnpp", choices=("ssnpp",), doc="shipped weights to use")
+        # not unit "px": the window is at the trained scale whatever the run's working resolution
         thickness: float = thickness_param(doc="occluder thickness of the buffer channels' hard shadows, "
-                                            "in pixels of the network's window (the trained scale)")
+                                            "in pixels of the network's window (the trained scale)",
+                                           unit="window px")
 
     class Outputs(ShadowOutputs):
         """The shared two (``_shadow_ports.ShadowOutputs``)."""

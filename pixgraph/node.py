@@ -359,8 +359,11 @@ class Node:
         False keeps the node's results in the memory cache only (outputs that are
         large and cheaper to remake than to read back).
     ``uses_scale = False``
-        True for a node that makes images of its own size from files (a loader):
-        it reads the run's working resolution as ``ctx.scale``.
+        True for a node whose result depends on the run's working resolution
+        beyond its inputs and its ``unit="px"`` params: a node that makes images
+        of its own size from files (a loader), or one that reads a px param in
+        another unit for some settings. It reads the resolution as ``ctx.scale``
+        (and the scale is part of its cache key).
     ``preview = None``
         a cheaper stand-in for interactive previews (e.g. the type id of a node
         with the same ports, as the soft shadows name the hard shadow); None: the

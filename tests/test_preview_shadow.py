@@ -234,13 +234,14 @@ def _tall_figure_scene():
     return mask, fg, bg, light, CAM
 
 
-def _preview_node(device, mask, fg, bg, light, cam, **params):
+def _preview_node(device, mask, fg, bg, light, cam, scale=1.0, **params):
     from pixgraph.node import Namespace
     from pixgraph_nodes.preview_shadow import PreviewShadow
     from test_geometry_shadows import Ctx
 
     ins = Namespace({"mask": mask, "fg_height": fg, "bg_height": bg, "light": light, "camera": cam})
-    return PreviewShadow().compute(Ctx(device), ins, Namespace(PreviewShadow.spec.coerce_params(params)))["darkness"]
+    return PreviewShadow().compute(Ctx(device, scale), ins,
+                                   Namespace(PreviewShadow.spec.coerce_params(params)))["darkness"]
 
 
 def test_ssn_thickness_is_read_in_the_windows_pixels(device):
@@ -263,7 +264,28 @@ def test_ssn_thickness_is_read_in_the_windows_pixels(device):
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(_preview_node(device, mask, fg, bg, light, cam, method="soft", thickness=4.0),
                                   unmapped)
+    # a scaled run (the page's previews) hands the node 4 x 0.5 (thickness is declared in image px): with
+    # method ssn the node divides the run's scale back out, since the window's pixels do not scale
+    np.testing.assert_array_equal(_preview_node(device, mask, fg, bg, light, cam, scale=0.5, method="ssn",
+                                                thickness=2.0), want)
     assert (np.abs(want - unmapped) > 0.1).sum() > 300, int((np.abs(want - unmapped) > 0.1).sum())
+
+
+def test_a_scaled_run_leaves_ssns_thickness_in_window_pixels():
+    """Window pixels do not change with the run's working resolution: a scaled run
+    multiplies SoftShadow's thickness (image px) by the scale, not SoftShadowSSN's, and
+    keys PreviewShadow by the scale (it divides the scale back out for method ssn)."""
+    from pixgraph.resolve import scale_params
+    from pixgraph_nodes.preview_shadow import PreviewShadow
+    from pixgraph_nodes.soft_shadow import SoftShadow
+    from pixgraph_nodes.ssn_soft_shadow import SoftShadowSSN
+
+    got = {}
+    for cls in (SoftShadow, SoftShadowSSN, PreviewShadow):
+        params, key = {"thickness": 4.0}, {"thickness": 4.0}
+        scale_params(cls.spec, params, key, 0.25)
+        got[cls.__name__] = (params["thickness"], key.get("@scale"))
+    assert got == {"SoftShadow": (1.0, None), "SoftShadowSSN": (4.0, None), "PreviewShadow": (1.0, 0.25)}
 
 
 @pytest.mark.parametrize("object_px", [30, 64, 100, 121, 430, 900])
