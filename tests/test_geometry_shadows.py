@@ -29,6 +29,9 @@ class Ctx:
     def check_cancelled(self):
         pass
 
+    def log(self, message):
+        pass
+
 
 def pole():
     """Mask and pixel height of a thin upright pole (a billboard facing the camera)."""

@@ -288,6 +288,26 @@ def test_a_scaled_run_leaves_ssns_thickness_in_window_pixels():
     assert got == {"SoftShadow": (1.0, None), "SoftShadowSSN": (4.0, None), "PreviewShadow": (1.0, 0.25)}
 
 
+def test_a_shadow_forced_to_ssn_in_a_scaled_run_is_ssns(device):
+    """``pixgraph.Shadow`` with ``method: ssn`` in a run at half the resolution (its
+    thickness, declared in image px, reaches it halved) gives exactly SoftShadowSSN's
+    shadow with the unscaled thickness: both read it in the window's pixels."""
+    pytest.importorskip("torch")
+    from pixgraph.node import Namespace
+    from pixgraph_nodes.shadow import Shadow
+    from pixgraph_nodes.ssn_soft_shadow import SoftShadowSSN
+    from test_geometry_shadows import Ctx
+
+    mask, fg, bg, light, cam = _tall_figure_scene()
+    ins = Namespace({"mask": mask, "fg_height": fg, "bg_height": bg, "light": light, "camera": cam})
+
+    def run(cls, scale, **params):
+        return cls().compute(Ctx(device, scale), ins, Namespace(cls.spec.coerce_params(params)))["darkness"]
+    ssn = run(SoftShadowSSN, 0.5, thickness=6.0)
+    np.testing.assert_array_equal(run(Shadow, 0.5, method="ssn", thickness=3.0), ssn)
+    assert np.abs(run(SoftShadowSSN, 0.5, thickness=3.0) - ssn).max() > 0.01   # the thickness matters here
+
+
 @pytest.mark.parametrize("object_px", [30, 64, 100, 121, 430, 900])
 def test_window_scale_is_the_scale_ssn_crop_chooses(object_px):
     """softness.window_scale (torch-free, for the preview) is the scale SSN++'s own window
