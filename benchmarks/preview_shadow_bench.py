@@ -1,6 +1,6 @@
 """Preview stand-ins for the soft shadows, against the final soft shadow (not a test).
 
-    python benchmarks/preview_shadow_bench.py [--runs 7] [--quick]
+    python benchmarks/preview_shadow_bench.py [--runs 7] [--quick] [--blur-alone N]
 
 While a handle or slider moves, the page shows previews: the graph at a working
 resolution with every soft-shadow node swapped for its ``preview`` stand-in
@@ -12,7 +12,12 @@ same working resolution:
             stand-in before PreviewShadow);
   soft2/4/8 SoftShadow's own math with 2, 4 or 8 light samples;
   pcss      pixgraph.PreviewShadow: the hard shadow widened by the penumbra
-            estimate softness x blocker distance (ops/preview_shadow.py).
+            estimate softness x blocker distance (ops/preview_shadow.py);
+  pcss_aniso the same with the background's penumbra stretched along its long
+            axis (``penumbra_blur``'s geometry: the light's disk extremes
+            through the blocker onto the receiver's tangent plane), the
+            candidate of issue 24's note (docs/server.md has the rule it met or
+            missed).
 
 Accuracy, over the example graphs with a soft shadow (graphs/wall_corner_shadow,
 ground_shadow, steps_shadow, auto_shadow at the page's working resolution 0.5:
@@ -49,14 +54,14 @@ from _machine import cpu_model
 from pixgraph.session import Session
 from pixgraph_nodes.ops import preview_shadow as P
 from pixgraph_nodes.ops import shadow as S
-from pixgraph_nodes.ops.lights import disk_samples, light_point
+from pixgraph_nodes.ops.lights import disk_extremes, disk_samples, light_point
 from pixgraph_nodes.ops.softness import softness_of
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 GRAPHS = ("wall_corner_shadow", "ground_shadow", "steps_shadow", "auto_shadow", "own_photo")
 INPUTS = ("mask", "fg_height", "bg_height", "light", "camera")
 WORK = 0.5
-CANDIDATES = ("hard", "soft2", "soft4", "soft8", "pcss")
+CANDIDATES = ("hard", "soft2", "soft4", "soft8", "pcss", "pcss_aniso")
 
 
 def load(session, path):
@@ -85,10 +90,14 @@ def candidate(name, device, scene, mask, fg, light, cam):
     if name.startswith("soft"):
         n = int(name[4:])
         return 1.0 - scene.soft_shadow(disk_samples(light, cam, n, 0) if light.is_area else light_point(light, cam)[None])
-    if name == "pcss":
+    if name in ("pcss", "pcss_aniso"):
         soft = softness_of(light, cam, mask, fg) if light.is_area else 0.0
-        dark, dist = scene.hard_shadow_distance(light_point(light, cam))
-        return P.penumbra_blur(dark, dist, np.asarray(mask) > 0.5, soft)
+        lp = light_point(light, cam)
+        dark, dist = scene.hard_shadow_distance(lp)
+        geometry = None
+        if name == "pcss_aniso":
+            geometry = (scene.prep.bg, lp, disk_extremes(light, cam))
+        return P.penumbra_blur(dark, dist, np.asarray(mask) > 0.5, soft, geometry)
     raise ValueError(name)
 
 
@@ -166,15 +175,44 @@ def timing(session, runs, quick):
     return out
 
 
+def blur_alone(session, reps):
+    """The penumbra estimate alone (``penumbra_blur``, square box against the stretched
+    one), alternated ``reps`` times on the 816 x 612 scenes' traced hard shadow: wall
+    medians and the median of the paired differences."""
+    for method in ("contact_line", "learned"):
+        (mask, fg, bg, light, cam), thickness = photo_scene(session, method)
+        scene = P.PreviewScene(session.device, mask, fg, bg, thickness)
+        soft = softness_of(light, cam, mask, fg) if light.is_area else 0.0
+        lp = light_point(light, cam)
+        dark, dist = scene.hard_shadow_distance(lp)
+        inside = np.asarray(mask) > 0.5
+        geometry = (scene.prep.bg, lp, disk_extremes(light, cam))
+        t = {"pcss": [], "pcss_aniso": []}
+        for _ in range(reps):
+            for c, g in (("pcss", None), ("pcss_aniso", geometry)):
+                t0 = time.perf_counter()
+                P.penumbra_blur(dark, dist, inside, soft, g)
+                t[c].append(time.perf_counter() - t0)
+        extra = statistics.median(a - b for a, b in zip(t["pcss_aniso"], t["pcss"]))
+        print(f"  own_photo 816x612 {method:12s} penumbra_blur alone: pcss {1e3 * statistics.median(t['pcss']):.1f} ms"
+              f"  pcss_aniso {1e3 * statistics.median(t['pcss_aniso']):.1f} ms  (+{1e3 * extra:.1f} ms)", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=7, help="timed calls per stand-in and scene")
     ap.add_argument("--quick", action="store_true", help="two graphs, one light, one height: a smoke run")
+    ap.add_argument("--blur-alone", type=int, default=0, metavar="N",
+                    help="only time penumbra_blur alone, square against stretched, alternated N times")
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     session = Session()
     print(f"machine: {cpu_model()}; {platform.python_version()}; device {session.device.name}")
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    if args.blur_alone:
+        blur_alone(session, args.blur_alone)
+        print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        return 0
     print(f"accuracy against SoftShadow (64 samples) at work {WORK} (rmse/IoU of darkness > 0.3):")
     rows = accuracy(session, args.quick)
     print(f"\nsummary over {len(rows)} scenes:   RMSE mean / max      IoU mean / min")

@@ -46,9 +46,10 @@ class ShadowOutputs:
     darkness: T.Mask = port(doc="1 - lit: 1 = full shadow (what Composite takes)")
 
 
-def thickness_param(doc: str = THICKNESS_DOC):
-    """The ``thickness`` param [px]: default 1, in [0, 1000]."""
-    return param(1.0, min=0.0, max=1000.0, unit="px", doc=doc)
+def thickness_param(doc: str = THICKNESS_DOC, unit: str = "px"):
+    """The ``thickness`` param: default 1, in [0, 1000], in image pixels (``unit="px"``: a
+    scaled run multiplies it by the working resolution) unless ``unit`` says otherwise."""
+    return param(1.0, min=0.0, max=1000.0, unit=unit, doc=doc)
 
 
 def check_inputs(inputs) -> None:

@@ -51,6 +51,8 @@ class Shadow(Node):
     # the choice depends on the shipped table: a new table is a new implementation
     # the result depends on the shipped table and, through method ssn, on SSN++'s weights and inference
     impl_version = "1+table." + C.table_digest() + "+ssn." + SoftShadowSSN.impl_version
+    # a scaled run multiplies ``thickness`` (declared in image px): method ssn divides it back out
+    uses_scale = True
     #: a cheaper node type with the same ports that stands in for this one in previews
     preview = SOFT_PREVIEW
     #: shells may switch this node among the registered types declaring the same handles kind
@@ -99,9 +101,11 @@ class Shadow(Node):
             from .ssn_soft_shadow import load_shipped, torch_settings
             softness = softness_of(light, cam, inputs.mask, inputs.fg_height)
             threads, torch_device = torch_settings()
+            # SSN++ reads the thickness in its window's pixels, which do not scale with the run
             darkness, _ = ssn_crop.render(ctx.device, load_shipped("ssnpp"), inputs.mask, inputs.fg_height,
                                           inputs.bg_height, light_point(light, cam), disk_extremes(light, cam),
-                                          softness, params.thickness, threads=threads, torch_device=torch_device,
+                                          softness, params.thickness / ctx.scale, threads=threads,
+                                          torch_device=torch_device,
                                           check_cancelled=ctx.check_cancelled)
             finite_outputs(darkness=darkness)
             return {"lit": 1.0 - darkness, "darkness": darkness}

@@ -80,8 +80,10 @@ class SoftShadowSSN(Node):
 
     class Params:
         model: str = param("ssnpp", choices=("ssnpp",), doc="shipped weights to use")
+        # not unit "px": the window is at the trained scale whatever the run's working resolution
         thickness: float = thickness_param(doc="occluder thickness of the buffer channels' hard shadows, "
-                                            "in pixels of the network's window (the trained scale)")
+                                            "in pixels of the network's window (the trained scale)",
+                                           unit="window px")
 
     class Outputs(ShadowOutputs):
         """The shared two (``_shadow_ports.ShadowOutputs``)."""
@@ -92,6 +94,9 @@ class SoftShadowSSN(Node):
     impl_version = "6"
     #: a cheaper node type with the same ports that stands in for this one in previews
     preview = SOFT_PREVIEW
+    #: ... told that this node's thickness is in pixels of SSN++'s window (the stand-in,
+    #: pixgraph.PreviewShadow, converts it to image pixels with the window's scale)
+    preview_params = {"method": "ssn"}
     #: shells may switch this node among the registered types declaring the same handles kind
     handles = {"kind": "shadow"}
 

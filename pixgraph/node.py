@@ -359,12 +359,22 @@ class Node:
         False keeps the node's results in the memory cache only (outputs that are
         large and cheaper to remake than to read back).
     ``uses_scale = False``
-        True for a node that makes images of its own size from files (a loader):
-        it reads the run's working resolution as ``ctx.scale``.
+        True for a node whose result depends on the run's working resolution
+        beyond its inputs and its ``unit="px"`` params: a node that makes images
+        of its own size from files (a loader), or one that reads a px param in
+        another unit for some settings. It reads the resolution as ``ctx.scale``
+        (and the scale is part of its cache key).
     ``preview = None``
         a cheaper stand-in for interactive previews (e.g. the type id of a node
         with the same ports, as the soft shadows name the hard shadow); None: the
         node itself previews. The engine never reads it; shells may.
+    ``preview_params = None``
+        how this node's params map onto its ``preview`` stand-in's: a mapping of
+        param values the stand-in gets on top of the params it shares with this
+        node (a shell that swaps in the stand-in keeps those of this node's params
+        the stand-in declares, then sets these), e.g. to tell the stand-in the unit
+        a shared param is in here, which the stand-in converts from its inputs;
+        None: the shared params alone. The engine never reads it; shells may.
     ``handles = None``
         what an interactive shell may draw and drag for this node: a mapping with
         a ``kind`` (``"light"``, ``"background"``...) and the names of the params
@@ -378,6 +388,7 @@ class Node:
     disk_cache: ClassVar[bool] = True
     uses_scale: ClassVar[bool] = False
     preview: ClassVar[Any] = None
+    preview_params: ClassVar[Any] = None
     handles: ClassVar[Any] = None
 
     def compute(self, ctx, inputs: "Namespace", params: "Namespace") -> dict[str, Any]:

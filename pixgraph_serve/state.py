@@ -429,16 +429,21 @@ class ServeState:
 
     def preview_graph(self, graph: Graph | None = None) -> Graph:
         """``graph`` (default the current one) with every node whose type declares a
-        ``preview`` stand-in swapped for it (cached for the current graph)."""
+        ``preview`` stand-in swapped for it (cached for the current graph): the stand-in
+        gets the node's params it declares, then the type's ``preview_params`` (the
+        values that say how the node's params map onto the stand-in's)."""
         graph = self.graph if graph is None else graph
         if self._preview is not None and self._preview[0] is graph:
             return self._preview[1]
         nodes = dict(graph.nodes)
         for nid, inst in nodes.items():
-            cheap = getattr(self.registry.get(inst.type).cls, "preview", None)
+            cls = self.registry.get(inst.type).cls
+            cheap = getattr(cls, "preview", None)
             if isinstance(cheap, str) and cheap in self.registry:
                 spec = self.registry.get(cheap)
                 keep = {k: v for k, v in inst.params.items() if spec.param(k) is not None}
+                # set last, unfiltered: a name the stand-in lacks fails the preview's validation
+                keep.update(getattr(cls, "preview_params", None) or {})
                 nodes[nid] = NodeInstance(nid, cheap, keep, inst.inputs)
         preview = _graph_errors(lambda: validate(dataclasses.replace(graph, nodes=nodes), self.registry))
         if graph is self.graph:

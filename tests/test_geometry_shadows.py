@@ -18,14 +18,18 @@ FOOT = np.array([0.0, 0.0, -DF])
 
 
 class Ctx:
-    def __init__(self, device):
+    def __init__(self, device, scale=1.0):
         self.device = device
         self.graph_dir = None
+        self.scale = scale
 
     def progress(self, fraction, message=""):
         pass
 
     def check_cancelled(self):
+        pass
+
+    def log(self, message):
         pass
 
 

@@ -1,4 +1,4 @@
-"""Weight averages of cutout-height networks (lab/height/soup.py; docs/height.md,
+"""Weight averages of cutout-height networks (lab/height/soup.py; docs/height-record.md,
 "Rules fixed before measuring: weight averages of the seventh")."""
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Thin parts of large cutouts (issue 24, seventh session; docs/height.md, "Measured:
+"""Thin parts of large cutouts (issue 24, seventh session; docs/height-record.md, "Measured:
 thin parts"): a part thinner than a work-size pixel has no work-size pixel of its
 own, and ``masked_resize`` used to give it the plain bilinear value there, about 0
 (a 3-px stick held up by a 2,400-px figure: 13 px where it stands 1,000-2,000 px
@@ -101,7 +101,7 @@ def predictor():
 
 
 def test_the_shipped_fill_is_the_contact_line():
-    # chosen by the rule (docs/height.md, "Measured: thin parts of large cutouts")
+    # chosen by the rule (docs/height-record.md, "Measured: thin parts of large cutouts")
     assert hw.THIN_FILL == "contact"
 
 

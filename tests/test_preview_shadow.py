@@ -106,6 +106,241 @@ def test_bad_inputs_are_refused():
         P.penumbra_blur(z, np.zeros((3, 4)), z > 0, 0.1)
 
 
+# -- the stretched penumbra (penumbra_blur's geometry; a benchmark candidate) -------------------
+
+def _ellipse_axes(a1, a2):
+    """major, minor half-axes and the major's unit direction of {x a1 + y a2: x^2 + y^2 <= 1}."""
+    U, sv, _ = np.linalg.svd(np.column_stack([a1, a2]))
+    return sv[0], sv[1], U[:, 0]
+
+
+@pytest.mark.parametrize("receiver, controls", [
+    ("ground", (10.0, 20.0)), ("ground", (60.0, 15.0)), ("ground", (170.0, 25.0)),
+    # (light 170 deg round is behind the wall: it lights only the wall's back)
+    ("wall", (10.0, 20.0)), ("wall", (60.0, 15.0)), ("wall", (-45.0, 35.0))])
+def test_penumbra_axes_match_the_3d_construction(receiver, controls):
+    """The ellipse penumbra_axes finds in pixel-height space equals the one built in 3D:
+    the rays from the disk's 4 extreme points through a blocker point meet the receiver
+    plane (the ground Y = 0, or a wall Z = -5 facing the camera, whose pixel height
+    falls one px per image row: slope dh/dv = -1) at 4 points; their image offsets from
+    the centre's shadow give the two conjugate half-axes."""
+    from pixgraph_nodes.ops import lights as L
+    from pixgraph_nodes.ops.camera import Camera
+
+    cam = Camera(512, 512, hfov=50.0, horizon=120.0, cam_height=1.0)
+    target = np.array([0.0, 0.0, -3.0])
+    light = L.from_controls(target, controls[0], controls[1], 3.0, radius=0.3)
+    top = np.array([0.05, 0.6, -3.0])                        # the blocker (a pole's top)
+    normal, offset = (np.array([0.0, 1.0, 0.0]), 0.0) if receiver == "ground" else (np.array([0.0, 0.0, 1.0]), -5.0)
+
+    def cast(E):                                             # ray E -> top onto the plane n.X = offset
+        d = top - E
+        return top + (offset - normal @ top) / (normal @ d) * d
+
+    C = np.asarray(light.position)
+    S0 = cast(C)
+    r, _ = cam.project(S0)
+    off = [cam.project(cast(E))[0][:2] - r[:2] for E in L.extreme_points_3d(light)]
+    want = _ellipse_axes((off[0] - off[1]) / 2, (off[2] - off[3]) / 2)
+    b, _ = cam.project(top)
+    blocker = np.linalg.norm(b - r)                          # distance in (u, v, h) pixels
+    slope_v = 0.0 if receiver == "ground" else -1.0
+    if receiver == "wall":      # the wall's pixel height really falls one px per row
+        r2, _ = cam.project(S0 + np.array([0.0, 0.1, 0.0]))
+        assert (r2[2] - r[2]) / (r2[1] - r[1]) == pytest.approx(-1.0)
+    major, minor, cu, cv = P.penumbra_axes(np.array([r[0]]), np.array([r[1]]), np.array([r[2]]),
+                                           np.zeros(1), np.array([slope_v]), np.array([blocker]),
+                                           L.light_point(light, cam), L.disk_extremes(light, cam))
+    assert want[0] > 2.0                                      # a real penumbra, in px
+    assert major[0] == pytest.approx(want[0], rel=2e-3, abs=2e-3)
+    assert minor[0] == pytest.approx(want[1], rel=2e-3, abs=2e-3)
+    assert abs(cu[0] * want[2][0] + cv[0] * want[2][1]) == pytest.approx(1.0, abs=1e-3)
+
+
+def _pole_lights():
+    from pixgraph_nodes.ops import lights as L
+    from test_geometry_shadows import FOOT
+    return {"low front": L.from_controls(FOOT, 10.0, 20.0, 3.0, radius=0.3),
+            "behind": L.from_controls(FOOT, 170.0, 25.0, 3.0, radius=0.3)}
+
+
+@pytest.mark.parametrize("name", ["low front", "behind"])
+def test_stretched_penumbra_of_a_pole_on_the_ground(device, name):
+    """A thin upright pole on flat ground under a low disk light: its long shadow's
+    penumbra is stretched along the shadow (the ellipse's axes differ by more than 1.5x),
+    and the stretched estimate is nearer SoftShadow with 256 samples than the square box
+    (RMSE ratio measured 0.41 and 0.63; asserted < 0.75)."""
+    from pixgraph_nodes.ops import lights as L
+    from pixgraph_nodes.ops.softness import softness_of
+    from test_geometry_shadows import CAM, pole
+
+    light = _pole_lights()[name]
+    mask, fg = pole()
+    bg = np.zeros_like(fg)
+    lc, ex = L.light_point(light, CAM), L.disk_extremes(light, CAM)
+    ref = 1.0 - S.soft_shadow(device, mask, fg, bg, L.disk_samples(light, CAM, 256, 0), 1.0)
+    dark, dist = P.hard_shadow_distance(device, mask, fg, bg, lc, 1.0)
+    soft = softness_of(light, CAM, mask, fg)
+    square = P.penumbra_blur(dark, dist, mask > 0.5, soft)
+    stretched = P.penumbra_blur(dark, dist, mask > 0.5, soft, (bg, lc, ex))
+    i, j = np.nonzero((dark > 0) & (mask <= 0.5))
+    major, minor, _, _ = P.penumbra_axes(j + 0.5, i + 0.5, bg[i, j], 0 * bg[i, j], 0 * bg[i, j], dist[i, j], lc, ex)
+    assert np.median(major / minor) > 1.5
+    assert stretched.min() >= 0.0 and stretched.max() <= 1.0
+    assert rmse(stretched, ref) < 0.75 * rmse(square, ref), (rmse(stretched, ref), rmse(square, ref))
+    assert rmse(square, ref) < rmse(dark, ref)
+
+
+@pytest.mark.parametrize("light", LIGHTS)
+def test_stretched_penumbra_keeps_the_guarantees(light):
+    """With a geometry (any light: behind the camera plane, at infinity): softness 0 (a
+    point light) gives the hard shadow exactly; the darkness stays finite in [0, 1]; the
+    umbra's core stays 1 and no shadow spreads farther than step 1's reach (softness x
+    max d), though the boxes are longer; a bad geometry is refused."""
+    mask, fg, bg = figure(96, 128)
+    light = np.array(light, np.float32)
+    dark, dist = P.hard_shadow_distance_ref(mask, fg, bg, light, 2.0)
+    inside = mask > 0.5
+    ext = np.array([light + (6, 0, 0, 0), light - (6, 0, 0, 0), light + (0, 0, 6, 0), light - (0, 0, 6, 0)],
+                   np.float32)
+    np.testing.assert_array_equal(P.penumbra_blur(dark, dist, inside, 0.0, (bg, light, ext)), dark)
+    soft = 0.04
+    out = P.penumbra_blur(dark, dist, inside, soft, (bg, light, ext))
+    assert out.dtype == np.float32 and out.min() >= 0.0 and out.max() <= 1.0
+    assert ((out > 0.02) & (out < 0.98)).sum() > 50              # a penumbra appeared
+    assert np.abs(out - P.penumbra_blur(dark, dist, inside, soft)).max() > 0.05    # it does differ
+    reach = math.ceil(soft * dist[dark > 0].max())
+    box = np.ones((2 * reach + 1, 2 * reach + 1), bool)
+    side = ~inside
+    core = side & (dark == 1) & ~ndimage.binary_dilation(side & (dark == 0), box)
+    far = side & ~ndimage.binary_dilation(side & (dark > 0), box)
+    assert core.sum() + far.sum() > 1000
+    np.testing.assert_array_equal(out[core], 1.0)
+    np.testing.assert_array_equal(out[far], 0.0)
+    with pytest.raises(ValueError, match="bg_height"):
+        P.penumbra_blur(dark, dist, inside, soft, (bg[:10], light, ext))
+
+
+# -- SSN++'s thickness in the preview (its window's pixels, not the image's) ----------------------
+
+def _tall_figure_scene():
+    """The figure, 1.6x, on a 512 x 512 image under CAM: about 430 px tall, so SSN++'s
+    window brings it to the trained 120 px at a scale of about 0.28 network px per image px."""
+    from pixgraph_nodes.ops import lights as L
+    from test_geometry_shadows import CAM
+
+    mask, fg, bg = figure(512, 512, scale=1.6)
+    light = L.from_controls((0.0, 0.0, -3.0), 30.0, 35.0, 3.0, radius=0.4)
+    return mask, fg, bg, light, CAM
+
+
+def _preview_node(device, mask, fg, bg, light, cam, scale=1.0, **params):
+    from pixgraph.node import Namespace
+    from pixgraph_nodes.preview_shadow import PreviewShadow
+    from test_geometry_shadows import Ctx
+
+    ins = Namespace({"mask": mask, "fg_height": fg, "bg_height": bg, "light": light, "camera": cam})
+    return PreviewShadow().compute(Ctx(device, scale), ins,
+                                   Namespace(PreviewShadow.spec.coerce_params(params)))["darkness"]
+
+
+def test_ssn_thickness_is_read_in_the_windows_pixels(device):
+    """PreviewShadow with ``method: ssn`` (what SoftShadowSSN's stand-in gets) reads
+    ``thickness`` as SSN++ does, in pixels of the network's window: the image's
+    thickness is it divided by the window's scale, here 120 px (the trained object
+    height) over the cutout's 430-odd rows, about 0.28: 4 window px are about 14 image
+    px. Read as image px (any other method), the shadow differs in hundreds of pixels."""
+    from pixgraph_nodes.ops.lights import light_point
+    from pixgraph_nodes.ops.softness import softness_of
+
+    mask, fg, bg, light, cam = _tall_figure_scene()
+    rows = np.flatnonzero((mask > 0.5).any(axis=1))
+    k = 120.0 / (rows[-1] - rows[0] + 1)
+    assert 0.2 < k < 0.35
+    soft = softness_of(light, cam, mask, fg)
+    want = P.preview_soft_shadow(device, mask, fg, bg, light_point(light, cam), soft, 4.0 / k)
+    unmapped = P.preview_soft_shadow(device, mask, fg, bg, light_point(light, cam), soft, 4.0)
+    got = _preview_node(device, mask, fg, bg, light, cam, method="ssn", thickness=4.0)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(_preview_node(device, mask, fg, bg, light, cam, method="soft", thickness=4.0),
+                                  unmapped)
+    # a scaled run (the page's previews) hands the node 4 x 0.5 (thickness is declared in image px): with
+    # method ssn the node divides the run's scale back out, since the window's pixels do not scale
+    np.testing.assert_array_equal(_preview_node(device, mask, fg, bg, light, cam, scale=0.5, method="ssn",
+                                                thickness=2.0), want)
+    assert (np.abs(want - unmapped) > 0.1).sum() > 300, int((np.abs(want - unmapped) > 0.1).sum())
+
+
+def test_a_scaled_run_leaves_ssns_thickness_in_window_pixels():
+    """Window pixels do not change with the run's working resolution: a scaled run
+    multiplies SoftShadow's thickness (image px) by the scale, not SoftShadowSSN's, and
+    keys PreviewShadow by the scale (it divides the scale back out for method ssn)."""
+    from pixgraph.resolve import scale_params
+    from pixgraph_nodes.preview_shadow import PreviewShadow
+    from pixgraph_nodes.soft_shadow import SoftShadow
+    from pixgraph_nodes.ssn_soft_shadow import SoftShadowSSN
+
+    got = {}
+    for cls in (SoftShadow, SoftShadowSSN, PreviewShadow):
+        params, key = {"thickness": 4.0}, {"thickness": 4.0}
+        scale_params(cls.spec, params, key, 0.25)
+        got[cls.__name__] = (params["thickness"], key.get("@scale"))
+    assert got == {"SoftShadow": (1.0, None), "SoftShadowSSN": (4.0, None), "PreviewShadow": (1.0, 0.25)}
+
+
+def test_a_shadow_forced_to_ssn_in_a_scaled_run_is_ssns(device):
+    """``pixgraph.Shadow`` with ``method: ssn`` in a run at half the resolution (its
+    thickness, declared in image px, reaches it halved) gives exactly SoftShadowSSN's
+    shadow with the unscaled thickness: both read it in the window's pixels."""
+    pytest.importorskip("torch")
+    from pixgraph.node import Namespace
+    from pixgraph_nodes.shadow import Shadow
+    from pixgraph_nodes.ssn_soft_shadow import SoftShadowSSN
+    from test_geometry_shadows import Ctx
+
+    mask, fg, bg, light, cam = _tall_figure_scene()
+    ins = Namespace({"mask": mask, "fg_height": fg, "bg_height": bg, "light": light, "camera": cam})
+
+    def run(cls, scale, **params):
+        return cls().compute(Ctx(device, scale), ins, Namespace(cls.spec.coerce_params(params)))["darkness"]
+    ssn = run(SoftShadowSSN, 0.5, thickness=6.0)
+    np.testing.assert_array_equal(run(Shadow, 0.5, method="ssn", thickness=3.0), ssn)
+    assert np.abs(run(SoftShadowSSN, 0.5, thickness=3.0) - ssn).max() > 0.01   # the thickness matters here
+
+
+@pytest.mark.parametrize("object_px", [30, 64, 100, 121, 430, 900])
+def test_window_scale_is_the_scale_ssn_crop_chooses(object_px):
+    """softness.window_scale (torch-free, for the preview) is the scale SSN++'s own window
+    choice (ssn_crop.choose_window) gives when the shadow's extent is the cutout's
+    (within its rounding to whole pixels)."""
+    pytest.importorskip("torch")
+    from pixgraph_nodes.ops import ssn_crop
+    from pixgraph_nodes.ops.softness import window_scale
+
+    H, W = 1000, 800
+    mask = np.zeros((H, W), np.float32)
+    mask[50:50 + object_px, 300:340] = 1.0
+    win = ssn_crop.choose_window(H, W, (300, 50, 340, 50 + object_px), float(object_px))
+    assert window_scale(mask) == pytest.approx(win.ky, rel=0.01)
+    assert window_scale(np.zeros((4, 4), np.float32)) == 1.0
+
+
+def test_the_preview_swap_tells_the_stand_in_ssns_unit(state):
+    """The served preview of SoftShadowSSN is PreviewShadow with its thickness and
+    ``method: ssn`` (SoftShadowSSN's ``preview_params``); SoftShadow's keeps only the
+    shared params (its thickness is in image pixels)."""
+    pytest.importorskip("torch")
+    assert state.preview_graph().nodes["shadow"].params.get("method") is None
+    state.set_type("shadow", "pixgraph.SoftShadowSSN")
+    try:
+        state.set_params({"shadow.thickness": 5})
+        prev = state.preview_graph().nodes["shadow"]
+        assert prev.type == "pixgraph.PreviewShadow"
+        assert dict(prev.params) == {"thickness": 5, "method": "ssn"}
+    finally:
+        state.set_type("shadow", "pixgraph.SoftShadow")
+
+
 @pytest.fixture(scope="module")
 def state(tmp_path_factory):
     return ServeState(copy_scene(str(tmp_path_factory.mktemp("preview"))))

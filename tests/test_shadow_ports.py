@@ -20,8 +20,11 @@ def test_one_declaration_of_the_five_inputs_and_thickness():
     assert len(ports) == 1
     (only,) = ports
     assert [n for n, _, _ in only] == ["mask", "fg_height", "bg_height", "light", "camera"]
-    thick = {(p.kind, p.default, p.min, p.max, p.unit) for s in specs for p in s.params if p.name == "thickness"}
-    assert thick == {("float", 1.0, 0.0, 1000.0, "px")}
+    thick = {s.type_id: (p.kind, p.default, p.min, p.max, p.unit) for s in specs for p in s.params
+             if p.name == "thickness"}
+    # in image pixels (a scaled run scales them), but SSN++'s, in its window's (which do not scale)
+    assert thick == {t: ("float", 1.0, 0.0, 1000.0, "window px" if t == "pixgraph.SoftShadowSSN" else "px")
+                     for t in FAMILY}
     # the shared block's docs, where a node does not restate a port
     assert REG.get("pixgraph.HardShadow").input("light").doc == "the light"
     assert REG.get("pixgraph.SoftShadow").input("light").doc.startswith("the light; its radius")

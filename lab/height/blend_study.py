@@ -1,5 +1,5 @@
 """Choose auto's blend of the learned map and the contact line on validation
-(docs/height.md, "Rules fixed before measuring (issue 24, fourth session)").
+(docs/height-record.md, "Rules fixed before measuring (issue 24, fourth session, ...)").
 
     python -m pixgraph_lab.height.blend_study --weights runs/height7/best.pt \\
         --heights data/hreal/val data/hreal/val_organic --out runs/blend_study
@@ -17,7 +17,7 @@ by 5-fold out-of-fold mean MAE (fixed folds, seed 0); the lower is the
 candidate. The ship rule: the candidate's out-of-fold MAE at most ``--bar``
 (0.98) x the current auto's MAE (the learned map, or the contact line where the
 signal is above the rule's threshold). On the fifth model the rule was not met
-(docs/height.md, "Measured: auto's blend and large cutouts"), so ``CutoutHeight`` has no blend;
+(docs/height-record.md, "Measured: auto's blend and large cutouts"), so ``CutoutHeight`` has no blend;
 this study is how to try it again for another checkpoint.
 """
 from __future__ import annotations

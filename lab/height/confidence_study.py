@@ -1,5 +1,5 @@
 """Choose auto's confidence signal and threshold on the validation split
-(docs/height.md, "Confidence rule").
+(docs/height-record.md, "Confidence rule").
 
     python -m pixgraph_lab.height.confidence_study --weights runs/height5/best.pt \\
         --heights data/hreal/val --out runs/confidence_study [--write]

@@ -1,4 +1,4 @@
-"""Choose the foot snap on the validation split (docs/height.md, "Foot rule").
+"""Choose the foot snap on the validation split (docs/height-record.md, "Foot rule").
 
     python -m pixgraph_lab.height.foot_study --weights runs/height5/best.pt --heights data/hreal/val \\
         --out runs/foot_study [--write]

@@ -1,4 +1,4 @@
-"""Two ``evaluate_real`` runs on the same samples, compared per sample (docs/height.md,
+"""Two ``evaluate_real`` runs on the same samples, compared per sample (docs/height-record.md,
 "Measured: more kinds on a lent GPU": what the new kinds add, per kind).
 
     python -m pixgraph_lab.height.paired runs/u_h8b runs/u_h8a

@@ -1,4 +1,4 @@
-"""Choose the contact pin's fade on the validation split (docs/height.md, "Pin rule").
+"""Choose the contact pin's fade on the validation split (docs/height-record.md, "Pin rule").
 
     python -m pixgraph_lab.height.pin_study --weights runs/height4/best.pt --heights data/hreal/val \
         --out runs/pin_study [--write]

@@ -1,5 +1,5 @@
 """Large cutouts: the learned height at the work size vs at the cutout's own size
-(docs/height.md, "Rules fixed before measuring: large cutouts" and the rules after it).
+(docs/height-record.md, "Rules fixed before measuring: large cutouts" and the rules after it).
 
     python -m pixgraph_lab.height.scale_study --weights nodes/weights/cutout_height.pt \\
         --heights data/hreal/val data/hreal/val_organic --scales 4 8 --out runs/scale_study
@@ -82,7 +82,7 @@ def upper_bound(diff, n_boot: int = 10000, seed: int = 0, level: float = 0.95) -
 
 
 def noninferiority(rows, new: str, old: str, scales, margin: float, time_ratio: float = 0.75):
-    """Report lines and verdict of the non-inferiority rule (docs/height.md, "Rules
+    """Report lines and verdict of the non-inferiority rule (docs/height-record.md, "Rules
     fixed before measuring: large cutouts, non-inferiority on fresh samples"): at
     every scale (a) the upper 95 % bootstrap bound of the paired mean difference of
     the learned MAE (new - old) at most ``margin`` x old's mean MAE, (b) the same

@@ -1,4 +1,4 @@
-"""Weight averages of cutout-height networks fine-tuned from one start (docs/height.md,
+"""Weight averages of cutout-height networks fine-tuned from one start (docs/height-record.md,
 "Rules fixed before measuring: weight averages of the seventh").
 
     # S2: the uniform average of two runs; W50: 7c pulled half way back to the start

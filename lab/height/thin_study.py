@@ -1,5 +1,5 @@
 """Thin parts of large cutouts: the learned height's fill for the pixels the work
-size loses (docs/height.md, "Rules fixed before measuring: thin parts of large
+size loses (docs/height-record.md, "Rules fixed before measuring: thin parts of large
 cutouts" and "Measured: thin parts").
 
     nice -n 10 python -m pixgraph_lab.height.thin_study generate --n 30 --out data/thin

@@ -311,14 +311,20 @@ class HeightNet:
             x = relu(conv3x3(x, w, b))
         return x
 
-    def __call__(self, x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, np.float32)
-        heur = x[:, 4]
-        h = np.ascontiguousarray(np.moveaxis(x, 1, 3))          # channels last
+    def encode(self, x: np.ndarray) -> list[np.ndarray]:
+        """(N, 6, S, S) inputs -> the down path's outputs, channels last: level k is
+        (N, S / 2^k, S / 2^k, base 2^k) after its ReLU (the skips, and the bottleneck last)."""
+        h = np.ascontiguousarray(np.moveaxis(np.asarray(x, np.float32), 1, 3))   # channels last
         skips = []
         for k, blk in enumerate(self.down):
             h = self._run_block(h if k == 0 else max_pool2(h), blk)
             skips.append(h)
+        return skips
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, np.float32)
+        heur = x[:, 4]
+        skips = self.encode(x)
         h = skips.pop()
         for k in reversed(range(self.levels)):
             skip = skips.pop()

@@ -29,7 +29,7 @@ predicted there, and the map brought back to full size:
   the pin; it got the plain bilinear value, about 0. A cutout without such pixels gets the same map as before, bit for bit.
 
 Shipped with ``WORK_SIDE = 512`` by a non-inferiority rule fixed before its
-fresh validation samples existed (docs/height.md, "Measured: large cutouts at
+fresh validation samples existed (docs/height-record.md, "Measured: large cutouts at
 512 px"): on 280 fresh samples enlarged 4x / 8x its learned MAE differed from
 the full-size path's by -0.003 / -0.001 px (upper 95 % bounds +0.031 / +0.045
 px, margin 0.156), its confidence was 0.012-0.013 off the actual win rate
@@ -50,7 +50,7 @@ from .upsample import masked_resize
 
 #: how the full-size pixels with no work-size pixel of their own (a part thinner than a
 #: work-size pixel: ``upsample.masked_resize``'s ``lost``) get their height
-#: (``fill_thin``). ``contact`` shipped by the rule of docs/height.md ("Measured: thin
+#: (``fill_thin``). ``contact`` shipped by the rule of docs/height-record.md ("Measured: thin
 #: parts of large cutouts"): over the stick figure and the 29 of 30 renders at 3072^2 with thin
 #: rods that lose pixels, MAE over the lost pixels 117 px (none, the path before: 1,569; attached: 277;
 #: the candidates that lost are in ``pixgraph_lab.height.thin_study``)

@@ -313,7 +313,7 @@ def convex_hull_area(mask: np.ndarray) -> float:
 #: validation renders are 256 x 256). ``LearnedHeightPredictor.signal_side`` (default
 #: SIGNAL_SIDE) measures a larger cutout's signal lengths in pixels of a crop this
 #: size, so its confidence is read off the bins fitted at that size (in the cutout's
-#: own pixels, a cutout 8x larger landed in the top bin: docs/height.md, "Measured:
+#: own pixels, a cutout 8x larger landed in the top bin: docs/height-record.md, "Measured:
 #: large cutouts at 512 px")
 SIGNAL_SIDE = 256
 
@@ -324,7 +324,7 @@ def confidence_signals(height: np.ndarray, heuristic: np.ndarray, mask: np.ndarr
                        flip_height: np.ndarray | None = None, est_mae_learned: float | None = None,
                        est_mae_heuristic: float | None = None, which=SIGNALS,
                        contact_line: np.ndarray | None = None, px_scale: float = 1.0) -> dict:
-    """Per-cutout signals of how far to trust the learned map (docs/height.md,
+    """Per-cutout signals of how far to trust the learned map (docs/height-record.md,
     "Confidence rule"), each a float (NaN when its inputs are missing):
 
     * ``disagreement_px``: mean |height - heuristic| over the mask [px];
@@ -591,7 +591,7 @@ class LearnedHeightPredictor:
         self.signal_side = SIGNAL_SIDE
         # a cutout whose square crop is larger than this [px] is predicted at this size and
         # the map brought back (height_work_size), or None: at its own size. Both shipped by
-        # a rule fixed before measuring (docs/height.md, "Measured: large cutouts at 512 px")
+        # a rule fixed before measuring (docs/height-record.md, "Measured: large cutouts at 512 px")
         from .height_work_size import WORK_SIDE
         self.work_side = WORK_SIDE
 

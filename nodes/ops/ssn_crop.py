@@ -43,13 +43,14 @@ from . import ssn
 from .buffers import buffer_channels
 from .resample import Window, ceil_to
 from .shadow import soft_shadow
+# the cutout height [network px] kept in the window (the training objects' range) and the
+# scale that gives it: torch-free, beside the softness (PreviewShadow reads them too)
+from .softness import OBJECT_PX, network_scale  # noqa: F401 (re-exported)
 from .upsample import masked_resize
 
 #: light softness (radius / distance) of the training data; outside it the node
 #: clamps and logs a warning
 SOFTNESS_RANGE = (0.015, 0.45)
-#: cutout height [network px] kept in the window: the training objects' range
-OBJECT_PX = (64.0, 120.0)
 #: smallest window side [network px] (the training images' size)
 MIN_SIDE = ssn.RESOLUTION
 #: largest window side [network px]; a larger extent is shrunk to fit
@@ -108,12 +109,6 @@ def shadow_extent(device, mask, fg_height, bg_height, light_center, light_extrem
     x0 = int(np.floor((xs.min() - 1) / win.kx)); x1 = int(np.ceil((xs.max() + 2) / win.kx))
     y0 = int(np.floor((ys.min() - 1) / win.ky)); y1 = int(np.ceil((ys.max() + 2) / win.ky))
     return max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
-
-
-def network_scale(object_px: float) -> float:
-    """Scale from image to network px that puts a cutout ``object_px`` tall in OBJECT_PX."""
-    lo, hi = OBJECT_PX
-    return hi / object_px if object_px > hi else (lo / max(object_px, 1.0) if object_px < lo else 1.0)
 
 
 def choose_window(H: int, W: int, extent, object_px: float) -> Window:
