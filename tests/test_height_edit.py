@@ -422,3 +422,41 @@ def test_true_contacts_options_give_real_photos_old_plans():
     # a foot pixel (true height < 1 px) wins over everything else, whatever the options
     true_h[50, 30] = 0.5
     assert true_contacts(true_h, mask, 3, fallback_rows=2, v_at=1.0) == [(30.5, 51.0)]
+
+
+def test_the_residual_benchmark_splits_a_known_residual_into_columns_rows_and_bulge():
+    """benchmarks/page_height_residual.py's numbers on maps whose difference is known: a
+    per-column offset is all in the column means (and its exact column fix is the truth),
+    a per-row one all in the row means, a bulge across each row all in the bulge share
+    with the slope it was made with."""
+    import importlib.util
+    import pathlib
+    import sys
+    here = pathlib.Path(__file__).parents[1] / "benchmarks"
+    sys.path.insert(0, str(here))
+    try:
+        spec = importlib.util.spec_from_file_location("page_height_residual", here / "page_height_residual.py")
+        res = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(res)
+    finally:
+        sys.path.remove(str(here))
+    H, W = 60, 50
+    u, v = grid(H, W)
+    m = np.zeros((H, W), bool)
+    m[10:50, 10:40] = True
+    t = np.where(m, 50.0 - v, 0.0)
+    col = np.where(m, t - 0.3 * (u - 10.0), 0.0)                    # a part whose ground is elsewhere
+    s = res.residual_stats(col, t, m)
+    assert s["cols"] == pytest.approx(1.0) and s["rows"] == pytest.approx(0.0, abs=1e-9)
+    np.testing.assert_allclose(s["col_fix"][m], t[m], atol=1e-9)
+    assert s["bias"] == pytest.approx(0.3 * 15.0) and s["k"] > 1
+    row = np.where(m, t - 0.1 * (50.0 - v), 0.0)                    # heights 10 % short: a row profile
+    s = res.residual_stats(row, t, m)
+    assert s["rows"] == pytest.approx(1.0) and s["cols"] == pytest.approx(0.0, abs=1e-9)
+    assert s["k"] == pytest.approx(1 / 0.9) and s["up"][2] > s["up"][0] > 0
+    # a rounded front: 0.2 x the row's half-width x sqrt(1 - t^2) missing (the edit too flat)
+    w = 15.0
+    bump = 0.2 * w * np.sqrt(np.clip(1 - ((u - 25.0) / w) ** 2, 0, 1))
+    s = res.residual_stats(np.where(m, t - bump, 0.0), t, m)
+    assert s["bulge"] == pytest.approx(1.0, abs=1e-9) and s["beta"] == pytest.approx(0.2, abs=1e-9)
+    assert s["across"][0] > s["across"][1] > s["across"][2]
