@@ -17,7 +17,7 @@ same working resolution:
             axis (``penumbra_blur``'s geometry: the light's disk extremes
             through the blocker onto the receiver's tangent plane), the
             candidate of issue 24's note (docs/server.md has the rule it met or
-            missed).
+            missed); its boxes summed by the OpenCL kernel ``swept_boxes``.
 
 Accuracy, over the example graphs with a soft shadow (graphs/wall_corner_shadow,
 ground_shadow, steps_shadow, auto_shadow at the page's working resolution 0.5:
@@ -97,7 +97,8 @@ def candidate(name, device, scene, mask, fg, light, cam):
         geometry = None
         if name == "pcss_aniso":
             geometry = (scene.prep.bg, lp, disk_extremes(light, cam))
-        return P.penumbra_blur(dark, dist, np.asarray(mask) > 0.5, soft, geometry)
+        # the device sums the stretched boxes (kernel swept_boxes), as the node's compute does
+        return P.penumbra_blur(dark, dist, np.asarray(mask) > 0.5, soft, geometry, device=device)
     raise ValueError(name)
 
 
@@ -191,7 +192,7 @@ def blur_alone(session, reps):
         for _ in range(reps):
             for c, g in (("pcss", None), ("pcss_aniso", geometry)):
                 t0 = time.perf_counter()
-                P.penumbra_blur(dark, dist, inside, soft, g)
+                P.penumbra_blur(dark, dist, inside, soft, g, device=session.device)
                 t[c].append(time.perf_counter() - t0)
         extra = statistics.median(a - b for a, b in zip(t["pcss_aniso"], t["pcss"]))
         print(f"  own_photo 816x612 {method:12s} penumbra_blur alone: pcss {1e3 * statistics.median(t['pcss']):.1f} ms"

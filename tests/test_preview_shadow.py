@@ -221,6 +221,73 @@ def test_stretched_penumbra_keeps_the_guarantees(light):
         P.penumbra_blur(dark, dist, inside, soft, (bg[:10], light, ext))
 
 
+
+def _kernel_scenes():
+    """(name, mask, fg, bg, light point, extremes, softness, thickness): the figure against
+    a wall (the lights of LIGHTS: in front, low, behind the camera plane, at infinity), blobs
+    on a wall, and the thin pole's long ground shadows under a low light in front and behind."""
+    from pixgraph_nodes.ops import lights as L
+    from test_geometry_shadows import CAM, pole
+
+    out = []
+    mask, fg, bg = figure(96, 128)
+    for k, light in enumerate(LIGHTS):
+        lp = np.array(light, np.float32)
+        d = 4.0 + 3.0 * k                                  # disks of several sizes and orientations
+        ext = np.array([lp + (d, 0, 0, 0), lp - (d, 0, 0, 0), lp + (0, 0.5 * d, d, 0), lp - (0, 0.5 * d, d, 0)],
+                       np.float32)
+        out.append((f"figure {k}", mask, fg, bg, lp, ext, 0.03 + 0.01 * k, 2.0))
+    mask, fg = blobs(80, 112, 4)
+    bg = wall_bg(80, 112, 30)
+    lp = np.array(LIGHTS[1], np.float32)
+    out.append(("blobs on a wall", mask, fg, bg, lp, np.array([lp + (5, 0, 0, 0), lp - (5, 0, 0, 0),
+                                                               lp + (0, 0, 5, 0), lp - (0, 0, 5, 0)], np.float32),
+                0.06, 1.5))
+    mask, fg = pole()
+    for name, light in _pole_lights().items():
+        out.append((f"pole {name}", mask, fg, np.zeros_like(fg), L.light_point(light, CAM),
+                    L.disk_extremes(light, CAM), None, 1.0))
+    return out
+
+
+def test_swept_boxes_kernel_matches_the_reference(device):
+    """The stretched boxes summed by the OpenCL kernel ``swept_boxes`` (penumbra_blur with a
+    device) equal the numpy reference ``_swept_boxes`` to float rounding on walls and long
+    ground shadows, lights in front, low, behind the camera plane and at infinity; the
+    stretched path is really taken (it differs from the square box in many pixels)."""
+    from pixgraph_nodes.ops import lights as L
+    from pixgraph_nodes.ops.softness import softness_of
+    from test_geometry_shadows import CAM
+
+    if not P._has_doubles(device):
+        pytest.skip("the device has no doubles: penumbra_blur sums the boxes in numpy")
+    calls = []
+    orig = P._swept_boxes_cl
+
+    def counted(*a, **k):
+        calls.append(a[1].size)
+        return orig(*a, **k)
+
+    for name, mask, fg, bg, lp, ext, soft, thick in _kernel_scenes():
+        if soft is None:
+            soft = softness_of(_pole_lights()[name[5:]], CAM, mask, fg)
+        dark, dist = P.hard_shadow_distance_ref(mask, fg, bg, lp, thick)
+        inside = mask > 0.5
+        ref = P.penumbra_blur(dark, dist, inside, soft, (bg, lp, ext))
+        P._swept_boxes_cl = counted
+        try:
+            got = P.penumbra_blur(dark, dist, inside, soft, (bg, lp, ext), device=device)
+        finally:
+            P._swept_boxes_cl = orig
+        assert calls and calls[-1] > 30, name                    # the kernel ran on the mixed pixels
+        square = P.penumbra_blur(dark, dist, inside, soft)
+        assert (np.abs(ref - square) > 0.02).sum() > 20, name    # the stretched boxes changed pixels
+        assert got.dtype == np.float32
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-6, err_msg=name)
+    # a point light: the hard shadow, with or without the device
+    np.testing.assert_array_equal(P.penumbra_blur(dark, dist, inside, 0.0, (bg, lp, ext), device=device), dark)
+
+
 # -- SSN++'s thickness in the preview (its window's pixels, not the image's) ----------------------
 
 def _tall_figure_scene():
