@@ -24,13 +24,16 @@ that blocks it (:func:`hard_shadow_distance`, one march per pixel, as
    ``round(softness * mean d)`` around it (a box over a straight hard edge gives
    the linear ramp a disk light's penumbra roughly is).
 
-2'. (a candidate the node does not use, tried and left out: docs/server.md,
-   "A stretched penumbra") with a geometry, a background pixel's box is
-   stretched along the penumbra's long axis in the image: :func:`penumbra_axes`
-   casts the blocking point from the disk's 4 extreme points onto the
-   receiver's tangent plane, which gives the penumbra's ellipse, and the pixel
-   averages over a few square boxes of half-size the minor half-axis spread
-   along the major one (``benchmarks/preview_shadow_bench.py``'s ``pcss_aniso``).
+2'. (what ``pixgraph.PreviewShadow`` uses for a disk light since its version 4:
+   docs/server.md, "A stretched penumbra") with a geometry, a background pixel's
+   box is stretched along the penumbra's long axis in the image:
+   :func:`penumbra_axes` casts the blocking point from the disk's 4 extreme
+   points onto the receiver's tangent plane, which gives the penumbra's
+   ellipse, and the pixel averages over a few square boxes of half-size the
+   minor half-axis spread along the major one
+   (``benchmarks/preview_shadow_bench.py``'s ``pcss_aniso``). With a device
+   these boxes are summed by the OpenCL kernel ``swept_boxes`` (8 pixels a work
+   item), :func:`_swept_boxes` is its numpy reference.
 
 Both are box sums over summed-area tables, restricted to the pixels of the
 receiver's own side of the cutout's outline (the shadow on the background and
@@ -406,8 +409,9 @@ def preview_soft_shadow(device, mask, fg_height, bg_height, light, softness, thi
     light: the light's centre (u, v, h, s); softness: radius over distance (0 for
     a point light: the hard shadow exactly); extremes: None (the square box) or the
     disk's extreme points (4, 4) (``lights.disk_extremes``: the stretched penumbra of
-    ``penumbra_blur``'s geometry). Other inputs as ``shadow.hard_shadow``."""
+    ``penumbra_blur``'s geometry, its boxes summed on ``device``). Other inputs as
+    ``shadow.hard_shadow``."""
     dark, dist = hard_shadow_distance(device, mask, fg_height, bg_height, light, thickness,
                                       progress=progress, check_cancelled=check_cancelled)
     geometry = None if extremes is None else (bg_height, light, extremes)
-    return penumbra_blur(dark, dist, np.asarray(mask) > 0.5, softness, geometry)
+    return penumbra_blur(dark, dist, np.asarray(mask) > 0.5, softness, geometry, device=device)
