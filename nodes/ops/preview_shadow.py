@@ -310,6 +310,10 @@ def penumbra_blur(darkness, distance, inside, softness: float, geometry=None, de
     return out
 
 
+#: work items (of 8 pixels) per work-group of the ``swept_boxes`` kernel
+SWEPT_GROUP = 16
+
+
 def _has_doubles(device) -> bool:
     """Whether ``device`` runs the ``swept_boxes`` kernel (it needs cl_khr_fp64)."""
     return "cl_khr_fp64" in device.queue.device.extensions
@@ -330,8 +334,10 @@ def _swept_boxes_cl(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes
     # the tables and the heights are read where they lie (no copy on a CPU device)
     zb = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=z)
     bgb = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=bg)
-    # 8 pixels a work item: the per-pixel arrays padded with copies of the last pixel
-    items = -(-n // 8)
+    # 8 pixels a work item, work-groups of a fixed size (PoCL compiles a kernel anew for
+    # each work-group size it picks, and the count of pixels changes from call to call):
+    # the per-pixel arrays padded with copies of the last pixel
+    items = -(-n // (8 * SWEPT_GROUP)) * SWEPT_GROUP
     pad = np.minimum(np.arange(8 * items), n - 1)
     ins = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(np.asarray(a)[pad], t))
            for a, t in ((i, np.int32), (j, np.int32), (dbar, np.float64), (res, np.float32))]
@@ -344,7 +350,7 @@ def _swept_boxes_cl(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes
     import pyopencl.cltypes as cltypes
     lf4 = cltypes.make_float4(float(np.float32(L[0])), float(np.float32(L[1])), float(np.float32(L[2])), 0.0)
     ev = S._kernel(prg, "swept_boxes")(
-        device.queue, (items,), None, zb, np.int32(z.shape[2]), np.int32(z.shape[1] * z.shape[2]),
+        device.queue, (items,), (SWEPT_GROUP,), zb, np.int32(z.shape[2]), np.int32(z.shape[1] * z.shape[2]),
         bgb, np.int32(bg.shape[1]), np.int32(bg.shape[0]), *ins, np.int32(o0), np.int32(p0),
         np.int32(Ri), np.int32(Rj), np.float64(softness), lf4, np.float32(-1.0 if L[3] < 0 else 1.0), extb, outb)
     cl.enqueue_copy(device.queue, out, outb, wait_for=[ev])
