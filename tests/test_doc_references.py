@@ -2,8 +2,10 @@
 "Section"`, `docs/<NAME>.md ("Section")`, `docs/<NAME>.md, 'Section'` (error messages) or,
 inside docs/, a link `[text](<NAME>.md), "Section"` -- names a doc that exists and a
 heading or a bold label that the doc has (a prefix of it; "..." leaves out the rest).
-A reference broken over comment lines (``#``, ``#:``, ``//``) is read whole. A section
-or doc moved or renamed without its references fails here, naming the file and line."""
+A reference broken over comment lines (``#``, ``#:``, ``//``) is read whole. A markdown
+link to a section (`[text](NAME.md#anchor)`, `[text](#anchor)`) in README.md and docs/
+leads to a heading. A section or doc moved or renamed without its references fails
+here, naming the file and line."""
 import pathlib
 import re
 import subprocess
@@ -114,3 +116,49 @@ def test_the_pattern_reads_every_section_of_a_list():
     assert [section_of(m)] + [norm(x.group("dq")) for x in sections_after(text, m)] == [
         "Rules fixed before measuring: thin parts of large cutouts", "Measured: thin parts", "Train the eighth",
         "Measured: a"]
+
+
+def anchor(heading: str) -> str:
+    """GitHub's anchor of a markdown heading: lower case, punctuation but hyphens dropped,
+    spaces made hyphens (``## 6. Another background`` -> ``6-another-background``)."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def anchors(doc: pathlib.Path) -> set[str]:
+    """The anchors of a doc's headings (outside code blocks; a repeated one gets -1, -2...)."""
+    seen, fenced = {}, False
+    for line in doc.read_text().splitlines():
+        fenced ^= line.startswith("```")
+        m = None if fenced else re.match(r"#+\s+(.*)", line)
+        if m:
+            a = anchor(m.group(1))
+            seen[a] = seen.get(a, -1) + 1
+            if seen[a]:
+                seen[f"{a}-{seen[a]}"] = 0
+    return set(seen)
+
+
+LINK = re.compile(r"\]\(([\w/.-]*\.md)?#([\w-]+)\)")
+
+
+def test_every_markdown_link_to_a_section_names_a_heading_it_has():
+    """`[text](NAME.md#anchor)` and `[text](#anchor)` in README.md and docs/ lead to a heading."""
+    docs = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    checked, bad = 0, []
+    for doc in docs:
+        text = doc.read_text()
+        for m in LINK.finditer(text):
+            target = (doc.parent / m.group(1)) if m.group(1) else doc
+            checked += 1
+            if not target.is_file() or m.group(2) not in anchors(target):
+                bad.append(f"{doc.relative_to(ROOT)}:{text.count(chr(10), 0, m.start()) + 1}: no #{m.group(2)} "
+                           f"in {m.group(1) or doc.name}")
+    assert checked >= 30, f"only {checked} links found: is the pattern still right?"
+    assert not bad, "\n".join(bad)
+
+
+def test_anchors_as_github_makes_them():
+    assert anchor("6. Another background: templates and their handles") == \
+        "6-another-background-templates-and-their-handles"
+    assert anchor("Where the cutout's pixel height comes from") == "where-the-cutouts-pixel-height-comes-from"
+    assert anchor("pixgraph.SoftShadowSSN") == "pixgraphsoftshadowssn"
