@@ -1,5 +1,5 @@
 """Fixing a wrong pixel height by hand in the page, on the repo's own real-photo check
-examples (docs/height-record.md, "The real-photo check": our Mitsuba renders of held-out
+examples (docs/height.md, "The real-photo check: where each method fails": our Mitsuba renders of held-out
 named meshes with exact pixel heights), in headless Chromium, in at most 3 drags.
 
     python benchmarks/page_height_fix.py --shadows data/hreal/wall_named64 \\

@@ -58,7 +58,12 @@ def shadow_of_map(sc: dict, hmap: np.ndarray, tag: str) -> np.ndarray:
 
 
 def residual_stats(e: np.ndarray, t: np.ndarray, m: np.ndarray) -> dict:
-    """The residual's numbers (module doc) of the edited map ``e`` against ``t`` over ``m``."""
+    """The residual's numbers (module doc) of the edited map ``e`` [px] against ``t`` [px]
+    over the mask ``m`` (all (H, W)): ``mae``, ``bias`` [px]; the variance shares ``cols``,
+    ``rows`` and ``bulge`` (of what is left within the rows) in [0, 1], with ``beta`` (the
+    bulge's slope, no unit); ``across`` and ``up``, the residual's means by thirds [px];
+    the maps ``row_fix`` and ``col_fix`` [px] (``e`` corrected by the residual's row or
+    column means) and the least-squares factor ``k`` (t ~ k e)."""
     H, W = m.shape
     r = np.where(m, t - e, 0.0)
     rv = r[m]

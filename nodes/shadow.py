@@ -41,7 +41,9 @@ class Shadow(Node):
                                 doc="auto's accuracy target: RMSE of darkness against ground truth that at "
                                     "most 10% of the benchmark's similar scenes exceeded")
         samples: int = param(64, min=1, max=65536, doc="light samples of method soft")
-        thickness: float = thickness_param(doc="occluder thickness of the pixel-height tracer")
+        thickness: float = thickness_param(doc="occluder thickness of the pixel-height tracer (method ssn, "
+                                               "forced or chosen by auto: in pixels of SSN++'s window, "
+                                               "as pixgraph.SoftShadowSSN reads it)")
         proxy: int = param(AUTO_MAX_SIDE, min=0, max=1 << 20, unit="px, longer side",
                            doc="classical shadows of images longer than this are traced at this size (0: never)")
 

@@ -36,8 +36,8 @@ declares a file the node writes (its path, not its content, is hashed).
 
 Working resolution (``Session.run(..., scale=s)``): params declared with
 ``unit="px"`` reach ``compute`` multiplied by ``s``; a node that makes images of
-its own size from files (a loader) sets ``uses_scale = True`` and reads
-``ctx.scale`` (see ``Node``).
+its own size from files (a loader), or whose result depends on ``s`` otherwise,
+sets ``uses_scale = True`` and reads ``ctx.scale`` (see ``Node``).
 """
 from __future__ import annotations
 
@@ -366,7 +366,7 @@ class Node:
         (and the scale is part of its cache key).
     ``preview = None``
         a cheaper stand-in for interactive previews (e.g. the type id of a node
-        with the same ports, as the soft shadows name the hard shadow); None: the
+        with the same ports, as the soft shadows name a cheaper shadow); None: the
         node itself previews. The engine never reads it; shells may.
     ``preview_params = None``
         how this node's params map onto its ``preview`` stand-in's: a mapping of

@@ -18,8 +18,8 @@ class NodeContext:
 
     ``device`` is opened on first access only, so graphs without OpenCL nodes
     never touch OpenCL. ``scale`` is the run's working resolution (``Engine.plan``):
-    a node that declares ``uses_scale = True`` (a loader) makes its images this
-    many times the file's size; 1 is full size.
+    a node that declares ``uses_scale = True`` reads it (a loader makes its images
+    this many times the file's size; see ``Node.uses_scale``); 1 is full size.
     """
 
     __slots__ = ("node_id", "graph_dir", "_device", "_cancel", "_emit", "scale")

@@ -361,14 +361,19 @@ def test_foot_depth_keeps_a_contact_at_0_not_a_lifted_inputs():
     np.testing.assert_allclose(kept[m & (grounded >= 20)], moved[m & (grounded >= 20)], atol=1e-4)
 
 
-def _page_height_fix():
+def _benchmark(name: str):
+    """benchmarks/<name>.py as a module (it puts its own folder on sys.path for its imports)."""
     import importlib.util
     import pathlib
-    path = pathlib.Path(__file__).parents[1] / "benchmarks" / "page_height_fix.py"
-    spec = importlib.util.spec_from_file_location("page_height_fix", path)
+    path = pathlib.Path(__file__).parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
     return bench
+
+
+def _page_height_fix():
+    return _benchmark("page_height_fix")
 
 
 def test_the_simulated_users_plans_moved_to_the_lab_unchanged():
@@ -429,17 +434,7 @@ def test_the_residual_benchmark_splits_a_known_residual_into_columns_rows_and_bu
     per-column offset is all in the column means (and its exact column fix is the truth),
     a per-row one all in the row means, a bulge across each row all in the bulge share
     with the slope it was made with."""
-    import importlib.util
-    import pathlib
-    import sys
-    here = pathlib.Path(__file__).parents[1] / "benchmarks"
-    sys.path.insert(0, str(here))
-    try:
-        spec = importlib.util.spec_from_file_location("page_height_residual", here / "page_height_residual.py")
-        res = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(res)
-    finally:
-        sys.path.remove(str(here))
+    res = _benchmark("page_height_residual")
     H, W = 60, 50
     u, v = grid(H, W)
     m = np.zeros((H, W), bool)

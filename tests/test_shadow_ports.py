@@ -55,3 +55,20 @@ def test_every_member_checks_its_inputs_the_same_way(type_id):
     with pytest.raises(InputError, match=r"input 'bg_height': 1 pixel height\(s\) not finite or negative "
                                          r"\(first: negative at pixel u=3, v=2\)"):
         spec.cls().compute(_Ctx(), bad_height, params)
+
+
+def test_a_scaled_run_scales_thickness_in_image_px_and_keys_the_nodes_that_undo_it():
+    """At a quarter of the resolution the engine hands every image-px thickness over
+    quartered, SoftShadowSSN's (window px) as it is; the two nodes that divide the scale
+    back out for SSN++ (Shadow with method ssn, PreviewShadow with method ssn) declare
+    uses_scale, so their results are keyed by the scale, and no other member does."""
+    from pixgraph.resolve import scale_params
+    got = {}
+    for t in FAMILY + ["pixgraph.PreviewShadow"]:
+        params, key = {"thickness": 4.0}, {"thickness": 4.0}
+        scale_params(REG.get(t), params, key, 0.25)
+        assert key["thickness"] == params["thickness"]
+        got[t] = (params["thickness"], key.get("@scale"))
+    assert got == {"pixgraph.HardShadow": (1.0, None), "pixgraph.SoftShadow": (1.0, None),
+                   "pixgraph.SoftShadowSSN": (4.0, None), "pixgraph.Shadow": (1.0, 0.25),
+                   "pixgraph.BufferChannels": (1.0, None), "pixgraph.PreviewShadow": (1.0, 0.25)}
