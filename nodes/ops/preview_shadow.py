@@ -321,7 +321,7 @@ def _has_doubles(device) -> bool:
 
 def _swept_boxes_cl(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes, keep, *, device):
     """:func:`_swept_boxes` by the OpenCL kernel ``swept_boxes`` (preview_shadow.cl),
-    one work item per pixel; the same arguments, the same result to float rounding."""
+    8 pixels a work item; the same arguments, the same result to float rounding."""
     cl = S._cl()
     n = int(i.size)
     res = np.asarray(keep, np.float32).copy()
