@@ -17,7 +17,7 @@ same working resolution:
             axis (``penumbra_blur``'s geometry: the light's disk extremes
             through the blocker onto the receiver's tangent plane), the
             candidate of issue 24's note (docs/server.md has the rule it met or
-            missed).
+            missed); its boxes summed by the OpenCL kernel ``swept_boxes``.
 
 Accuracy, over the example graphs with a soft shadow (graphs/wall_corner_shadow,
 ground_shadow, steps_shadow, auto_shadow at the page's working resolution 0.5:
@@ -97,7 +97,8 @@ def candidate(name, device, scene, mask, fg, light, cam):
         geometry = None
         if name == "pcss_aniso":
             geometry = (scene.prep.bg, lp, disk_extremes(light, cam))
-        return P.penumbra_blur(dark, dist, np.asarray(mask) > 0.5, soft, geometry)
+        # the device sums the stretched boxes (kernel swept_boxes), as the node's compute does
+        return P.penumbra_blur(dark, dist, np.asarray(mask) > 0.5, soft, geometry, device=device)
     raise ValueError(name)
 
 
@@ -176,9 +177,10 @@ def timing(session, runs, quick):
 
 
 def blur_alone(session, reps):
-    """The penumbra estimate alone (``penumbra_blur``, square box against the stretched
-    one), alternated ``reps`` times on the 816 x 612 scenes' traced hard shadow: wall
-    medians and the median of the paired differences."""
+    """The penumbra estimate alone (``penumbra_blur``): the square box, the stretched one
+    with its boxes summed by the kernel (``pcss_aniso``, what the node runs) and by the
+    numpy reference (``numpy``), alternated ``reps`` times on the 816 x 612 scenes' traced
+    hard shadow: wall medians and the medians of the paired differences from the square."""
     for method in ("contact_line", "learned"):
         (mask, fg, bg, light, cam), thickness = photo_scene(session, method)
         scene = P.PreviewScene(session.device, mask, fg, bg, thickness)
@@ -187,15 +189,17 @@ def blur_alone(session, reps):
         dark, dist = scene.hard_shadow_distance(lp)
         inside = np.asarray(mask) > 0.5
         geometry = (scene.prep.bg, lp, disk_extremes(light, cam))
-        t = {"pcss": [], "pcss_aniso": []}
+        runs = (("pcss", None, None), ("pcss_aniso", geometry, session.device), ("numpy", geometry, None))
+        t = {c: [] for c, _, _ in runs}
         for _ in range(reps):
-            for c, g in (("pcss", None), ("pcss_aniso", geometry)):
+            for c, g, dev in runs:
                 t0 = time.perf_counter()
-                P.penumbra_blur(dark, dist, inside, soft, g)
+                P.penumbra_blur(dark, dist, inside, soft, g, device=dev)
                 t[c].append(time.perf_counter() - t0)
-        extra = statistics.median(a - b for a, b in zip(t["pcss_aniso"], t["pcss"]))
+        extra = {c: statistics.median(a - b for a, b in zip(t[c], t["pcss"])) for c in t}
         print(f"  own_photo 816x612 {method:12s} penumbra_blur alone: pcss {1e3 * statistics.median(t['pcss']):.1f} ms"
-              f"  pcss_aniso {1e3 * statistics.median(t['pcss_aniso']):.1f} ms  (+{1e3 * extra:.1f} ms)", flush=True)
+              + "".join(f"  {c} {1e3 * statistics.median(t[c]):.1f} ms (+{1e3 * extra[c]:.1f})"
+                        for c in ("pcss_aniso", "numpy")), flush=True)
 
 
 def main(argv=None):
@@ -203,7 +207,8 @@ def main(argv=None):
     ap.add_argument("--runs", type=int, default=7, help="timed calls per stand-in and scene")
     ap.add_argument("--quick", action="store_true", help="two graphs, one light, one height: a smoke run")
     ap.add_argument("--blur-alone", type=int, default=0, metavar="N",
-                    help="only time penumbra_blur alone, square against stretched, alternated N times")
+                    help="only time penumbra_blur alone, square against stretched (kernel and numpy), "
+                         "alternated N times")
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     session = Session()

@@ -221,6 +221,76 @@ def test_stretched_penumbra_keeps_the_guarantees(light):
         P.penumbra_blur(dark, dist, inside, soft, (bg[:10], light, ext))
 
 
+
+def _kernel_scenes():
+    """(name, mask, fg, bg, light point, extremes, softness, thickness): the figure against
+    a wall (the lights of LIGHTS: in front, low, behind the camera plane, at infinity), blobs
+    on a wall, and the thin pole's long ground shadows under a low light in front and behind
+    and under two suns (lights at infinity; softness None: the light's own)."""
+    from pixgraph_nodes.ops import lights as L
+    from test_geometry_shadows import CAM, pole
+
+    out = []
+    mask, fg, bg = figure(96, 128)
+    for k, light in enumerate(LIGHTS):
+        lp = np.array(light, np.float32)
+        d = 4.0 + 3.0 * k                                  # disks of several sizes and orientations
+        ext = np.array([lp + (d, 0, 0, 0), lp - (d, 0, 0, 0), lp + (0, 0.5 * d, d, 0), lp - (0, 0.5 * d, d, 0)],
+                       np.float32)
+        out.append((f"figure {k}", mask, fg, bg, lp, ext, 0.03 + 0.01 * k, 2.0))
+    mask, fg = blobs(80, 112, 4)
+    bg = wall_bg(80, 112, 30)
+    lp = np.array(LIGHTS[1], np.float32)
+    out.append(("blobs on a wall", mask, fg, bg, lp, np.array([lp + (5, 0, 0, 0), lp - (5, 0, 0, 0),
+                                                               lp + (0, 0, 5, 0), lp - (0, 0, 5, 0)], np.float32),
+                0.06, 1.5))
+    mask, fg = pole()
+    suns = {"sun": L.directional_light((0.4, 1.0, 0.5), angular_radius_deg=3.0),
+            "low sun": L.directional_light((-1.0, 0.3, 0.2), angular_radius_deg=2.0)}
+    for name, light in {**_pole_lights(), **suns}.items():
+        out.append((f"pole {name}", mask, fg, np.zeros_like(fg), L.light_point(light, CAM),
+                    L.disk_extremes(light, CAM), light, 1.0))
+    return out
+
+
+def test_swept_boxes_kernel_matches_the_reference(device):
+    """The stretched boxes summed by the OpenCL kernel ``swept_boxes`` (penumbra_blur with a
+    device) equal the numpy reference ``_swept_boxes`` to float rounding on walls and long
+    ground shadows, lights in front, low, behind the camera plane and at infinity (9
+    scenes; on the benchmark's 62 they are equal bit for bit); the
+    stretched path is really taken (it differs from the square box in many pixels)."""
+    from pixgraph_nodes.ops.softness import softness_of
+    from test_geometry_shadows import CAM
+
+    if not P._has_doubles(device):
+        pytest.skip("the device has no doubles: penumbra_blur sums the boxes in numpy")
+    calls = []
+    orig = P._swept_boxes_cl
+
+    def counted(*a, **k):
+        calls.append(a[1].size)
+        return orig(*a, **k)
+
+    for name, mask, fg, bg, lp, ext, soft, thick in _kernel_scenes():
+        if not isinstance(soft, float):          # a light: its own softness
+            soft = softness_of(soft, CAM, mask, fg)
+        dark, dist = P.hard_shadow_distance_ref(mask, fg, bg, lp, thick)
+        inside = mask > 0.5
+        ref = P.penumbra_blur(dark, dist, inside, soft, (bg, lp, ext))
+        P._swept_boxes_cl = counted
+        try:
+            got = P.penumbra_blur(dark, dist, inside, soft, (bg, lp, ext), device=device)
+        finally:
+            P._swept_boxes_cl = orig
+        assert calls and calls[-1] > 30, name                    # the kernel ran on the mixed pixels
+        square = P.penumbra_blur(dark, dist, inside, soft)
+        assert (np.abs(ref - square) > 0.02).sum() > 20, name    # the stretched boxes changed pixels
+        assert got.dtype == np.float32
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-6, err_msg=name)
+    # a point light: the hard shadow, with or without the device
+    np.testing.assert_array_equal(P.penumbra_blur(dark, dist, inside, 0.0, (bg, lp, ext), device=device), dark)
+
+
 # -- SSN++'s thickness in the preview (its window's pixels, not the image's) ----------------------
 
 def _tall_figure_scene():
@@ -250,7 +320,7 @@ def test_ssn_thickness_is_read_in_the_windows_pixels(device):
     thickness is it divided by the window's scale, here 120 px (the trained object
     height) over the cutout's 430-odd rows, about 0.28: 4 window px are about 14 image
     px. Read as image px (any other method), the shadow differs in hundreds of pixels."""
-    from pixgraph_nodes.ops.lights import light_point
+    from pixgraph_nodes.ops.lights import disk_extremes, light_point
     from pixgraph_nodes.ops.softness import softness_of
 
     mask, fg, bg, light, cam = _tall_figure_scene()
@@ -258,8 +328,9 @@ def test_ssn_thickness_is_read_in_the_windows_pixels(device):
     k = 120.0 / (rows[-1] - rows[0] + 1)
     assert 0.2 < k < 0.35
     soft = softness_of(light, cam, mask, fg)
-    want = P.preview_soft_shadow(device, mask, fg, bg, light_point(light, cam), soft, 4.0 / k)
-    unmapped = P.preview_soft_shadow(device, mask, fg, bg, light_point(light, cam), soft, 4.0)
+    ex = disk_extremes(light, cam)          # the node's stretched penumbra (its version 4)
+    want = P.preview_soft_shadow(device, mask, fg, bg, light_point(light, cam), soft, 4.0 / k, extremes=ex)
+    unmapped = P.preview_soft_shadow(device, mask, fg, bg, light_point(light, cam), soft, 4.0, extremes=ex)
     got = _preview_node(device, mask, fg, bg, light, cam, method="ssn", thickness=4.0)
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(_preview_node(device, mask, fg, bg, light, cam, method="soft", thickness=4.0),
@@ -470,3 +541,33 @@ def test_node_on_a_pole_under_the_sun(device):
         penumbra.append(int(((d > 0.02) & (d < 0.98)).sum()))
     assert 0 < penumbra[0] < penumbra[1], penumbra
     np.testing.assert_array_equal(run(PreviewShadow, np.zeros_like(mask), 3.0), 0.0)
+
+
+@pytest.mark.parametrize("name", ["low front", "behind"])
+def test_node_stretches_the_penumbra_of_a_disk_light(device, name):
+    """pixgraph.PreviewShadow (version 4) gives the stretched estimate: on the pole's long
+    ground shadow under a low disk light its darkness is penumbra_blur's with the disk's
+    extremes (numpy reference, to float rounding), not the square box's; the same light
+    shrunk to a point gives HardShadow's darkness exactly."""
+    from pixgraph.node import Namespace
+    from pixgraph_nodes.hard_shadow import HardShadow
+    from pixgraph_nodes.ops import lights as L
+    from pixgraph_nodes.ops.softness import softness_of
+    from test_geometry_shadows import CAM, Ctx, pole
+
+    mask, fg = pole()
+    bg = np.zeros_like(fg)
+    light = _pole_lights()[name]
+    got = _preview_node(device, mask, fg, bg, light, CAM)
+    lc, ex = L.light_point(light, CAM), L.disk_extremes(light, CAM)
+    dark, dist = P.hard_shadow_distance(device, mask, fg, bg, lc, 1.0)
+    soft = softness_of(light, CAM, mask, fg)
+    stretched = P.penumbra_blur(dark, dist, mask > 0.5, soft, (bg, lc, ex))
+    square = P.penumbra_blur(dark, dist, mask > 0.5, soft)
+    np.testing.assert_allclose(got, stretched, rtol=0, atol=1e-6)
+    assert (np.abs(got - square) > 0.05).sum() > 100
+    point = L.disk_light(light.position, radius=0.0)
+    ins = Namespace({"mask": mask, "fg_height": fg, "bg_height": bg, "light": point, "camera": CAM})
+    hard = HardShadow().compute(Ctx(device), ins, Namespace(HardShadow.spec.coerce_params({})))["darkness"]
+    assert hard.sum() > 100
+    np.testing.assert_array_equal(_preview_node(device, mask, fg, bg, point, CAM), hard)

@@ -24,13 +24,16 @@ that blocks it (:func:`hard_shadow_distance`, one march per pixel, as
    ``round(softness * mean d)`` around it (a box over a straight hard edge gives
    the linear ramp a disk light's penumbra roughly is).
 
-2'. (a candidate the node does not use, tried and left out: docs/server.md,
-   "A stretched penumbra") with a geometry, a background pixel's box is
-   stretched along the penumbra's long axis in the image: :func:`penumbra_axes`
-   casts the blocking point from the disk's 4 extreme points onto the
-   receiver's tangent plane, which gives the penumbra's ellipse, and the pixel
-   averages over a few square boxes of half-size the minor half-axis spread
-   along the major one (``benchmarks/preview_shadow_bench.py``'s ``pcss_aniso``).
+2'. (what ``pixgraph.PreviewShadow`` uses for a disk light since its version 4:
+   docs/server.md, "A stretched penumbra") with a geometry, a background pixel's
+   box is stretched along the penumbra's long axis in the image:
+   :func:`penumbra_axes` casts the blocking point from the disk's 4 extreme
+   points onto the receiver's tangent plane, which gives the penumbra's
+   ellipse, and the pixel averages over a few square boxes of half-size the
+   minor half-axis spread along the major one
+   (``benchmarks/preview_shadow_bench.py``'s ``pcss_aniso``). With a device
+   these boxes are summed by the OpenCL kernel ``swept_boxes`` (8 pixels a work
+   item), :func:`_swept_boxes` is its numpy reference.
 
 Both are box sums over summed-area tables, restricted to the pixels of the
 receiver's own side of the cutout's outline (the shadow on the background and
@@ -207,7 +210,7 @@ def _receiver_slope(bg: np.ndarray, i: np.ndarray, j: np.ndarray):
 MAX_BOXES = 6
 
 
-def penumbra_blur(darkness, distance, inside, softness: float, geometry=None) -> np.ndarray:
+def penumbra_blur(darkness, distance, inside, softness: float, geometry=None, device=None) -> np.ndarray:
     """The soft shadow estimated from a hard one (module docstring, steps 1-2).
 
     darkness: float (H, W) in [0, 1], the hard shadow (1 shadow); distance: float
@@ -223,6 +226,10 @@ def penumbra_blur(darkness, distance, inside, softness: float, geometry=None) ->
     guarantees hold):
     ``penumbra_axes`` gives each pixel's ellipse and the box is swept along its
     major axis (the cutout's self-shadow keeps the square box).
+    device: None (numpy throughout) or a ``pixgraph.device.Device``: the stretched
+    boxes are summed by the OpenCL kernel ``swept_boxes`` (preview_shadow.cl; equal
+    to the numpy reference ``_swept_boxes`` to float rounding), where the device has
+    doubles (else numpy).
     Returns darkness float32 (H, W) in [0, 1]; softness 0 returns ``darkness``.
     """
     dark = np.clip(np.asarray(darkness, np.float32), 0.0, 1.0)
@@ -291,8 +298,9 @@ def penumbra_blur(darkness, distance, inside, softness: float, geometry=None) ->
         i, j = np.nonzero(mixed)
         dbar = nb[i, j] / na[i, j]
         if swept:
-            out[i + o0, j + p0] = _swept_boxes(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes,
-                                               out[i + o0, j + p0])
+            boxes = _swept_boxes_cl if device is not None and _has_doubles(device) else _swept_boxes
+            out[i + o0, j + p0] = boxes(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes,
+                                        out[i + o0, j + p0], device=device)
             continue
         r = np.minimum(np.rint(softness * dbar), search).astype(np.int64)
         k = r >= 1
@@ -302,14 +310,63 @@ def penumbra_blur(darkness, distance, inside, softness: float, geometry=None) ->
     return out
 
 
-def _swept_boxes(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes, keep):
+#: work items (of 8 pixels) per work-group of the ``swept_boxes`` kernel
+SWEPT_GROUP = 16
+
+
+def _has_doubles(device) -> bool:
+    """Whether ``device`` runs the ``swept_boxes`` kernel (it needs cl_khr_fp64)."""
+    return "cl_khr_fp64" in device.queue.device.extensions
+
+
+def _swept_boxes_cl(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes, keep, *, device):
+    """:func:`_swept_boxes` by the OpenCL kernel ``swept_boxes`` (preview_shadow.cl),
+    8 pixels a work item; the same arguments, the same result to float rounding."""
+    cl = S._cl()
+    n = int(i.size)
+    res = np.asarray(keep, np.float32).copy()
+    if n == 0:
+        return res
+    prg = device.program(kernel_source(), S.BUILD_OPTIONS)
+    mf, ctx = cl.mem_flags, device.context
+    z = np.ascontiguousarray(z, np.float64)
+    bg = np.ascontiguousarray(bg, np.float32)
+    # the tables and the heights are read where they lie (no copy on a CPU device)
+    zb = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=z)
+    bgb = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=bg)
+    # 8 pixels a work item, work-groups of a fixed size (PoCL compiles a kernel anew for
+    # each work-group size it picks, and the count of pixels changes from call to call):
+    # the per-pixel arrays padded with copies of the last pixel
+    items = -(-n // (8 * SWEPT_GROUP)) * SWEPT_GROUP
+    pad = np.minimum(np.arange(8 * items), n - 1)
+    ins = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(np.asarray(a)[pad], t))
+           for a, t in ((i, np.int32), (j, np.int32), (dbar, np.float64), (res, np.float32))]
+    L = np.asarray(light, np.float64)
+    ext = np.zeros((4, 4), np.float32)
+    ext[:, :3] = np.asarray(extremes, np.float32)[:4, :3]
+    extb = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=ext)
+    out = np.empty(8 * items, np.float32)
+    outb = cl.Buffer(ctx, mf.WRITE_ONLY, out.nbytes)
+    import pyopencl.cltypes as cltypes
+    lf4 = cltypes.make_float4(float(np.float32(L[0])), float(np.float32(L[1])), float(np.float32(L[2])), 0.0)
+    ev = S._kernel(prg, "swept_boxes")(
+        device.queue, (items,), (SWEPT_GROUP,), zb, np.int32(z.shape[2]), np.int32(z.shape[1] * z.shape[2]),
+        bgb, np.int32(bg.shape[1]), np.int32(bg.shape[0]), *ins, np.int32(o0), np.int32(p0),
+        np.int32(Ri), np.int32(Rj), np.float64(softness), lf4, np.float32(-1.0 if L[3] < 0 else 1.0), extb, outb)
+    cl.enqueue_copy(device.queue, out, outb, wait_for=[ev])
+    return out[:n]
+
+
+def _swept_boxes(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes, keep, device=None):
     """Step 2': the darkness at crop pixels (i, j) (image pixels (i + o0, j + p0); the
     crop's tables z are padded by Ri rows and Rj columns) averaged over n square boxes
     of half-size ``round(minor)`` whose centres are spread evenly along the major axis
     so that together they span ``major`` each way (n = 1 + ceil((major - minor) /
     minor), at most MAX_BOXES; their sums added, so overlaps count twice, as a disk's
     middle weighs more). Where the geometry degenerates the square box of half-size
-    ``softness x dbar``; pixels whose ellipse is under a pixel keep ``keep``."""
+    ``softness x dbar``; pixels whose ellipse is under a pixel keep ``keep``. The numpy
+    reference of the kernel ``swept_boxes`` (:func:`_swept_boxes_cl`); ``device`` is
+    ignored."""
     gi, gj = i + o0, j + p0
     hb, gu, gv = _receiver_slope(bg, gi, gj)
     major, minor, cu, cv = penumbra_axes(gj + 0.5, gi + 0.5, hb, gu, gv, dbar, light, extremes)
@@ -358,8 +415,9 @@ def preview_soft_shadow(device, mask, fg_height, bg_height, light, softness, thi
     light: the light's centre (u, v, h, s); softness: radius over distance (0 for
     a point light: the hard shadow exactly); extremes: None (the square box) or the
     disk's extreme points (4, 4) (``lights.disk_extremes``: the stretched penumbra of
-    ``penumbra_blur``'s geometry). Other inputs as ``shadow.hard_shadow``."""
+    ``penumbra_blur``'s geometry, its boxes summed on ``device``). Other inputs as
+    ``shadow.hard_shadow``."""
     dark, dist = hard_shadow_distance(device, mask, fg_height, bg_height, light, thickness,
                                       progress=progress, check_cancelled=check_cancelled)
     geometry = None if extremes is None else (bg_height, light, extremes)
-    return penumbra_blur(dark, dist, np.asarray(mask) > 0.5, softness, geometry)
+    return penumbra_blur(dark, dist, np.asarray(mask) > 0.5, softness, geometry, device=device)
