@@ -1,5 +1,4 @@
 """Shared fixtures. The OpenCL device is opened once per test session."""
-import glob
 import os
 import shutil
 import tempfile
@@ -29,16 +28,26 @@ def each_pocl(request):
     pytest.skip(f"no {request.param} PoCL platform installed")
 
 
-def _upload_folders():
-    return set(glob.glob(os.path.join(tempfile.gettempdir(), "pixgraph-uploads-*")))
-
-
 @pytest.fixture(scope="session", autouse=True)
-def _no_upload_folders_left_behind():
-    """A server state made in this process (``ServeState`` without ``upload_dir``) makes
-    an upload folder that only a stopping server removes: the folders this test session
-    made are removed at its end (they piled up in /tmp, 218 MB on the dev machine)."""
-    before = _upload_folders()
-    yield
-    for d in _upload_folders() - before:
-        shutil.rmtree(d, ignore_errors=True)
+def _private_temp_folder(tmp_path_factory):
+    """Every temporary file of this test session goes in one folder of its own, removed
+    at the end: this process's (``tempfile.tempdir``) and those of the servers, browsers
+    and workers it starts (they inherit ``TMPDIR``). A server state made without
+    ``upload_dir`` leaves its upload folder behind (only a stopping server removes it;
+    they piled up in /tmp, 218 MB on the dev machine); removing instead the
+    ``pixgraph-uploads-*`` folders that appeared in /tmp during the session also removed
+    those of other processes' servers (a ``pixgraph serve`` in use while the tests ran).
+    pytest's own ``tmp_path`` folders stay where pytest keeps them."""
+    tmp_path_factory.getbasetemp()          # made now, before the temp dir moves
+    root = tempfile.mkdtemp(prefix="pixgraph-tests-")
+    saved = os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"], tempfile.tempdir = root, root
+    try:
+        yield root
+    finally:
+        if saved[0] is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = saved[0]
+        tempfile.tempdir = saved[1]
+        shutil.rmtree(root, ignore_errors=True)
