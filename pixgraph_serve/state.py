@@ -361,7 +361,9 @@ class ServeState:
 
     def set_type(self, node_id: str, type_id: str) -> Graph:
         """Switch a node to another type with the same inputs (e.g. the shadow method),
-        keeping the params the new type declares and those it had last time."""
+        keeping the params the new type declares of the same kind and unit (a length in
+        image pixels does not carry over to one in another unit: the new type's default
+        applies) and those it had last time."""
         inst = self.graph.nodes.get(node_id)
         if inst is None:
             raise ServeError(404, f"no node {node_id!r} in the graph", node=node_id)
@@ -370,8 +372,12 @@ class ServeState:
         if type_id == inst.type:
             return self.graph
         self._stash[(node_id, inst.type)] = dict(inst.params)
-        spec = self.registry.get(type_id)
-        params = {k: v for k, v in inst.params.items() if spec.param(k) is not None}
+        spec, old = self.registry.get(type_id), self.registry.get(inst.type)
+
+        def carries(name):
+            new, was = spec.param(name), old.param(name)
+            return new is not None and (was is None or (new.kind, new.unit) == (was.kind, was.unit))
+        params = {k: v for k, v in inst.params.items() if carries(k)}
         params.update(self._stash.get((node_id, type_id), {}))
         nodes = dict(self.graph.nodes)
         nodes[node_id] = NodeInstance(node_id, type_id, params, inst.inputs)

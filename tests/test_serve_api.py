@@ -120,6 +120,25 @@ def test_method_toggle_switches_the_shadow_node_type(api):
     assert "samples: 48" in r["yaml"]                         # its params come back with it
 
 
+def test_a_type_switch_carries_a_param_only_in_the_same_unit(tmp_path):
+    """SoftShadow's thickness is in image px, HardShadow's too, SoftShadowSSN's in its
+    window's px: switching carries it to HardShadow, not to SoftShadowSSN (whose default
+    applies), and switching back brings the node's own value back."""
+    from pixgraph_serve.state import ServeState
+
+    state = ServeState(copy_scene(str(tmp_path)))
+    state.set_params({"shadow.thickness": 7})
+
+    def switch(type_id):
+        node = state.set_type("shadow", type_id).nodes["shadow"]
+        assert node.type == type_id
+        return dict(node.params)
+    assert switch("pixgraph.HardShadow")["thickness"] == 7
+    switch("pixgraph.SoftShadow")
+    assert "thickness" not in switch("pixgraph.SoftShadowSSN")
+    assert switch("pixgraph.SoftShadow")["thickness"] == 7
+
+
 def test_light_tip_drag_moves_the_light(api):
     scene = api.get("/api/scene").json()
     assert scene["roles"] == {"camera": "cam", "light": "light", "background": "bg_h", "shadow": "shadow"}
