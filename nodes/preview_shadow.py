@@ -6,7 +6,7 @@ from pixgraph.node import Node, node, param, port
 
 from ._checks import finite_outputs, inside
 from ._shadow_ports import SHADOW_METHODS, ShadowInputs, ShadowOutputs, check_inputs, thickness_param
-from .ops.lights import disk_extremes, light_point
+from .ops.lights import light_point
 from .ops.preview_shadow import preview_soft_shadow
 from .ops.softness import softness_of, window_scale
 
@@ -17,9 +17,8 @@ class PreviewShadow(Node):
     declare it as their ``preview`` stand-in): the hard shadow of the light's centre,
     each edge pixel averaged over a box whose half-size is the light's softness (radius
     over distance) times the distance to the occluder that blocks it (PCSS's
-    estimate; ``ops/preview_shadow.py``); on the background the box is stretched
-    along the penumbra's long axis, which the light's disk casts through the
-    occluder onto the receiver (long ground shadows). It follows the light's radius, unlike
+    estimate; ``ops/preview_shadow.py``; a box stretched along the penumbra's long
+    axis was tried and left out, docs/server.md). It follows the light's radius, unlike
     ``pixgraph.HardShadow``; against ``pixgraph.SoftShadow`` (64 samples) it is an
     approximation (docs/server.md, "Previews of soft shadows", has the error).
 
@@ -50,8 +49,9 @@ class PreviewShadow(Node):
 
     # 2: method ssn reads thickness in SSN++'s window pixels; 3: and undoes a scaled run's
     # factor on it (window pixels do not scale); 4: a disk light's penumbra on the background
-    # is stretched along its long axis (penumbra_blur's geometry, docs/server.md)
-    impl_version = "4"
+    # is stretched along its long axis (penumbra_blur's geometry, docs/server.md); 5: the square box
+    # again (4 left hard-edged patches on a wall under a low, large light: docs/server.md)
+    impl_version = "5"
     # a scaled run multiplies ``thickness`` (declared in image px): method ssn divides it back
     uses_scale = True
     # no ``handles``: a stand-in, not one of the shadow methods a shell offers to switch to
@@ -59,19 +59,18 @@ class PreviewShadow(Node):
     def compute(self, ctx, inputs, params):
         check_inputs(inputs)
         light, cam = inputs.light, inputs.camera
-        softness, extremes = 0.0, None
+        softness = 0.0
         if light.is_area and params.method != "hard":
             try:
                 softness = softness_of(light, cam, inputs.mask, inputs.fg_height)
             except ValueError as e:      # no cutout pixel below the horizon: no 3D centre
                 if inside(inputs.mask).any():
                     ctx.log(f"hard shadow: {e}")
-            extremes = disk_extremes(light, cam)        # the stretched penumbra (softness 0: unused)
         thickness = params.thickness
         if params.method == "ssn":       # SSN++'s thickness is in its window's pixels, which do not scale
             thickness = thickness / ctx.scale / window_scale(inputs.mask)
         darkness = preview_soft_shadow(ctx.device, inputs.mask, inputs.fg_height, inputs.bg_height,
-                                       light_point(light, cam), softness, thickness, extremes=extremes,
+                                       light_point(light, cam), softness, thickness,
                                        progress=ctx.progress, check_cancelled=ctx.check_cancelled)
         finite_outputs(darkness=darkness)
         return {"lit": (1.0 - darkness).astype(darkness.dtype), "darkness": darkness}
