@@ -227,7 +227,7 @@ def penumbra_blur(darkness, distance, inside, softness: float, geometry=None, de
     ``penumbra_axes`` gives each pixel's ellipse and the box is swept along its
     major axis (the cutout's self-shadow keeps the square box).
     device: None (numpy throughout) or a ``pixgraph.device.Device``: the stretched
-    boxes are summed by the OpenCL kernel ``swept_boxes`` (preview_shadow.cl; equal
+    boxes are summed by the OpenCL kernel ``swept_boxes`` (preview_swept.cl; equal
     to the numpy reference ``_swept_boxes`` to float rounding), where the device has
     doubles (else numpy).
     Returns darkness float32 (H, W) in [0, 1]; softness 0 returns ``darkness``.
@@ -320,14 +320,14 @@ def _has_doubles(device) -> bool:
 
 
 def _swept_boxes_cl(z, i, j, o0, p0, dbar, softness, Ri, Rj, bg, light, extremes, keep, *, device):
-    """:func:`_swept_boxes` by the OpenCL kernel ``swept_boxes`` (preview_shadow.cl),
+    """:func:`_swept_boxes` by the OpenCL kernel ``swept_boxes`` (preview_swept.cl),
     8 pixels a work item; the same arguments, the same result to float rounding."""
     cl = S._cl()
     n = int(i.size)
     res = np.asarray(keep, np.float32).copy()
     if n == 0:
         return res
-    prg = device.program(kernel_source(), S.BUILD_OPTIONS)
+    prg = device.program(load_kernel_source(__file__, "preview_swept.cl"), S.BUILD_OPTIONS)
     mf, ctx = cl.mem_flags, device.context
     z = np.ascontiguousarray(z, np.float64)
     bg = np.ascontiguousarray(bg, np.float32)
