@@ -158,3 +158,100 @@ def test_is_stable_on_boxes_with_a_known_centre_of_mass():
     edge = prism([(-0.5, 0.5), (0.5, 0.5), (0.0, 0.0)], -0.5, 0.5)   # a wedge standing on its edge
     assert not is_stable([edge])                                     # two ground points: no area
     assert is_stable([prism([(-0.5, 0.0), (0.5, 0.0), (0.0, 0.5)], -0.5, 0.5)])   # on its face
+
+
+# ---------------------------------------------------------------- rest and branch (eleventh session)
+REST_KINDS = {"superquadric", "revolved", "blob", "prism", "compound"}
+
+
+def _com_and_ground_hull(V, F, tol):
+    """(centre of mass of the closed pieces (uniform density), convex hull of the ground points)."""
+    from scipy.spatial import ConvexHull
+    import trimesh
+    vol, mom = 0.0, np.zeros(3)
+    for idx in parts_of(V, F):
+        sel = np.isin(F, idx).all(1)
+        m = trimesh.Trimesh(V, F[sel], process=False)
+        vol += abs(m.volume)
+        mom += abs(m.volume) * m.center_mass
+    return mom / vol, ConvexHull(V[V[:, 1] <= tol][:, [0, 2]])
+
+
+def test_rest_and_branch_are_appended_and_in_no_mix():
+    from pixgraph_lab.height import real
+    assert CATEGORIES[:11] == ("person", "animal", "figurine", "furniture", "product", "vehicle", "organic",
+                               "heldout", "flat", "assembly", "heldout2")
+    for c in ("rest", "branch"):
+        if c in CATEGORIES:
+            assert CATEGORIES.index(c) >= 11
+            assert c not in real.CATEGORY_P and c not in real.CATEGORY_P_REAL
+
+
+def test_existing_categories_and_mixes_are_unchanged():
+    """The meshes of every earlier category over fixed seeds (and the random stream each leaves
+    behind), and two ``--mix real`` / ``real_organic`` samples, are those recorded before
+    ``rest`` and ``branch`` were added (eleventh session), so existing data sets regenerate."""
+    import hashlib
+    h = hashlib.sha256()
+    for c in CATEGORIES[:11]:
+        for s in range(3):
+            rng = np.random.default_rng([s, 77])
+            V, F, L, names, kind = make_object(c, rng)
+            h.update(np.round(V, 6).tobytes())
+            h.update(F.tobytes())
+            h.update(L.tobytes())
+            h.update(("|".join(names) + kind).encode())
+            h.update(rng.random(1).tobytes())
+    assert h.hexdigest() == "e014f6cd04836360586c0682b5f0850966f82cd27308c5a7e6c2ecea4832dadd"
+    pytest.importorskip("mitsuba")
+    from pixgraph_lab.datagen.raycast import select_variant
+    from pixgraph_lab.height import generate
+    select_variant()
+    recorded = {("real", 1): ("person/standing", "upright", 38, 31.281531293888616),
+                ("real_organic", 1): ("animal/bird", "tilted", 78, 54.023027113062525)}
+    for (mix, i), (obj, pose, px, hfov) in recorded.items():
+        arrays, meta = generate.make_sample("train", i, seed=0, res=48, mix=mix)
+        assert (meta["object"], meta["pose"], meta["mask_px"]) == (obj, pose, px), (mix, meta)
+        assert meta["camera"]["hfov"] == pytest.approx(hfov, rel=1e-12)
+
+
+def test_rest_objects_lie_stably_on_a_face_not_upright():
+    kinds, upright = set(), 0
+    n = 120
+    for s in range(n):
+        V, F, L, names, kind = make_object("rest", np.random.default_rng([s, 23]))
+        cat, k = kind.split("/")
+        assert cat == "rest" and k in REST_KINDS, kind
+        kinds.add(k)
+        assert np.isfinite(V).all() and V[:, 1].min() == 0.0 and L.shape == (len(F),)
+        # the longest principal axis (vertices' covariance) is far from vertical in most draws
+        # (built upright, they are turned onto a side; near-round ones may end either way)
+        w, vec = np.linalg.eigh(np.cov((V - V.mean(0)).T))
+        upright += abs(vec[1, -1]) > 0.8
+        # at rest: the centre of mass over the convex hull of the points touching the ground
+        tol = 1e-3 * np.ptp(V, 0).max()
+        com, hull = _com_and_ground_hull(V, F, tol)
+        assert (hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2]).max() < 0, (s, kind)
+    assert kinds == REST_KINDS
+    assert upright <= 0.1 * n, upright
+
+
+def test_rest_pose_keeps_a_box_off_its_ends_and_rolls_a_wedge_off_a_face_it_overhangs():
+    """``rest_pose`` worked by hand: a 1 x 4 x 0.5 box (x, y, z) built upright rests on any
+    face, but never ends on its small ends (the build's vertical axis is avoided); an obtuse
+    triangular prism (z, y) (0, 0), (1, 0), (3, 1) has its centre of mass at z = 4/3, beyond
+    its base (z 0 to 1), so it rolls off the base onto another face from every drop (the
+    avoidance of the vertical axis switched off: ``avoid_up`` > 1 keeps the first drop)."""
+    from pixgraph_lab.datagen.categories import box, prism, rest_pose
+    for s in range(20):
+        R = rest_pose([box([0, 0, 0], [1, 4, 0.5])], np.random.default_rng(s))
+        down = R.T @ np.array([0.0, -1.0, 0.0])              # the face turned down, build frame
+        assert np.abs(down).max() == pytest.approx(1.0, abs=1e-9), (s, down)
+        assert abs(down[1]) < 1e-9, (s, down)
+    ends = 0
+    for s in range(40):
+        R = rest_pose([prism([(0, 0), (1, 0), (3, 1)], -0.5, 0.5)], np.random.default_rng(s), avoid_up=2.0)
+        down = R.T @ np.array([0.0, -1.0, 0.0])
+        assert down[1] > -0.99, (s, down)                     # never on the base y = 0
+        ends += abs(down[0]) > 0.99                             # on a triangular end (stable)
+    assert ends < 40

@@ -32,6 +32,13 @@ cylinders, cones, tori, surfaces of revolution, convex prisms):
   ellipsoid, capsule, plate, rod, revolved profile; no rings): a base on the ground or a part
   on 2-4 legs, further parts stacked on top or sticking out of the sides, part sizes spanning
   10x; every part is held by a lower one and the whole stands (``is_stable``);
+* ``rest`` (training, in no mix): generic solids lying at rest, not upright: a superquadric
+  (ellipsoid to rounded box), a random surface of revolution (bottle-, vase-, can-, spindle-like
+  or random profile), a soft union of 2-5 ellipsoids (``blob_surface``), a convex prism (a bar or
+  a slab), or a compound of 2-3 of these fused; elongation 1:1 to 1:6; built upright, dropped
+  along a random direction onto its convex hull and rolled downhill over hull edges until the
+  centre of mass is over the face it lies on (``rest_pose``; the build's vertical axis ends off
+  the vertical), then yawed at random, so it reaches in depth as often as across;
 * ``heldout``: kinds no training mix draws (``real.CATEGORY_P`` and
   ``CATEGORY_P_REAL`` leave it out), for validation on unfamiliar shapes without
   the test split: guitars, dumbbells, kettlebells, fire hydrants, globes on a stand,
@@ -57,7 +64,7 @@ import math
 import numpy as np
 
 CATEGORIES = ("person", "animal", "figurine", "furniture", "product", "vehicle", "organic", "heldout", "flat",
-              "assembly", "heldout2")
+              "assembly", "heldout2", "rest")
 
 
 class Parts:
@@ -1509,10 +1516,189 @@ def heldout2(rng):
     return P, "heldout2/" + kind
 
 
+# ---------------------------------------------------------------- solids lying at rest (training)
+REST_KINDS = ("superquadric", "revolved", "blob", "prism", "compound")
+REST_P = (0.22, 0.22, 0.2, 0.14, 0.22)
+
+
+def superquadric(a, p, subdiv=3):
+    """Closed superellipsoid ``sum_i |x_i / a_i| ** p = 1`` (semi-axes ``a`` (3,), exponent
+    ``p``: 2 an ellipsoid, larger a rounded box): an icosphere's unit directions ``d`` mapped to
+    ``a_i sign(d_i) |d_i| ** (2 / p)`` (on the surface since ``sum d_i ** 2 = 1``; vertices
+    gather at the rounded edges where the surface bends)."""
+    tm = _tm()
+    m = tm.creation.icosphere(subdivisions=subdiv, radius=1.0)
+    d = np.asarray(m.vertices, float)
+    m.vertices = np.asarray(a, float) * np.sign(d) * np.abs(d) ** (2.0 / p)
+    return m
+
+
+def _rest_body(rng, kind, L):
+    """One random solid about ``L`` long, built upright (its long axis along y, centred near
+    the origin): a superquadric, a surface of revolution, a soft union of ellipsoids or a
+    convex prism; elongation (long : short) 1 to 6."""
+    u = rng.uniform
+    elong = math.exp(u(0.0, math.log(6.0)))
+    if kind == "superquadric":
+        mid = L / 2 / elong * u(1.0, min(2.0, elong))
+        a = [mid, L / 2, mid * u(0.4, 1.0)]
+        return superquadric(a, u(2.0, 2.0 + u(0, 8.0)))
+    if kind == "revolved":                    # bottle-, vase-, can-, spindle-like random profiles
+        r = L / 2 / elong
+        shape = str(rng.choice(["bottle", "vase", "can", "spindle", "random"]))
+        if shape == "bottle":
+            n = r * u(0.25, 0.5)
+            prof = [(0, 0), (r * u(0.85, 1), 0), (r, L * u(0.05, 0.1)), (r, L * u(0.45, 0.65)),
+                    (n * u(1.0, 1.4), L * u(0.75, 0.85)), (n, L * 0.92), (n * 1.15, L * 0.96), (n, L), (0, L)]
+        elif shape == "vase":
+            prof = [(0, 0), (r * u(0.4, 0.7), 0), (r, L * u(0.25, 0.45)), (r * u(0.3, 0.6), L * u(0.7, 0.85)),
+                    (r * u(0.5, 0.9), L), (0, L)]
+        elif shape == "can":
+            e = min(r, L) * u(0.03, 0.12)
+            prof = [(0, 0), (r - e, 0), (r, e), (r, L - e), (r - e, L), (0, L)]
+        elif shape == "spindle":
+            prof = [(0, 0), (r * u(0.05, 0.3), L * 0.02), (r, L * u(0.35, 0.65)), (r * u(0.05, 0.3), L * 0.98),
+                    (0, L)]
+        else:
+            ys = np.sort(u(0.1, 0.9, int(rng.integers(2, 5))))
+            prof = [(0, 0), (r * u(0.3, 1.0), 0)] + [(r * u(0.3, 1.0), y * L) for y in ys] \
+                + [(r * u(0.2, 1.0), L), (0, L)]
+        return revolve(prof, 24, at=(0, -L / 2, 0))
+    if kind == "blob":                        # a soft union of 2-5 ellipsoids along a wandering chain
+        n = int(rng.integers(2, 6))
+        rad = L / 2 / elong
+        C, Rd, Rs = [np.zeros(3)], [], []
+        d = np.array([0.0, 1.0, 0.0])
+        for i in range(n):
+            ri = rad * u(0.6, 1.3)
+            Rd.append([ri * u(0.7, 1.2), L / n * u(0.5, 0.8), ri * u(0.7, 1.2)])
+            Rs.append(_frame(d + rng.normal(0, 0.25, 3)))
+            if i + 1 < n:
+                d = d + rng.normal(0, 0.35, 3)
+                d[1] = abs(d[1]) + 0.5
+                d /= np.linalg.norm(d)
+                C.append(C[-1] + d * L / n)
+        C = np.array(C) - np.mean(C, 0)
+        m, _ = blob_surface(C, Rd, np.array(Rs), sharp=u(2.0, 5.0), res=44)
+        return m
+    # a convex prism: a random convex polygon (z, y) extruded along x, then turned so that the
+    # extrusion is the long (y) axis when it is long, or a slab when short
+    k = int(rng.integers(3, 9))
+    ang = np.sort(u(0, 2 * math.pi, k))
+    if k == 3 or np.diff(np.r_[ang, ang[0] + 2 * math.pi]).max() > 2.2:
+        ang = np.arange(k) * 2 * math.pi / k + u(0, 1)
+    rr = u(0.6, 1.0, k)
+    poly = np.c_[np.cos(ang) * rr, np.sin(ang) * rr * u(0.4, 1.0)]
+    if rng.random() < 0.7:                    # a bar along its extrusion
+        w = L / elong
+        m = prism(poly * w / 2, -L / 2, L / 2)
+        m.apply_transform(_h(rot_z(math.pi / 2)))
+    else:                                     # a slab: the polygon wide, the extrusion thin
+        m = prism(poly * L / 2, -L / 2 / elong, L / 2 / elong)
+    return m
+
+
+def _h(R, t=(0, 0, 0)):
+    M = np.eye(4)
+    M[:3, :3] = R
+    M[:3, 3] = t
+    return M
+
+
+def rest_pose(meshes, rng, avoid_up=0.87, tries=12):
+    """Turn solid parts (trimesh, built upright, y up) onto a face they rest on: the centre of
+    mass (uniform density) is dropped along a random direction onto the convex hull of all
+    vertices and rolls over hull edges (each step tips the object across the edge beyond which
+    the centre of mass projects: quasi-statically, downhill) until it projects inside the face
+    it lies on, which is then turned to face down; the build's vertical axis ends more than
+    ``acos(avoid_up)`` from the vertical when any of ``tries`` drops gives such a face.
+    Returns the 3x3 rotation (the caller yaws and lifts onto Y = 0)."""
+    tm = _tm()
+    V = np.concatenate([np.asarray(m.vertices) for m in meshes])
+    _, com = _mass(meshes)
+    hull = tm.convex.convex_hull(V)
+    HV, HF = np.asarray(hull.vertices), np.asarray(hull.faces)
+    N = np.asarray(hull.face_normals)
+    off = np.einsum("ij,ij->i", N, HV[HF[:, 0]])             # face planes N.x = off, outward
+    edge_face = {}
+    for f, tri in enumerate(HF):
+        for k in range(3):
+            a, b = tri[(k + 1) % 3], tri[(k + 2) % 3]
+            edge_face.setdefault((min(a, b), max(a, b)), []).append(f)
+
+    def bary(f):
+        A, B, C = HV[HF[f]]
+        q = com - ((com - A) @ N[f]) * N[f]
+        v0, v1, v2 = B - A, C - A, q - A
+        d00, d01, d11, d20, d21 = v0 @ v0, v0 @ v1, v1 @ v1, v2 @ v0, v2 @ v1
+        den = d00 * d11 - d01 * d01
+        lb, lc = (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den
+        return np.array([1 - lb - lc, lb, lc])
+
+    best = None
+    for _ in range(tries):
+        g = rng.normal(size=3)
+        g /= np.linalg.norm(g)
+        ng = N @ g
+        t = np.where(ng > 1e-9, (off - N @ com) / np.maximum(ng, 1e-9), np.inf)
+        f = int(np.argmin(t))
+        for _step in range(4 * len(HF)):
+            lam = bary(f)
+            k = int(np.argmin(lam))
+            if lam[k] >= -1e-9:
+                break
+            a, b = HF[f][(k + 1) % 3], HF[f][(k + 2) % 3]
+            f = [x for x in edge_face[(min(a, b), max(a, b))] if x != f][0]
+        else:
+            continue
+        best = f
+        if abs(N[f][1]) < avoid_up:
+            break
+    if best is None:                                          # (never seen) the lowest stable face
+        ok = [f for f in range(len(HF)) if bary(f).min() >= -1e-9]
+        best = min(ok, key=lambda f: off[f] - N[f] @ com)
+    return tm.geometry.align_vectors(N[best], [0.0, -1.0, 0.0])[:3, :3]
+
+
+def rest(rng):
+    """A generic solid, or a compound of 2-3 fused, lying at rest on the ground (module doc):
+    built upright, then dropped onto a stable face of its convex hull (``rest_pose``) and
+    yawed at random, so it extends in depth as often as across."""
+    u = rng.uniform
+    kind = str(rng.choice(REST_KINDS, p=REST_P))
+    L = u(0.3, 1.0)
+    mats = [ASSEMBLY_SLOTS[i] for i in rng.choice(len(ASSEMBLY_SLOTS), 2, replace=False)]
+    if kind != "compound":
+        meshes, slots = [_rest_body(rng, kind, L)], [mats[0]]
+    else:                                     # 2-3 bodies fused: smaller ones sunk into the first
+        kinds = [str(rng.choice(REST_KINDS[:4], p=np.array(REST_P[:4]) / sum(REST_P[:4])))
+                 for _ in range(int(rng.integers(2, 4)))]
+        meshes, slots = [_rest_body(rng, kinds[0], L)], [mats[0]]
+        for k in kinds[1:]:
+            m = _rest_body(rng, k, L * u(0.3, 0.8))
+            from pixgraph_lab.datagen.objects import _random_rotation
+            m.apply_transform(_h(_random_rotation(rng)))
+            host = np.asarray(meshes[0].vertices)
+            p = host[rng.integers(len(host))]
+            c = np.asarray(meshes[0].vertices).mean(0)
+            ext = np.ptp(np.asarray(m.vertices), 0).min() / 2
+            m.apply_translation(p + (c - p) / max(np.linalg.norm(c - p), 1e-9) * ext * u(0.3, 0.8)
+                                - np.asarray(m.vertices).mean(0))
+            meshes.append(m)
+            slots.append(mats[int(rng.integers(2))])
+    R = rot_y(u(0, 2 * math.pi)) @ rest_pose(meshes, rng)
+    P = Parts()
+    for m, s in zip(meshes, slots):
+        m.apply_transform(_h(R))
+        P.add(m, s)
+    return P, "rest/" + kind
+
+
 #: the categories whose generator returns (Parts, kind); person and animal fill a Parts given
 #: to them (they also build the figurines' small people and animals)
 _BUILDERS = {"figurine": figurine, "furniture": furniture, "product": product, "vehicle": vehicle,
-             "organic": organic, "heldout": heldout, "flat": flat, "assembly": assembly, "heldout2": heldout2}
+             "organic": organic, "heldout": heldout, "flat": flat, "assembly": assembly, "heldout2": heldout2,
+             "rest": rest}
 
 
 def make_object(category: str, rng: np.random.Generator):
