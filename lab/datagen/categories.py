@@ -1579,7 +1579,8 @@ def _rest_body(rng, kind, L):
         d = np.array([0.0, 1.0, 0.0])
         for i in range(n):
             ri = rad * u(0.6, 1.3)
-            Rd.append([ri * u(0.7, 1.2), L / n * u(0.5, 0.8), ri * u(0.7, 1.2)])
+            # as long along the chain as across at least (no stack of discs)
+            Rd.append([ri * u(0.7, 1.2), max(L / n * u(0.5, 0.8), ri * u(0.9, 1.2)), ri * u(0.7, 1.2)])
             Rs.append(_frame(d + rng.normal(0, 0.25, 3)))
             if i + 1 < n:
                 d = d + rng.normal(0, 0.35, 3)
@@ -1936,10 +1937,12 @@ def _branch_parts(rng, kind):
         col = mats[0]
         tip = str(rng.choice(["knob", "blob", "none", "disc"], p=[0.4, 0.2, 0.3, 0.1]))
         yb = u(0.05, 0.12)
-        for _ in range(int(rng.integers(1, 4))):
+        trunks = int(rng.integers(1, 4))
+        for _ in range(trunks):
             d = _perp_turn([0, 1, 0], math.radians(u(0, 40)), rng)
             r0 = u(0.025, 0.06)
-            _grow(up, rng, [u(-0.03, 0.03), yb * 0.7, u(-0.03, 0.03)], d, u(0.2, 0.4), r0, int(rng.integers(2, 4)),
+            lv = int(rng.integers(2, 4)) if trunks == 1 else 2      # at most about 40 branches
+            _grow(up, rng, [u(-0.03, 0.03), yb * 0.7, u(-0.03, 0.03)], d, u(0.2, 0.4), r0, lv,
                   col, tip, col, spread=(20, 55), kids=(2, 3), wander=0.3, pull=(0, 0.04, 0), taper=0.75,
                   child_len=(0.6, 0.9), at=(0.5, 1.0), floor=0.1)
         R0 = u(0.08, 0.16)
