@@ -182,6 +182,17 @@ def _pieces_mass(V, F):
     return lab, np.abs(vol[used]), mom[used] / vol[used][:, None], np.nonzero(used)[0]
 
 
+def _euler_per_piece(V, F, lab, ids):
+    """V - E + F of each piece ``ids`` (2 for a closed surface without a hole: no ring)."""
+    fl = lab[F[:, 0]]
+    E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), 1), axis=0)
+    n = lab.max() + 1
+    used = np.zeros(len(V), bool)
+    used[F.ravel()] = True
+    chi = np.bincount(lab[used], minlength=n) - np.bincount(lab[E[:, 0]], minlength=n) + np.bincount(fl, minlength=n)
+    return chi[ids]
+
+
 def _com_and_ground_hull(V, F, tol):
     """(centre of mass of the closed pieces (uniform density), convex hull of the ground points)."""
     from scipy.spatial import ConvexHull
@@ -243,6 +254,8 @@ def test_rest_objects_lie_stably_on_a_face_not_upright():
         tol = 1e-3 * np.ptp(V, 0).max()
         com, hull = _com_and_ground_hull(V, F, tol)
         assert (hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2]).max() < 0, (s, kind)
+        lab, _, _, ids = _pieces_mass(V, F)
+        assert (_euler_per_piece(V, F, lab, ids) == 2).all(), (s, kind)      # closed, no ring
     assert kinds == REST_KINDS
     assert upright <= 0.1 * n, upright
 
@@ -282,6 +295,7 @@ def test_branches_hold_together_reach_out_over_the_ground_and_stand():
         kinds.add(k)
         assert np.isfinite(V).all() and V[:, 1].min() == 0.0 and L.shape == (len(F),)
         lab, vol, com_i, ids = _pieces_mass(V, F)
+        assert (_euler_per_piece(V, F, lab, ids) == 2).all(), (s, kind)      # closed, no ring
         height = V[:, 1].max()
         tol = 1e-3 * height
         # held: the pieces' bounding boxes, joined where they overlap, form one structure
