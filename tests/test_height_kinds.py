@@ -238,13 +238,10 @@ def test_existing_categories_and_mixes_are_unchanged():
 
 
 def test_rest_objects_lie_stably_on_a_face_not_upright():
-    import trimesh
     kinds, upright, elong = set(), 0, []
     n = 120
     for s in range(n):
         V, F, L, names, kind = make_object("rest", np.random.default_rng([s, 23]))
-        ext = trimesh.bounds.oriented_bounds(V)[1]
-        elong.append(ext.max() / ext.min())
         cat, k = kind.split("/")
         assert cat == "rest" and k in REST_KINDS, kind
         kinds.add(k)
@@ -253,6 +250,8 @@ def test_rest_objects_lie_stably_on_a_face_not_upright():
         # (built upright, they are turned onto a side; near-round ones may end either way)
         w, vec = np.linalg.eigh(np.cov((V - V.mean(0)).T))
         upright += abs(vec[1, -1]) > 0.8
+        ext = np.ptp(V @ vec, 0)                             # extents along the principal axes
+        elong.append(ext.max() / ext.min())
         # at rest: the centre of mass over the convex hull of the points touching the ground
         tol = 1e-3 * np.ptp(V, 0).max()
         com, hull = _com_and_ground_hull(V, F, tol)
@@ -261,7 +260,7 @@ def test_rest_objects_lie_stably_on_a_face_not_upright():
         assert (_euler_per_piece(V, F, lab, ids) == 2).all(), (s, kind)      # closed, no ring
     assert kinds == REST_KINDS
     assert upright <= 0.1 * n, upright                      # 2 of 120 when written
-    # elongations (longest : shortest side of the oriented box) from about 1:1 to past 1:6
+    # elongations (longest : shortest extent along the principal axes) from about 1:1 to past 1:6
     elong = np.array(elong)
     assert elong.min() < 1.3 and elong.max() > 6, (elong.min(), elong.max())
     assert (elong < 2).mean() > 0.15 and (elong > 4).mean() > 0.15, np.percentile(elong, [25, 50, 75])
@@ -294,7 +293,7 @@ BRANCH_KINDS = {"tree", "shrub", "coat_stand", "candelabra", "antler", "coral", 
 def test_branches_hold_together_reach_out_over_the_ground_and_stand():
     from scipy.spatial import ConvexHull
     kinds, overhangs = set(), []
-    n = 80
+    n = 60
     for s in range(n):
         V, F, L, names, kind = make_object("branch", np.random.default_rng([s, 24]))
         cat, k = kind.split("/")
