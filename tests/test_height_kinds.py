@@ -1,5 +1,6 @@
 """The ``flat`` and ``assembly`` training categories (eighth session): upright thin things
-and random assemblies of primitives. Invariants over many seeds: a flat object's main panel
+and random assemblies of primitives; ``rest`` and ``branch`` (eleventh session): solids lying
+at rest on a face, and structures reaching out over the ground. Invariants over many seeds: a flat object's main panel
 is thin and upright; an assembly's parts hold together, each rests on the ground or is held by
 a lower part, and the whole stands (its centre of mass over its footprint)."""
 import numpy as np
@@ -158,3 +159,189 @@ def test_is_stable_on_boxes_with_a_known_centre_of_mass():
     edge = prism([(-0.5, 0.5), (0.5, 0.5), (0.0, 0.0)], -0.5, 0.5)   # a wedge standing on its edge
     assert not is_stable([edge])                                     # two ground points: no area
     assert is_stable([prism([(-0.5, 0.0), (0.5, 0.0), (0.0, 0.5)], -0.5, 0.5)])   # on its face
+
+
+# ---------------------------------------------------------------- rest and branch (eleventh session)
+REST_KINDS = {"superquadric", "revolved", "blob", "prism", "compound"}
+
+
+def _pieces_mass(V, F):
+    """(piece label per vertex, volumes (k,), centres of mass (k, 3)) of the mesh's closed
+    connected pieces (uniform density): the signed tetrahedra from the origin summed per piece."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]])
+    g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(len(V), len(V)))
+    n, lab = connected_components(g, directed=False)
+    A, B, C = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    det = np.einsum("ij,ij->i", A, np.cross(B, C)) / 6.0
+    fl = lab[F[:, 0]]
+    vol = np.bincount(fl, det, n)
+    mom = np.stack([np.bincount(fl, det * (A + B + C)[:, k] / 4.0, n) for k in range(3)], 1)
+    used = np.bincount(fl, minlength=n) > 0
+    return lab, np.abs(vol[used]), mom[used] / vol[used][:, None], np.nonzero(used)[0]
+
+
+def _euler_per_piece(V, F, lab, ids):
+    """V - E + F of each piece ``ids`` (2 for a closed surface without a hole: no ring)."""
+    fl = lab[F[:, 0]]
+    E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), 1), axis=0)
+    n = lab.max() + 1
+    used = np.zeros(len(V), bool)
+    used[F.ravel()] = True
+    chi = np.bincount(lab[used], minlength=n) - np.bincount(lab[E[:, 0]], minlength=n) + np.bincount(fl, minlength=n)
+    return chi[ids]
+
+
+def _com_and_ground_hull(V, F, tol):
+    """(centre of mass of the closed pieces (uniform density), convex hull of the ground points)."""
+    from scipy.spatial import ConvexHull
+    _, vol, com, _ = _pieces_mass(V, F)
+    return (vol[:, None] * com).sum(0) / vol.sum(), ConvexHull(V[V[:, 1] <= tol][:, [0, 2]])
+
+
+def test_rest_and_branch_are_appended_and_in_no_mix():
+    from pixgraph_lab.height import real
+    assert CATEGORIES[:11] == ("person", "animal", "figurine", "furniture", "product", "vehicle", "organic",
+                               "heldout", "flat", "assembly", "heldout2")
+    assert CATEGORIES.index("rest") == 11 and CATEGORIES.index("branch") == 12
+    for c in ("rest", "branch"):
+        assert c not in real.CATEGORY_P and c not in real.CATEGORY_P_REAL
+
+
+def test_existing_categories_and_mixes_are_unchanged():
+    """The meshes of every earlier category over fixed seeds (and the random stream each leaves
+    behind), and two ``--mix real`` / ``real_organic`` samples, are those recorded before
+    ``rest`` and ``branch`` were added (eleventh session), so existing data sets regenerate."""
+    import hashlib
+    h = hashlib.sha256()
+    for c in CATEGORIES[:11]:
+        for s in range(3):
+            rng = np.random.default_rng([s, 77])
+            V, F, L, names, kind = make_object(c, rng)
+            h.update(np.round(V, 6).tobytes())
+            h.update(F.tobytes())
+            h.update(L.tobytes())
+            h.update(("|".join(names) + kind).encode())
+            h.update(rng.random(1).tobytes())
+    assert h.hexdigest() == "e014f6cd04836360586c0682b5f0850966f82cd27308c5a7e6c2ecea4832dadd"
+    pytest.importorskip("mitsuba")
+    from pixgraph_lab.datagen.raycast import select_variant
+    from pixgraph_lab.height import generate
+    select_variant()
+    recorded = {("real", 1): ("person/standing", "upright", 38, 31.281531293888616),
+                ("real_organic", 1): ("animal/bird", "tilted", 78, 54.023027113062525)}
+    for (mix, i), (obj, pose, px, hfov) in recorded.items():
+        arrays, meta = generate.make_sample("train", i, seed=0, res=48, mix=mix)
+        assert (meta["object"], meta["pose"], meta["mask_px"]) == (obj, pose, px), (mix, meta)
+        assert meta["camera"]["hfov"] == pytest.approx(hfov, rel=1e-12)
+
+
+def test_rest_objects_lie_stably_on_a_face_not_upright():
+    kinds, upright, elong = set(), 0, []
+    n = 120
+    for s in range(n):
+        V, F, L, names, kind = make_object("rest", np.random.default_rng([s, 23]))
+        cat, k = kind.split("/")
+        assert cat == "rest" and k in REST_KINDS, kind
+        kinds.add(k)
+        assert np.isfinite(V).all() and V[:, 1].min() == 0.0 and L.shape == (len(F),)
+        # the longest principal axis (vertices' covariance) is far from vertical in most draws
+        # (built upright, they are turned onto a side; near-round ones may end either way)
+        w, vec = np.linalg.eigh(np.cov((V - V.mean(0)).T))
+        upright += abs(vec[1, -1]) > 0.8
+        ext = np.ptp(V @ vec, 0)                             # extents along the principal axes
+        elong.append(ext.max() / ext.min())
+        # at rest: the centre of mass over the convex hull of the points touching the ground
+        tol = 1e-3 * np.ptp(V, 0).max()
+        com, hull = _com_and_ground_hull(V, F, tol)
+        assert (hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2]).max() < 0, (s, kind)
+        lab, _, _, ids = _pieces_mass(V, F)
+        assert (_euler_per_piece(V, F, lab, ids) == 2).all(), (s, kind)      # closed, no ring
+    assert kinds == REST_KINDS
+    assert upright <= 0.1 * n, upright                      # 2 of 120 when written
+    # elongations (longest : shortest extent along the principal axes) from about 1:1 to past 1:6
+    elong = np.array(elong)
+    assert elong.min() < 1.3 and elong.max() > 6, (elong.min(), elong.max())
+    assert (elong < 2).mean() > 0.15 and (elong > 4).mean() > 0.15, np.percentile(elong, [25, 50, 75])
+
+
+def test_rest_pose_keeps_a_box_off_its_ends_and_rolls_a_wedge_off_a_face_it_overhangs():
+    """``rest_pose`` worked by hand: a 1 x 4 x 0.5 box (x, y, z) built upright rests on any
+    face, but never ends on its small ends (the build's vertical axis is avoided); an obtuse
+    triangular prism (z, y) (0, 0), (1, 0), (3, 1) has its centre of mass at z = 4/3, beyond
+    its base (z 0 to 1), so it rolls off the base onto another face from every drop (the
+    avoidance of the vertical axis switched off: ``avoid_up`` > 1 keeps the first drop)."""
+    from pixgraph_lab.datagen.categories import box, prism, rest_pose
+    for s in range(20):
+        R = rest_pose([box([0, 0, 0], [1, 4, 0.5])], np.random.default_rng(s))
+        down = R.T @ np.array([0.0, -1.0, 0.0])              # the face turned down, build frame
+        assert np.abs(down).max() == pytest.approx(1.0, abs=1e-9), (s, down)
+        assert abs(down[1]) < 1e-9, (s, down)
+    ends = 0
+    for s in range(40):
+        R = rest_pose([prism([(0, 0), (1, 0), (3, 1)], -0.5, 0.5)], np.random.default_rng(s), avoid_up=2.0)
+        down = R.T @ np.array([0.0, -1.0, 0.0])
+        assert down[1] > -0.99, (s, down)                     # never on the base y = 0
+        ends += abs(down[0]) > 0.99                             # on a triangular end (stable)
+    assert ends < 40
+
+
+BRANCH_KINDS = {"tree", "shrub", "coat_stand", "candelabra", "antler", "coral", "arc_lamp", "cantilever"}
+
+
+def test_branches_hold_together_reach_out_over_the_ground_and_stand():
+    from scipy.spatial import ConvexHull
+    kinds, overhangs = set(), []
+    n = 60
+    for s in range(n):
+        V, F, L, names, kind = make_object("branch", np.random.default_rng([s, 24]))
+        cat, k = kind.split("/")
+        assert cat == "branch" and k in BRANCH_KINDS, kind
+        kinds.add(k)
+        assert np.isfinite(V).all() and V[:, 1].min() == 0.0 and L.shape == (len(F),)
+        lab, vol, com_i, ids = _pieces_mass(V, F)
+        assert (_euler_per_piece(V, F, lab, ids) == 2).all(), (s, kind)      # closed, no ring
+        height = V[:, 1].max()
+        tol = 1e-3 * height
+        # held: the pieces' bounding boxes, joined where they overlap, form one structure
+        B = np.array([[V[lab == i].min(0), V[lab == i].max(0)] for i in ids])
+        adj = ((B[:, None, 0] <= B[None, :, 1] + tol) & (B[None, :, 0] <= B[:, None, 1] + tol)).all(-1)
+        seen, todo = {0}, [0]
+        while todo:
+            i = todo.pop()
+            for j in np.nonzero(adj[i])[0]:
+                if int(j) not in seen:
+                    seen.add(int(j))
+                    todo.append(int(j))
+        assert len(seen) == len(ids), (s, kind)
+        # stands: the centre of mass over the hull of the points on the ground
+        com = (vol[:, None] * com_i).sum(0) / vol.sum()
+        ground = ConvexHull(V[V[:, 1] <= tol][:, [0, 2]])
+        assert (ground.equations[:, :2] @ com[[0, 2]] + ground.equations[:, 2]).max() < 0, (s, kind)
+        # overhang: how far (share of the height) the parts off the ground reach outside the
+        # footprint of the pieces touching it (their whole plan, not only their contacts)
+        on = np.isin(lab, ids[B[:, 0, 1] <= tol])
+        foot = ConvexHull(V[on][:, [0, 2]])
+        out = (V[~on][:, [0, 2]] @ foot.equations[:, :2].T + foot.equations[:, 2]).max(1)
+        overhangs.append(max(float(out.max()), 0.0) / height)
+    assert kinds == BRANCH_KINDS
+    overhangs = np.array(overhangs)
+    assert (overhangs > 0.1).mean() >= 0.75, np.round(overhangs, 2)     # 0.86 when written
+    assert np.median(overhangs) > 0.3, np.round(overhangs, 2)            # 0.47 when written
+
+
+def test_a_rest_and_a_branch_sample_render_and_are_deterministic():
+    pytest.importorskip("mitsuba")
+    from pixgraph_lab.datagen.raycast import select_variant
+    from pixgraph_lab.height import generate
+    select_variant()
+    for cat in ("rest", "branch"):
+        arrays, meta = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
+        assert meta["category"] == cat and meta["object"].startswith(cat + "/")
+        mask, h = arrays["mask"], arrays["height"].astype(float)
+        assert mask.sum() > 0.004 * 64 * 64
+        assert (h[~mask] == 0).all() and (h[mask] > 0).all()
+        again, _ = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
+        for k in arrays:
+            assert np.array_equal(again[k], arrays[k]), (cat, k)

@@ -32,6 +32,21 @@ cylinders, cones, tori, surfaces of revolution, convex prisms):
   ellipsoid, capsule, plate, rod, revolved profile; no rings): a base on the ground or a part
   on 2-4 legs, further parts stacked on top or sticking out of the sides, part sizes spanning
   10x; every part is held by a lower one and the whole stands (``is_stable``);
+* ``rest`` (training, in no mix): generic solids lying at rest, not upright: a superquadric
+  (ellipsoid to rounded box), a random surface of revolution (bottle-, vase-, can-, spindle-like
+  or random profile), a soft union of 2-5 ellipsoids (``blob_surface``), a convex prism (a bar or
+  a slab), or a compound of 2-3 of these fused; elongation 1:1 to 1:6; built upright, dropped
+  along a random direction onto its convex hull and rolled downhill over hull edges until the
+  centre of mass is over the face it lies on (``rest_pose``; the build's vertical axis ends off
+  the vertical), then yawed at random, so it reaches in depth as often as across;
+* ``branch`` (training, in no mix): structures reaching out over the ground away from where
+  they stand: a base or trunk on the ground and swept tubes (chains of capsules along smooth
+  random 3D curves or Bezier arcs) branching 1-3 levels, with blobs, leaves, discs or knobs at
+  the tips, reaching in depth as much as across: bare or leafy trees (on a root flare or in a
+  planter), shrubs of arching stems, coat stands (disc or curved feet, hooks), candelabra (planar
+  or radial arms), antler-like sculptures on a plinth, coral-like forms, arching floor lamps (a
+  heavy foot, a long arc, a shade far from the foot), cantilevered arms on a column; the base is
+  widened until the whole stands (``is_stable``);
 * ``heldout``: kinds no training mix draws (``real.CATEGORY_P`` and
   ``CATEGORY_P_REAL`` leave it out), for validation on unfamiliar shapes without
   the test split: guitars, dumbbells, kettlebells, fire hydrants, globes on a stand,
@@ -57,7 +72,7 @@ import math
 import numpy as np
 
 CATEGORIES = ("person", "animal", "figurine", "furniture", "product", "vehicle", "organic", "heldout", "flat",
-              "assembly", "heldout2")
+              "assembly", "heldout2", "rest", "branch")
 
 
 class Parts:
@@ -1509,10 +1524,505 @@ def heldout2(rng):
     return P, "heldout2/" + kind
 
 
+# ---------------------------------------------------------------- solids lying at rest (training)
+REST_KINDS = ("superquadric", "revolved", "blob", "prism", "compound")
+REST_P = (0.22, 0.22, 0.2, 0.14, 0.22)
+
+
+def superquadric(a, p, subdiv=3):
+    """Closed superellipsoid ``sum_i |x_i / a_i| ** p = 1`` (semi-axes ``a`` (3,), exponent
+    ``p``: 2 an ellipsoid, larger a rounded box): an icosphere's unit directions ``d`` mapped to
+    ``a_i sign(d_i) |d_i| ** (2 / p)`` (on the surface since ``sum d_i ** 2 = 1``; vertices
+    gather at the rounded edges where the surface bends)."""
+    tm = _tm()
+    m = tm.creation.icosphere(subdivisions=subdiv, radius=1.0)
+    d = np.asarray(m.vertices, float)
+    m.vertices = np.asarray(a, float) * np.sign(d) * np.abs(d) ** (2.0 / p)
+    return m
+
+
+def _rest_body(rng, kind, L):
+    """One random solid about ``L`` long, built upright (its long axis along y, centred near
+    the origin): a superquadric, a surface of revolution, a soft union of ellipsoids or a
+    convex prism; elongation (long : short) 1 to 6."""
+    u = rng.uniform
+    elong = math.exp(u(0.0, math.log(6.0)))
+    if kind == "superquadric":
+        mid = L / 2 / elong * u(1.0, min(2.0, elong))
+        a = [mid, L / 2, mid * u(0.4, 1.0)]
+        return superquadric(a, u(2.0, 2.0 + u(0, 8.0)))
+    if kind == "revolved":                    # bottle-, vase-, can-, spindle-like random profiles
+        r = L / 2 / elong
+        shape = str(rng.choice(["bottle", "vase", "can", "spindle", "random"]))
+        if shape == "bottle":
+            n = r * u(0.25, 0.5)
+            prof = [(0, 0), (r * u(0.85, 1), 0), (r, L * u(0.05, 0.1)), (r, L * u(0.45, 0.65)),
+                    (n * u(1.0, 1.4), L * u(0.75, 0.85)), (n, L * 0.92), (n * 1.15, L * 0.96), (n, L), (0, L)]
+        elif shape == "vase":
+            prof = [(0, 0), (r * u(0.4, 0.7), 0), (r, L * u(0.25, 0.45)), (r * u(0.3, 0.6), L * u(0.7, 0.85)),
+                    (r * u(0.5, 0.9), L), (0, L)]
+        elif shape == "can":
+            e = min(r, L) * u(0.03, 0.12)
+            prof = [(0, 0), (r - e, 0), (r, e), (r, L - e), (r - e, L), (0, L)]
+        elif shape == "spindle":
+            prof = [(0, 0), (r * u(0.05, 0.3), L * 0.02), (r, L * u(0.35, 0.65)), (r * u(0.05, 0.3), L * 0.98),
+                    (0, L)]
+        else:
+            ys = np.sort(u(0.1, 0.9, int(rng.integers(2, 5))))
+            prof = [(0, 0), (r * u(0.3, 1.0), 0)] + [(r * u(0.3, 1.0), y * L) for y in ys] \
+                + [(r * u(0.2, 1.0), L), (0, L)]
+        return revolve(prof, 24, at=(0, -L / 2, 0))
+    if kind == "blob":                        # a soft union of 2-5 ellipsoids along a wandering chain
+        n = int(rng.integers(2, 6))
+        rad = L / 2 / elong
+        C, Rd, Rs = [np.zeros(3)], [], []
+        d = np.array([0.0, 1.0, 0.0])
+        for i in range(n):
+            ri = rad * u(0.6, 1.3)
+            # as long along the chain as across at least (no stack of discs)
+            Rd.append([ri * u(0.7, 1.2), max(L / n * u(0.5, 0.8), ri * u(0.9, 1.2)), ri * u(0.7, 1.2)])
+            Rs.append(_frame(d + rng.normal(0, 0.25, 3)))
+            if i + 1 < n:
+                d = d + rng.normal(0, 0.35, 3)
+                d[1] = abs(d[1]) + 0.5
+                d /= np.linalg.norm(d)
+                C.append(C[-1] + d * L / n)
+        C = np.array(C) - np.mean(C, 0)
+        m, _ = blob_surface(C, Rd, np.array(Rs), sharp=u(2.0, 5.0), res=44)
+        return m
+    # a convex prism: a random convex polygon (z, y) extruded along x, then turned so that the
+    # extrusion is the long (y) axis when it is long, or a slab when short
+    k = int(rng.integers(3, 9))
+    ang = np.sort(u(0, 2 * math.pi, k))
+    if k == 3 or np.diff(np.r_[ang, ang[0] + 2 * math.pi]).max() > 2.2:
+        ang = np.arange(k) * 2 * math.pi / k + u(0, 1)
+    rr = u(0.6, 1.0, k)
+    poly = np.c_[np.cos(ang) * rr, np.sin(ang) * rr * u(0.4, 1.0)]
+    if rng.random() < 0.7:                    # a bar along its extrusion
+        w = L / elong
+        m = prism(poly * w / 2, -L / 2, L / 2)
+        m.apply_transform(_h(rot_z(math.pi / 2)))
+    else:                                     # a slab: the polygon wide, the extrusion thin
+        m = prism(poly * L / 2, -L / 2 / elong, L / 2 / elong)
+    return m
+
+
+def _h(R, t=(0, 0, 0)):
+    M = np.eye(4)
+    M[:3, :3] = R
+    M[:3, 3] = t
+    return M
+
+
+def rest_pose(meshes, rng, avoid_up=0.87, tries=12):
+    """Turn solid parts (trimesh, built upright, y up) onto a face they rest on: the centre of
+    mass (uniform density) is dropped along a random direction onto the convex hull of all
+    vertices and rolls over hull edges (each step tips the object across the edge beyond which
+    the centre of mass projects: quasi-statically, downhill) until it projects inside the face
+    it lies on, which is then turned to face down; the build's vertical axis ends more than
+    ``acos(avoid_up)`` from the vertical when any of ``tries`` drops gives such a face.
+    Returns the 3x3 rotation (the caller yaws and lifts onto Y = 0)."""
+    tm = _tm()
+    V = np.concatenate([np.asarray(m.vertices) for m in meshes])
+    _, com = _mass(meshes)
+    hull = tm.convex.convex_hull(V)
+    HV, HF = np.asarray(hull.vertices), np.asarray(hull.faces)
+    N = np.asarray(hull.face_normals)
+    off = np.einsum("ij,ij->i", N, HV[HF[:, 0]])             # face planes N.x = off, outward
+    edge_face = {}
+    for f, tri in enumerate(HF):
+        for k in range(3):
+            a, b = tri[(k + 1) % 3], tri[(k + 2) % 3]
+            edge_face.setdefault((min(a, b), max(a, b)), []).append(f)
+
+    def bary(f):
+        A, B, C = HV[HF[f]]
+        q = com - ((com - A) @ N[f]) * N[f]
+        v0, v1, v2 = B - A, C - A, q - A
+        d00, d01, d11, d20, d21 = v0 @ v0, v0 @ v1, v1 @ v1, v2 @ v0, v2 @ v1
+        den = d00 * d11 - d01 * d01
+        lb, lc = (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den
+        return np.array([1 - lb - lc, lb, lc])
+
+    best = None
+    for _ in range(tries):
+        g = rng.normal(size=3)
+        g /= np.linalg.norm(g)
+        ng = N @ g
+        t = np.where(ng > 1e-9, (off - N @ com) / np.maximum(ng, 1e-9), np.inf)
+        f = int(np.argmin(t))
+        for _step in range(4 * len(HF)):
+            lam = bary(f)
+            k = int(np.argmin(lam))
+            if lam[k] >= -1e-9:
+                break
+            a, b = HF[f][(k + 1) % 3], HF[f][(k + 2) % 3]
+            f = [x for x in edge_face[(min(a, b), max(a, b))] if x != f][0]
+        else:
+            continue
+        best = f
+        if abs(N[f][1]) < avoid_up:
+            break
+    if best is None:                                          # (never seen) the lowest stable face
+        ok = [f for f in range(len(HF)) if bary(f).min() >= -1e-9]
+        best = min(ok, key=lambda f: off[f] - N[f] @ com)
+    return tm.geometry.align_vectors(N[best], [0.0, -1.0, 0.0])[:3, :3]
+
+
+def rest(rng):
+    """A generic solid, or a compound of 2-3 fused, lying at rest on the ground (module doc):
+    built upright, then dropped onto a stable face of its convex hull (``rest_pose``) and
+    yawed at random, so it extends in depth as often as across."""
+    u = rng.uniform
+    kind = str(rng.choice(REST_KINDS, p=REST_P))
+    L = u(0.3, 1.0)
+    mats = [ASSEMBLY_SLOTS[i] for i in rng.choice(len(ASSEMBLY_SLOTS), 2, replace=False)]
+    if kind != "compound":
+        meshes, slots = [_rest_body(rng, kind, L)], [mats[0]]
+    else:                                     # 2-3 bodies fused: smaller ones sunk into the first
+        kinds = [str(rng.choice(REST_KINDS[:4], p=np.array(REST_P[:4]) / sum(REST_P[:4])))
+                 for _ in range(int(rng.integers(2, 4)))]
+        meshes, slots = [_rest_body(rng, kinds[0], L)], [mats[0]]
+        for k in kinds[1:]:
+            m = _rest_body(rng, k, L * u(0.3, 0.8))
+            from pixgraph_lab.datagen.objects import _random_rotation
+            m.apply_transform(_h(_random_rotation(rng)))
+            host = np.asarray(meshes[0].vertices)
+            p = host[rng.integers(len(host))]
+            c = np.asarray(meshes[0].vertices).mean(0)
+            ext = np.ptp(np.asarray(m.vertices), 0).min() / 2
+            m.apply_translation(p + (c - p) / max(np.linalg.norm(c - p), 1e-9) * ext * u(0.3, 0.8)
+                                - np.asarray(m.vertices).mean(0))
+            meshes.append(m)
+            slots.append(mats[int(rng.integers(2))])
+    R = rot_y(u(0, 2 * math.pi)) @ rest_pose(meshes, rng)
+    P = Parts()
+    for m, s in zip(meshes, slots):
+        m.apply_transform(_h(R))
+        P.add(m, s)
+    return P, "rest/" + kind
+
+
+# ---------------------------------------------------------------- branching structures (training)
+BRANCH_KINDS = ("tree", "shrub", "coat_stand", "candelabra", "antler", "coral", "arc_lamp", "cantilever")
+BRANCH_P = (0.2, 0.1, 0.1, 0.1, 0.1, 0.12, 0.14, 0.14)
+
+
+def _unit(v):
+    v = np.asarray(v, float)
+    return v / max(float(np.linalg.norm(v)), 1e-12)
+
+
+def _curve(p0, d0, length, rng, n=6, wander=0.2, pull=(0.0, 0.0, 0.0), floor=0.0):
+    """Points (n + 1, 3) of a smooth random 3D curve ``length`` long from ``p0``, leaving along
+    ``d0``: each step turns the direction by a smoothly varying random amount (``wander``, about
+    the turn per step in radians) plus ``pull`` (e.g. up or down); it stays above y = ``floor``."""
+    pts, d = [np.asarray(p0, float)], _unit(d0)
+    turn, pull = np.zeros(3), np.asarray(pull, float)
+    for _ in range(n):
+        turn = 0.6 * turn + 0.4 * rng.normal(0, wander, 3)
+        d = _unit(d + turn + pull)
+        if pts[-1][1] + d[1] * length / n < floor:
+            d = _unit([d[0], abs(d[1]) + 0.3, d[2]])
+        pts.append(pts[-1] + d * length / n)
+    return np.array(pts)
+
+
+def _bezier(ctrl, n=8):
+    """Points (n + 1, 3) of the Bezier curve of the control points ``ctrl`` (k, 3)."""
+    C = np.asarray(ctrl, float)
+    t = np.linspace(0, 1, n + 1)[:, None]
+    k = len(C) - 1
+    return sum(math.comb(k, i) * t ** i * (1 - t) ** (k - i) * C[i] for i in range(k + 1))
+
+
+def _tube(out, pts, r0, r1, slot, count=8):
+    """A swept tube along ``pts``: a chain of capsules (joined: each shares its end with the
+    next), radius tapering from ``r0`` to ``r1``; appended to ``out`` as (mesh, slot)."""
+    n = len(pts) - 1
+    for i in range(n):
+        out.append((capsule(pts[i], pts[i + 1], r0 + (r1 - r0) * (i + 0.5) / n, count), slot))
+
+
+def _perp_turn(d, ang, rng):
+    """``d`` turned by ``ang`` [rad] about a random axis perpendicular to it."""
+    d = _unit(d)
+    a = _unit(np.cross(d, rng.normal(size=3)))
+    return _unit(d * math.cos(ang) + np.cross(a, d) * math.sin(ang))
+
+
+def _tip(out, rng, style, p, d, r, slot):
+    """A blob, leaves, a disc or a knob at a branch tip ``p`` (direction ``d``, radius ``r``)."""
+    u = rng.uniform
+    d = _unit(d)
+    if style == "blob":
+        rb = r * u(2.5, 6.0)
+        out.append((ellipsoid(p + d * rb * 0.6, [rb * u(0.8, 1.2), rb * u(0.7, 1.1), rb * u(0.8, 1.2)], 2), slot))
+    elif style == "leaves":
+        for _ in range(int(rng.integers(1, 4))):
+            ld = _unit(d + rng.normal(0, 0.5, 3))
+            L = r * u(8, 16)
+            out.append((ellipsoid(p + ld * L * 0.45, [L * u(0.2, 0.35), L / 2, L * 0.04], 1, R=_frame(ld)), slot))
+    elif style == "disc":
+        R = r * u(3, 7)
+        out.append((cylinder(p - d * r * 0.5, p + d * r * u(0.6, 1.2), R, 14), slot))
+    elif style == "knob":
+        out.append((ellipsoid(p, [r * u(1.4, 2.2)] * 3, 1), slot))
+
+
+def _grow(out, rng, p, d, length, r, levels, slot, tip_style, tip_slot, *, spread=(25, 60), kids=(2, 4),
+          wander=0.2, pull=(0.0, 0.03, 0.0), taper=0.55, child_len=(0.45, 0.75), at=(0.35, 1.0), floor=0.0):
+    """A tube from ``p`` along ``d`` (``_curve``) with ``levels`` more levels of children
+    sprouting from points along it (inside it: held) at ``spread`` degrees, and tips."""
+    u = rng.uniform
+    n = max(3, min(8, int(round(4 + 4 * length))))
+    pts = _curve(p, d, length, rng, n, wander, pull, floor)
+    r1 = r * taper
+    _tube(out, pts, r, r1, slot)
+    if levels > 0:
+        for _ in range(int(rng.integers(kids[0], kids[1] + 1))):
+            t = u(*at)
+            i = min(int(t * n), n - 1)
+            q = pts[i] + (pts[i + 1] - pts[i]) * (t * n - i)
+            rq = r + (r1 - r) * t
+            cd = _perp_turn(pts[i + 1] - pts[i], math.radians(u(*spread)), rng)
+            _grow(out, rng, q, cd, length * u(*child_len), rq * u(0.55, 0.85), levels - 1, slot, tip_style,
+                  tip_slot, spread=spread, kids=kids, wander=wander, pull=pull, taper=taper,
+                  child_len=child_len, at=at, floor=floor)
+    if levels == 0 or rng.random() < 0.3:
+        _tip(out, rng, tip_style, pts[-1], pts[-1] - pts[-2], r1, tip_slot)
+
+
+def _mound(R, h, sections=14, rng=None):
+    """A flat-bottomed dome R wide, h high (a root flare, a rock, a foot)."""
+    k = 1.0 if rng is None else rng.uniform(0.5, 0.9)
+    return revolve([(0, 0), (R, 0), (R * 0.9, h * 0.25), (R * k * 0.5, h * 0.75), (R * 0.2, h), (0, h)], sections)
+
+
+def _disc_base(R, h, sections=24):
+    return cylinder([0, 0, 0], [0, h, 0], R, sections)
+
+
+def _branch_parts(rng, kind):
+    """(upper parts [(mesh, slot)], base(k) -> [(mesh, slot)]) of a ``branch`` kind; the base
+    is centred on the origin, ``k`` >= 1 widens it (the caller widens it until it stands)."""
+    u = rng.uniform
+    mats = [ASSEMBLY_SLOTS[i] for i in rng.choice(len(ASSEMBLY_SLOTS), 3, replace=False)]
+    up = []
+    if kind in ("tree", "shrub"):
+        bark, leaf = "wood" if rng.random() < 0.7 else mats[0], "fabric" if rng.random() < 0.5 else mats[1]
+        tip = str(rng.choice(["none", "leaves", "blob", "knob"], p=[0.35, 0.35, 0.2, 0.1]))
+        if kind == "tree":
+            r0 = u(0.02, 0.05)
+            lean = _perp_turn([0, 1, 0], math.radians(u(0, 20)), rng)
+            _grow(up, rng, [0, r0, 0], lean, u(0.35, 0.6), r0, int(rng.integers(2, 4)), bark, tip, leaf,
+                  spread=(25, 65), kids=(2, 4), wander=u(0.08, 0.25), at=(0.45, 1.0), floor=0.15)
+            pot = rng.random() < 0.3
+            fl, Rp = u(2.0, 3.5), r0 * u(3, 5)
+
+            def base(k):
+                if pot:                        # a planter as high as it is wide at k = 1
+                    R, h = Rp * k, Rp * 1.1
+                    return [(revolve([(0, 0), (R * 0.75, 0), (R, h), (R * 0.92, h), (0, h * 0.8)], 20), mats[2])]
+                return [(_mound(r0 * fl * k, r0 * 2.5, 14), bark)]
+        else:
+            stems = int(rng.integers(3, 8))
+            for _ in range(stems):
+                el, az = math.radians(u(35, 80)), u(0, 2 * math.pi)
+                d = [math.cos(el) * math.cos(az), math.sin(el), math.cos(el) * math.sin(az)]
+                r0 = u(0.012, 0.025)
+                _grow(up, rng, [d[0] * 0.03, r0 + 0.02, d[2] * 0.03], d, u(0.35, 0.8), r0,
+                      int(rng.integers(0, 3)), bark, tip, leaf, spread=(20, 50), kids=(1, 3), wander=0.15,
+                      pull=(0, -0.03, 0), floor=0.05)
+            R0, h0 = u(0.06, 0.12), u(0.04, 0.1)
+
+            def base(k):
+                return [(_mound(R0 * k, h0, 16, rng), "soil" if rng.random() < 0.5 else mats[2])]
+        return up, base
+    if kind == "coat_stand":
+        H, rp = u(1.4, 1.9), u(0.012, 0.025)
+        pole, hook = mats[0], mats[1] if rng.random() < 0.5 else mats[0]
+        up.append((cylinder([0, 0.02, 0], [0, H, 0], rp, 14), pole))
+        up.append((ellipsoid([0, H, 0], [rp * u(1.2, 2.5)] * 3, 2), hook))
+        for tier in range(int(rng.integers(1, 3))):
+            yh = H * (u(0.85, 0.97) if tier == 0 else u(0.6, 0.8))
+            nh = int(rng.integers(3, 9))
+            a0 = u(0, 2 * math.pi)
+            reach = u(0.12, 0.35)
+            for j in range(nh):
+                az = a0 + 2 * math.pi * j / nh + u(-0.2, 0.2)
+                e = np.array([math.cos(az), 0.0, math.sin(az)])
+                p0 = np.array([0.0, yh - reach * u(0.2, 0.6), 0.0])
+                pts = _bezier([p0, p0 + e * reach * 0.6 + [0, reach * 0.1, 0],
+                               p0 + e * reach + [0, reach * u(0.3, 0.8), 0]], 6)
+                rh = rp * u(0.35, 0.6)
+                _tube(up, pts, rh, rh, hook)
+                up.append((ellipsoid(pts[-1], [rh * u(1.5, 2.5)] * 3, 1), hook))
+        feet = rng.random() < 0.6
+        nf, Rf, hf, af = int(rng.integers(3, 5)), u(0.18, 0.3), u(0.12, 0.3), u(0, 2 * math.pi)
+
+        def base(k):
+            if not feet:
+                return [(_disc_base(Rf * 0.8 * k, u(0.02, 0.04)), pole)]
+            parts = []
+            for j in range(nf):
+                az = af + 2 * math.pi * j / nf
+                e = np.array([math.cos(az), 0.0, math.sin(az)])
+                end = e * Rf * k + [0, rp * 0.8 + 0.012, 0]
+                pts = _bezier([[0, hf, 0], e * Rf * k * 0.5 + [0, hf * 0.5, 0], end], 6)
+                _tube(parts, pts, rp * 0.8, rp * 0.8, pole)
+                parts.append((cylinder(end - [0, end[1], 0], end + [0, rp * 0.2, 0], rp * 1.6, 10), pole))
+            return parts
+        return up, base
+    if kind == "candelabra":
+        metal, wax = mats[0], "paper" if rng.random() < 0.6 else mats[1]
+        hs, rs = u(0.25, 0.6), u(0.012, 0.025)
+        up.append((cylinder([0, 0.01, 0], [0, hs, 0], rs, 14), metal))
+        planar = rng.random() < 0.4
+        na = int(rng.integers(2, 7))
+        a0 = u(0, 2 * math.pi)
+        tops = [np.array([0.0, hs, 0.0])]
+        for tier in range(1 if rng.random() < 0.7 else 2):
+            ya = hs * u(0.5, 0.9)
+            reach, rise = u(0.1, 0.3) * (1 + tier * 0.5), u(0.05, 0.25)
+            for j in range(na):
+                az = (a0 + math.pi * (j % 2) + 0.35 * (j // 2) * (-1) ** j) if planar else a0 + 2 * math.pi * j / na
+                e = np.array([math.cos(az), 0.0, math.sin(az)])
+                p0 = np.array([0.0, ya, 0.0])
+                pts = _bezier([p0, p0 + e * reach * u(0.3, 0.8) + [0, -rise * u(0.2, 0.6), 0],
+                               p0 + e * reach + [0, rise * u(0.2, 0.6), 0], p0 + e * reach + [0, rise, 0]], 8)
+                _tube(up, pts, rs * 0.6, rs * 0.6, metal)
+                tops.append(pts[-1])
+        rc, hc = u(0.012, 0.03), u(0.08, 0.25)
+        for t in tops:
+            up.append((revolve([(0, 0), (rc * 0.5, 0), (rc * 1.4, rc * 1.2), (rc * 1.3, rc * 1.5), (0, rc * 1.2)],
+                               12, at=t), metal))
+            up.append((cylinder(t + [0, rc * 1.1, 0], t + [0, rc + hc, 0], rc * 0.8, 10), wax))
+        Rb = u(0.06, 0.14)
+
+        def base(k):
+            return [(revolve([(0, 0), (Rb * k, 0), (Rb * k, 0.015), (Rb * 0.4 * k, 0.05), (rs * 1.3, 0.09),
+                              (0, 0.09)], 24), metal)]
+        return up, base
+    if kind == "antler":                    # a sculpture: one or two curved beams with tines
+        bone = "ceramic" if rng.random() < 0.5 else mats[0]
+        nb = int(rng.integers(1, 3))
+        yb = u(0.05, 0.15)
+        az = u(0, 2 * math.pi)
+        for b in range(nb):
+            side = np.array([math.cos(az + math.pi * b), 0.0, math.sin(az + math.pi * b)])
+            back = np.cross(side, [0, 1, 0])
+            d0 = _unit([0, 1, 0] + side * u(0.3, 0.9) * (nb == 2) + back * u(-0.3, 0.3))
+            L, r = u(0.6, 1.1), u(0.025, 0.045)
+            pts = _curve([0, yb * 0.6, 0], d0, L, rng, 8, 0.08, pull=_unit(back + [0, 0.3, 0]) * 0.06 + side * 0.03,
+                         floor=0.1)
+            _tube(up, pts, r, r * 0.35, bone)
+            for _ in range(int(rng.integers(2, 6))):
+                i = int(rng.integers(2, 8))
+                td = _unit([0, 1, 0] + (pts[i + 1] - pts[i]) * 0 - back * u(0.3, 1.2) + side * u(-0.5, 0.8))
+                tl = L * u(0.15, 0.4)
+                tp = _curve(pts[i], td, tl, rng, 4, 0.1, pull=(0, 0.05, 0), floor=0.1)
+                ri = r * (1 - 0.65 * i / 8) * 0.7
+                _tube(up, tp, ri, ri * 0.25, bone)
+        plinth = rng.random() < 0.6
+        W, Hb = u(0.1, 0.2), yb
+
+        def base(k):
+            if plinth:
+                return [(box([0, Hb / 2, 0], [W * k, Hb, W * k * u(0.7, 1.0)]), "wood" if rng.random() < 0.5
+                         else mats[1])]
+            return [(_mound(W * 0.6 * k, Hb, 12, rng), "stone")]
+        return up, base
+    if kind == "coral":
+        col = mats[0]
+        tip = str(rng.choice(["knob", "blob", "none", "disc"], p=[0.4, 0.2, 0.3, 0.1]))
+        yb = u(0.05, 0.12)
+        trunks = int(rng.integers(1, 4))
+        for _ in range(trunks):
+            d = _perp_turn([0, 1, 0], math.radians(u(0, 40)), rng)
+            r0 = u(0.025, 0.06)
+            lv = int(rng.integers(2, 4)) if trunks == 1 else 2      # at most about 40 branches
+            _grow(up, rng, [u(-0.03, 0.03), yb * 0.7, u(-0.03, 0.03)], d, u(0.2, 0.4), r0, lv,
+                  col, tip, col, spread=(20, 55), kids=(2, 3), wander=0.3, pull=(0, 0.04, 0), taper=0.75,
+                  child_len=(0.6, 0.9), at=(0.5, 1.0), floor=0.1)
+        R0 = u(0.08, 0.16)
+
+        def base(k):
+            return [(_mound(R0 * k, yb, 12, rng), "stone" if rng.random() < 0.6 else mats[1])]
+        return up, base
+    if kind == "arc_lamp":                  # a heavy foot, a long arching arm, a shade far from the foot
+        metal, shade = mats[0], "fabric" if rng.random() < 0.5 else mats[1]
+        H0, Hs, D = u(0.8, 1.6), u(0.9, 1.9), u(0.5, 1.3)
+        az = u(0, 2 * math.pi)
+        e = np.array([math.cos(az), 0.0, math.sin(az)])
+        ra = u(0.01, 0.02)
+        hb = u(0.02, 0.06)
+        top = max(H0, Hs) + u(0.1, 0.5)
+        pts = _bezier([[0, hb * 0.5, 0], [0, H0, 0], [0, top, 0] + e * D * u(0.1, 0.4), [0, top, 0] + e * D * 0.9,
+                       e * D + [0, Hs, 0]], 16)
+        _tube(up, pts, ra, ra, metal)
+        end = pts[-1]
+        rsh, hsh = u(0.1, 0.25), u(0.1, 0.25)
+        y0 = end[1] - hsh
+        up.append((revolve([(0, 0), (rsh, 0), (rsh * u(0.8, 1.0), hsh * 0.2), (rsh * u(0.2, 0.5), hsh * 0.9),
+                            (ra * 2, hsh), (0, hsh)], 24, at=[end[0], y0 + ra, end[2]]), shade))
+        foot = str(rng.choice(["disc", "block", "dome"]))
+        Rf = u(0.12, 0.22)
+
+        def base(k):
+            if foot == "disc":
+                return [(_disc_base(Rf * k, hb * 1.2), metal)]
+            if foot == "block":
+                return [(box([0, hb * 0.75, 0], [Rf * 1.6 * k, hb * 1.5, Rf * 1.6 * k]), "stone")]
+            return [(_mound(Rf * k, hb * 2, 24), metal)]
+        return up, base
+    # cantilever: a column with 1-3 thick swept arms reaching out, plates / discs / blobs at their ends
+    col, arm = mats[0], mats[1] if rng.random() < 0.5 else mats[0]
+    Hc, rc = u(0.3, 1.0), u(0.03, 0.08)
+    yb = u(0.03, 0.08)
+    up.append((cylinder([0, yb * 0.5, 0], [0, Hc, 0], rc, 16) if rng.random() < 0.5
+               else box([0, (Hc + yb * 0.5) / 2, 0], [rc * 2, Hc - yb * 0.5, rc * 2]), col))
+    for _ in range(int(rng.integers(1, 4))):
+        el, az = math.radians(u(-10, 35)), u(0, 2 * math.pi)
+        d = [math.cos(el) * math.cos(az), math.sin(el), math.cos(el) * math.sin(az)]
+        ya = Hc * u(0.4, 0.95)
+        _grow(up, rng, [0, ya, 0], d, u(0.3, 0.9), rc * u(0.4, 0.9), int(rng.integers(0, 2)), arm,
+              str(rng.choice(["disc", "blob", "knob", "none"])), mats[2], spread=(20, 50), kids=(1, 2),
+              wander=0.1, pull=(0, 0.0, 0), taper=u(0.5, 1.0), floor=0.1)
+    W = u(0.1, 0.3)
+
+    def base(k):
+        return [(box([0, yb / 2, 0], [W * k, yb, W * k * u(0.6, 1.0)]), col)]
+    return up, base
+
+
+def branch(rng):
+    """A structure reaching out over the ground away from where it stands (module doc): a base or
+    trunk on the ground and swept tubes (chains of capsules along smooth random 3D curves)
+    branching 1-3 levels, blobs, leaves, discs or knobs at the tips. The base is widened until the
+    whole stands (``is_stable``: centre of mass over the ground contacts); drawn again if even
+    three times as wide does not do."""
+    kind = str(rng.choice(BRANCH_KINDS, p=BRANCH_P))
+    for attempt in range(20):
+        up, base = _branch_parts(rng, kind)
+        for k in (1.0, 1.3, 1.7, 2.2, 3.0):
+            parts = up + base(k)
+            meshes = [m for m, _ in parts]
+            if min(float(np.asarray(m.vertices)[:, 1].min()) for m in meshes) < -1e-9:
+                break                                    # something dips under the base: draw again
+            if is_stable(meshes):
+                P = Parts()
+                for m, s in parts:
+                    P.add(m, s)
+                return P, "branch/" + kind
+    raise RuntimeError(f"branch/{kind}: no standing draw in 20 tries")
+
+
 #: the categories whose generator returns (Parts, kind); person and animal fill a Parts given
 #: to them (they also build the figurines' small people and animals)
 _BUILDERS = {"figurine": figurine, "furniture": furniture, "product": product, "vehicle": vehicle,
-             "organic": organic, "heldout": heldout, "flat": flat, "assembly": assembly, "heldout2": heldout2}
+             "organic": organic, "heldout": heldout, "flat": flat, "assembly": assembly, "heldout2": heldout2,
+             "rest": rest, "branch": branch}
 
 
 def make_object(category: str, rng: np.random.Generator):
