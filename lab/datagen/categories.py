@@ -1545,7 +1545,12 @@ def heldout3(rng):
     def wheel(c, r, width, axis=(1.0, 0.0, 0.0), hub=True, sections=18):
         """A disc wheel (tyre and hub) centred at c, its axle along ``axis``."""
         c, a = np.asarray(c, float), np.asarray(axis, float)
-        P.add(cylinder(c - a * width / 2, c + a * width / 2, r, sections), "tyre")
+        m = cylinder(c - a * width / 2, c + a * width / 2, r, sections)
+        v = np.asarray(m.vertices) - c           # the polygon's flat bottom is above c - r: widen it so
+        along = np.outer(v @ a, a)               # its lowest point is at c - r (on the ground)
+        low = -float(v[:, 1].min())
+        m.vertices = c + along + (v - along) * (r / low)
+        P.add(m, "tyre")
         if hub:
             P.add(cylinder(c - a * width * 0.6, c + a * width * 0.6, r * u(0.35, 0.6), 10), "metal")
 
@@ -1560,8 +1565,9 @@ def heldout3(rng):
         yd = wr * u(0.45, 0.75)               # the deck's underside
         zr = -L / 2 - wr * u(0.3, 0.7)
         zf = L / 2 + wr * u(0.9, 1.5)
+        fr = wr * u(1.0, 1.25) if rng.random() < 0.4 else wr     # the front wheel may be the larger
         wheel([0, wr, zr], wr, ww)
-        wheel([0, wr, zf], wr * u(1.0, 1.25) if rng.random() < 0.4 else wr, ww)
+        wheel([0, fr, zf], fr, ww)
         P.add(box([0, yd + dt / 2, 0], [dw, dt, L]), "deck")
         P.add(box([0, yd + dt + 0.002, -L * 0.02], [dw * 0.85, 0.004, L * 0.85]), "grip")   # grip tape
         for sx in (-1, 1):                    # rear fork plates from the deck's end to the axle
@@ -1571,15 +1577,16 @@ def heldout3(rng):
             pts = arc((zr, wr), wr + 0.012, math.radians(40), math.radians(160), 6)
             for a, b in zip(pts[:-1], pts[1:]):
                 P.add(bar([0, a[1], a[0]], [0, b[1], b[0]], ww * 1.4, 0.006), "metal")
+            P.add(bar([0, yd + dt - 0.003, -L / 2 + 0.02], [0, pts[0][1], pts[0][0]], ww * 1.4, 0.006), "metal")
         tilt = math.radians(u(5, 16))        # the stem leans back toward the rider
         H = u(0.7, 1.0)
         s_dir = np.array([0.0, math.cos(tilt), -math.sin(tilt)])
-        axle = np.array([0.0, wr, zf])
-        top = axle + s_dir * (H - wr) / math.cos(tilt)
+        axle = np.array([0.0, fr, zf])
+        top = axle + s_dir * (H - fr) / math.cos(tilt)
         sr = u(0.014, 0.022)
         head = axle + s_dir * wr * u(2.2, 3.0)
         for sx in (-1, 1):                    # front fork
-            P.add(capsule([sx * (ww / 2 + 0.008), wr, zf], head + [sx * (ww / 2 + 0.008), 0, 0], 0.008, 6), "metal")
+            P.add(capsule([sx * (ww / 2 + 0.008), fr, zf], head + [sx * (ww / 2 + 0.008), 0, 0], 0.008, 6), "metal")
         P.add(cylinder(head, top, sr, 10), "metal")
         P.add(cylinder(head - s_dir * 0.01, head + s_dir * 0.12, sr * 1.6, 10), "metal")   # head tube
         neck = np.array([0.0, yd + dt / 2, L / 2 - 0.03])
@@ -1588,7 +1595,7 @@ def heldout3(rng):
         P.add(cylinder(top + [-hw, 0, 0], top + [hw, 0, 0], sr * 0.8, 10), "metal")
         for sx in (-1, 1):
             P.add(cylinder(top + [sx * hw * 0.72, 0, 0], top + [sx * (hw + 0.01), 0, 0], sr * 1.5, 10), "grip")
-        if rng.random() < 0.5:                # a kickstand down to the ground from the deck's side
+        if rng.random() < 0.6:                # a kickstand down to the ground from the deck's side
             a = np.array([dw / 2, yd, -L * 0.05])
             P.add(capsule(a, a + [yd * 0.6, -yd + 0.006, -yd * 1.2], 0.006, 5), "metal")
     elif kind == "tent":
@@ -1711,11 +1718,12 @@ def heldout3(rng):
             d = np.array([math.cos(a), 0.0, math.sin(a)])
             r0 = R * 0.7
             top_p = d * r0 + [0, yr - math.sqrt(R * R - r0 * r0) + 0.01, 0]
-            foot = d * R * u(0.95, 1.2)
+            lr = u(0.01, 0.016)
+            foot = d * R * u(0.95, 1.2) + [0, lr, 0]     # the leg's round end on the ground
             if wheels and k < 2:              # two legs end in wheels, their axles across the leg
-                foot = foot + [0, wr, 0]
+                foot = foot + [0, wr - lr, 0]
                 wheel(foot, wr, 0.03, axis=np.cross(d, [0, 1, 0]), sections=16)
-            P.add(capsule(top_p, foot, u(0.01, 0.016), 6), "metal")
+            P.add(capsule(top_p, foot, lr, 6), "metal")
             feet.append(foot)
         if rng.random() < 0.6:                # an ash pan / rack between the legs
             f = u(0.35, 0.55)
@@ -1797,7 +1805,7 @@ def heldout3(rng):
         yh = u(0.95, 1.1)
         zh = zr - u(0.15, 0.3)
         if carriage:                          # a tub with a flat top, an opening, a hood over the back
-            bh = u(0.25, 0.35)
+            bh = u(0.15, 0.22)
             e = ellipsoid([0, yb + bh, 0], [bw / 2, bh, bl / 2], subdiv=2)
             v = np.asarray(e.vertices)
             v[:, 1] = np.minimum(v[:, 1], yb + bh * 1.6)
@@ -1834,12 +1842,24 @@ def heldout3(rng):
         if rng.random() < 0.5:                # toboggan: one board, a curled front, side rails, a rope
             L, W, t = u(0.9, 1.6), u(0.32, 0.5), u(0.012, 0.02)
             curl = rng.random() < 0.75
-            P.add(box([0, t / 2, 0], [W, t, L]), "wood")
+            mat = "wood" if rng.random() < 0.6 else "plastic"
+            if mat == "wood":                 # lengthwise slats held by cross cleats on top
+                ns = int(rng.integers(3, 7))
+                sw = W / ns
+                for k in range(ns):
+                    P.add(box([-W / 2 + sw * (k + 0.5), t / 2, 0], [sw * u(0.8, 0.92), t, L]), "wood")
+                for z in np.linspace(-L * 0.42, L * 0.3, int(rng.integers(3, 6))):
+                    P.add(box([0, t + 0.008, z], [W * 0.96, 0.016, 0.04]), "wood2")
+            else:                             # moulded plastic: one board, grips along its sides
+                P.add(box([0, t / 2, 0], [W, t, L]), "plastic")
+                for sx in (-1, 1):
+                    for z in (-L * 0.25, L * 0.15):
+                        P.add(box([sx * (W / 2 - 0.03), t + 0.01, z], [0.03, 0.02, L * 0.15]), "grip")
             if curl:
                 rc = u(0.1, 0.2)
                 pts = arc((L / 2, rc + t / 2), rc, -math.pi / 2, math.radians(u(100, 200)), 10)
                 for a, b in zip(pts[:-1], pts[1:]):
-                    P.add(bar([0, a[1], a[0]], [0, b[1], b[0]], W, t), "wood")
+                    P.add(bar([0, a[1], a[0]], [0, b[1], b[0]], W, t), mat)
                 P.add(cylinder([-W / 2, 2 * rc, L / 2 + rc * 0.2], [W / 2, 2 * rc, L / 2 + rc * 0.2], 0.012, 8),
                       "rope")         # the rope bar across the curl
             if rng.random() < 0.7:            # side rails on short posts
@@ -1865,8 +1885,8 @@ def heldout3(rng):
                 x = sx * W / 2
                 P.add(capsule([x, rr, -L / 2], [x, rr, L / 2], rr, 6), "metal")
                 if curl:                      # the runner curls up and back at the front
-                    rc = hk * u(0.45, 0.6)
-                    pts = arc((L / 2, rc + rr), rc, -math.pi / 2, math.radians(u(90, 180)), 8)
+                    rc = hk * u(0.45, 0.6)        # (its centre a touch up: the straight runner is the lowest)
+                    pts = arc((L / 2, rc + rr + 0.002), rc, -math.pi / 2, math.radians(u(90, 180)), 8)
                     for a, b in zip(pts[:-1], pts[1:]):
                         P.add(capsule([x, a[1], a[0]], [x, b[1], b[0]], rr, 5), "metal")
                 for z in np.linspace(-L * 0.4, L * 0.35, 3 if L < 1.1 else 4):
@@ -1876,7 +1896,7 @@ def heldout3(rng):
             for z in np.linspace(-L * 0.4, L * 0.35, n):
                 P.add(box([0, hk + 0.02, z], [W + 0.08, 0.015, L * 0.75 / n * 0.7]), "wood2")
             if rng.random() < 0.5:            # a steering bar across the front
-                P.add(box([0, hk + 0.04, L * 0.42], [W + 0.2, 0.03, 0.05]), "wood")
+                P.add(box([0, hk + 0.027, L * 0.38], [W + 0.2, 0.03, 0.05]), "wood")   # on the side beams
     else:  # step_ladder: an opened A-frame, 3-5 steps on the front (+z) rails, a cap on top
         n = int(rng.integers(3, 6))
         H = u(0.22, 0.3) * (n + 1)           # the top cap's height
@@ -1887,8 +1907,8 @@ def heldout3(rng):
         rw, rd = u(0.02, 0.03), u(0.05, 0.08)
         mat = "metal" if rng.random() < 0.7 else "wood"
         x_at = lambda y: (Wb + (Wt - Wb) * y / H) / 2  # noqa: E731  (a rail's x at height y)
-        zf_at = lambda y: zf * (1 - y / H)          # noqa: E731
-        zb_at = lambda y: zb * (1 - y / H)          # noqa: E731
+        zf_at = lambda y: zf + (0.03 - zf) * y / H          # noqa: E731  (the front rails' z at height y)
+        zb_at = lambda y: zb + (-0.03 - zb) * y / (H - 0.02)  # noqa: E731  (the back rails')
         for sx in (-1, 1):
             P.add(bar([sx * x_at(0.01), 0.012, zf], [sx * Wt / 2, H, 0.03], rw, rd, hint=(1, 0, 0)), mat)
             P.add(bar([sx * x_at(0.01), 0.012, zb], [sx * Wt / 2, H - 0.02, -0.03], rw, rd * 0.8, hint=(1, 0, 0)),
@@ -1907,7 +1927,7 @@ def heldout3(rng):
         P.add(box([0, H + 0.025, 0], [Wt + 0.06, 0.05, u(0.18, 0.28)]), "plastic")   # the top cap
         if rng.random() < 0.4:                # a paint-can shelf folded out at the back
             ys = H * 0.75
-            P.add(box([0, ys, zb_at(ys) * 0.5], [Wt * 0.8, 0.015, abs(zb_at(ys)) * 0.9 + 0.02]), "plastic")
+            P.add(box([0, ys, (zb_at(ys) + zf_at(ys)) / 2], [2 * x_at(ys), 0.015, zf_at(ys) - zb_at(ys)]), "plastic")
     return P, "heldout3/" + kind
 
 
