@@ -209,7 +209,8 @@ def test_heldout3_kinds_are_all_drawn_rest_on_the_ground_hold_together_and_stand
     """Over 240 fixed seeds every kind occurs; each mesh is finite, rests on Y = 0 with a valid
     material slot per face, its parts form one connected structure (no floating part: the
     parts' boxes, joined where they touch, form one group), every part is closed, it stands
-    (centre of mass over the ground contacts; a kick scooter when its kickstand is out), a sled lies low and long, a step ladder stands taller than wide."""
+    (centre of mass over the ground contacts; a kick scooter when its kickstand is out), a
+    sled lies low and long, a step ladder stands taller than wide."""
     import trimesh
     drawn = {}
     for s in range(240):
