@@ -1650,6 +1650,13 @@ def heldout3(rng):
                     pts.append([R * math.cos(t) * math.cos(a), H * math.sin(t), R * math.cos(t) * math.sin(a) * e])
             pts = np.asarray(pts)
             P.add(hull(np.r_[pts * 0.99, pts * [1.015, 1.015, 1.015]]), "door")
+            if rng.random() < 0.5:            # its flap rolled up above the door
+                yt = hd * 0.97
+                rt = R * math.sqrt(max(1 - (yt / H) ** 2, 0.0))
+                half = wa * 0.8
+                P.add(capsule([rt * math.cos(math.pi / 2 + half), yt, rt * math.sin(math.pi / 2 + half) * e * 1.03],
+                              [rt * math.cos(math.pi / 2 - half), yt, rt * math.sin(math.pi / 2 - half) * e * 1.03],
+                              0.03, 6), "canvas")
             if rng.random() < 0.5:            # a vestibule: a low wedge of fly sheet over the door
                 zv = R * e + u(0.3, 0.6)
                 P.add(hull([[-R * 0.5, 0, R * e * 0.6], [R * 0.5, 0, R * e * 0.6], [0, 0, zv],
