@@ -1750,7 +1750,7 @@ def heldout3(rng):
             c = d * (R + 0.07) + [0, yr - 0.03, 0]
             P.add(capsule(c - t * 0.09, c + t * 0.09, 0.012, 6), "handle")
             for s in (-1, 1):
-                P.add(capsule(c + t * s * 0.07, d * R * 0.97 + t * s * 0.07 + [0, yr - 0.03, 0], 0.006, 5),
+                P.add(capsule(c + t * s * 0.07, d * R * 0.85 + t * s * 0.07 + [0, yr - 0.03, 0], 0.006, 5),
                       "metal")
     elif kind == "anvil_on_stump":            # a log stump and an anvil with a horn (+x) and a heel
         rs, hs = u(0.16, 0.28), u(0.35, 0.6)
@@ -1802,17 +1802,19 @@ def heldout3(rng):
         yb = rr * 2 + u(0.05, 0.2)            # the body's underside
         bw, bl = tw * u(0.7, 0.85), wb * u(0.9, 1.15)
         fx = tw / 2 - 0.03                    # the frame's side tubes, inside the wheels
-        mid = np.array([0.0, yb, 0.0])
+        bh, sh = u(0.15, 0.22), u(0.06, 0.1)  # the tub's / the seat's height scale
+        yf = yb + (bh * 0.3 if carriage else sh * 0.5)   # the side rails' height, through the body
         for sx in (-1, 1):
-            P.add(capsule([sx * fx, rr, zr], [sx * fx, yb, -bl * 0.2], 0.012, 6), "frame")
-            P.add(capsule([sx * fx, fr, zf], [sx * fx, yb, bl * 0.25], 0.012, 6), "frame")
-            P.add(capsule([sx * fx, yb, -bl * 0.3], [sx * fx, yb, bl * 0.3], 0.012, 6), "frame")
+            P.add(capsule([sx * fx, rr, zr], [sx * fx, yf, -bl * 0.2], 0.012, 6), "frame")
+            P.add(capsule([sx * fx, fr, zf], [sx * fx, yf, bl * 0.25], 0.012, 6), "frame")
+            P.add(capsule([sx * fx, yf, -bl * 0.3], [sx * fx, yf, bl * 0.3], 0.012, 6), "frame")
+        for z in (-bl * 0.2, bl * 0.2):       # cross bars holding the body
+            P.add(capsule([-fx, yf, z], [fx, yf, z], 0.01, 6), "frame")
         P.add(cylinder([-tw / 2, rr, zr], [tw / 2, rr, zr], 0.008, 6), "frame")   # axles
         P.add(cylinder([-tw / 2, fr, zf], [tw / 2, fr, zf], 0.008, 6), "frame")
         yh = u(0.95, 1.1)
         zh = zr - u(0.15, 0.3)
         if carriage:                          # a tub with a flat top, an opening, a hood over the back
-            bh = u(0.15, 0.22)
             e = ellipsoid([0, yb + bh, 0], [bw / 2, bh, bl / 2], subdiv=2)
             v = np.asarray(e.vertices)
             v[:, 1] = np.minimum(v[:, 1], yb + bh * 1.6)
@@ -1820,8 +1822,8 @@ def heldout3(rng):
             top = yb + bh * 1.6
             P.add(ellipsoid([0, top, bl * 0.08], [bw * 0.36, 0.006, bl * 0.3]), "inner")
             z_back = -bl / 2
+            hy, hz, hr = top, -bl * 0.1, bl * 0.55        # the hood: its base's height, centre, reach in z
         else:                                 # a seat, a leaning back, a footrest
-            sh = u(0.06, 0.1)
             top = yb + sh
             P.add(box([0, yb + sh / 2, 0], [bw, sh, bl * 0.55]), "fabric")
             lean = math.radians(u(15, 40))
@@ -1834,16 +1836,17 @@ def heldout3(rng):
                 P.add(capsule([sx * bw / 2, top, bl * 0.25], [sx * bw / 2, top + 0.12, bl * 0.25], 0.01, 6),
                       "frame")
             z_back = -bl * 0.27
-            top = top + hb * math.cos(lean) * 0.6
+            hy = top - 0.02 + hb * 0.6 * math.cos(lean)  # over the back rest, 0.6 up it
+            hz, hr = z_back - hb * 0.6 * math.sin(lean), bl * 0.3
         for sx in (-1, 1):                    # the push bar's side tubes from the body's back to the handle
-            P.add(capsule([sx * fx, yb, z_back * 0.6], [sx * bw * 0.45, yh, zh], 0.012, 6), "frame")
+            P.add(capsule([sx * fx, yf, z_back * 0.6], [sx * bw * 0.45, yh, zh], 0.012, 6), "frame")
         P.add(cylinder([-bw * 0.5, yh, zh], [bw * 0.5, yh, zh], 0.017, 10), "grip")
         if rng.random() < 0.7:                # a hood (quarter dome) over the back of the body
             hh = u(0.2, 0.35)
-            v = np.asarray(ellipsoid([0, top, z_back * 0.2], [bw / 2 * 1.02, hh, abs(z_back) * 1.1], subdiv=2).vertices)
-            zc = z_back * 0.2 + abs(z_back) * u(0.0, 0.5)
-            v = v[(v[:, 1] >= top - 1e-9) & (v[:, 2] <= zc)]
-            v = np.r_[v, [[-bw / 2, top, zc], [bw / 2, top, zc]]]
+            v = np.asarray(ellipsoid([0, hy, hz], [bw / 2 * 1.02, hh, hr], subdiv=2).vertices)
+            zc = hz + hr * u(0.0, 0.45)       # its open front
+            v = v[(v[:, 1] >= hy - 1e-9) & (v[:, 2] <= zc)]
+            v = np.r_[v, [[-bw / 2, hy, zc], [bw / 2, hy, zc]]]
             P.add(hull(v), "hood")
     elif kind == "sled":                      # lying on the ground along z, the front (+z) maybe curled up
         if rng.random() < 0.5:                # toboggan: one board, a curled front, side rails, a rope
