@@ -1604,11 +1604,10 @@ def heldout3(rng):
             P.add(prism([(-W / 2, 0), (W / 2, 0), (0, H)], -L / 2, L / 2), "canvas")
             if rng.random() < 0.6:            # a fly sheet: a larger roof over the tent
                 ov, th = u(0.05, 0.15), 0.012
-                for sz in (-1, 1):
-                    a = np.array([0.0, H + th, 0.0])
-                    b = np.array([0.0, H * u(0.15, 0.3), sz * W / 2 * 1.05])
-                    b[2] = sz * (W / 2) * (1 - b[1] / H) + sz * 0.03
-                    P.add(bar(a - [0, 0, 0], b, L + 2 * ov, th, hint=(1, 0, 0)), "fly")
+                for sz in (-1, 1):                # from the ridge down each side to 15-30 % of H
+                    yb = H * u(0.15, 0.3)
+                    b = np.array([0.0, yb, sz * ((W / 2) * (1 - yb / H) + 0.03)])
+                    P.add(bar([0.0, H + th, 0.0], b, L + 2 * ov, th, hint=(1, 0, 0)), "fly")
             for sx in (-1, 1):                # the poles at the gable ends, sticking out above the ridge
                 P.add(cylinder([sx * (L / 2 + 0.01), 0, 0], [sx * (L / 2 + 0.01), H + u(0.04, 0.1), 0], 0.012, 8),
                       "pole")
@@ -1911,7 +1910,7 @@ def heldout3(rng):
         n = int(rng.integers(3, 6))
         H = u(0.22, 0.3) * (n + 1)           # the top cap's height
         af, ab = math.radians(u(11, 18)), math.radians(u(8, 14))
-        Wb, Wt = u(0.42, 0.56), 0.0
+        Wb = u(0.42, 0.56)                    # the width at the feet and (narrower) at the top
         Wt = Wb * u(0.72, 0.88)
         zf, zb = H * math.tan(af), -H * math.tan(ab)
         rw, rd = u(0.02, 0.03), u(0.05, 0.08)
