@@ -55,6 +55,11 @@ cylinders, cones, tori, surfaces of revolution, convex prisms):
   eighth session's candidates by someone who did not build ``flat`` or ``assembly``:
   traffic cones, fire extinguishers, mailboxes on a post, birdhouses on a pole, park
   benches, wheelbarrows, rocking horses, bird baths.
+* ``heldout3`` (``HELDOUT3_KINDS``): a third set no mix draws, built for judging the
+  tenth session's candidates by someone who did not build the tenth session's training
+  kinds: kick scooters, tents (ridge or dome), upright wheeled suitcases with the pull
+  handle out, kettle barbecues, anvils on a log stump, prams (carriage or pushchair),
+  sleds (toboggan or runner sled, lying), opened step ladders. Wheels are discs.
 
 None of pybullet_data's named meshes (duck, teddy, bunny, mug, table, lego,
 soccer ball, ...) is used: they are the held-out test objects.
@@ -72,7 +77,7 @@ import math
 import numpy as np
 
 CATEGORIES = ("person", "animal", "figurine", "furniture", "product", "vehicle", "organic", "heldout", "flat",
-              "assembly", "heldout2", "rest", "branch")
+              "assembly", "heldout2", "rest", "branch", "heldout3")
 
 
 class Parts:
@@ -2018,11 +2023,438 @@ def branch(rng):
     raise RuntimeError(f"branch/{kind}: no standing draw in 20 tries")
 
 
+# ---------------------------------------------------------------- a third set held out of training
+HELDOUT3_KINDS = ("kick_scooter", "tent", "suitcase", "kettle_barbecue", "anvil_on_stump", "pram", "sled",
+                  "step_ladder")
+
+
+def heldout3(rng):
+    """A kind of the third held-out set (module doc): no training mix draws it and no model
+    had been run on it when the tenth session's candidates were judged. Each stands (or, the
+    sled, lies) on the ground in its natural pose, front to +z before the generator's random
+    yaw; units are metres-like (the generator rescales). Wheels are discs (cylinders)."""
+    u = rng.uniform
+    P = Parts()
+    kind = str(rng.choice(list(HELDOUT3_KINDS)))
+
+    def hull(pts):
+        return _tm().convex.convex_hull(np.asarray(pts, float))
+
+    def bar(p, q, w, t, hint=(1.0, 0.0, 0.0)):
+        """A box from p to q, ``w`` wide along (the part of) ``hint`` across it, ``t`` thick."""
+        p, q = np.asarray(p, float), np.asarray(q, float)
+        d = q - p
+        L = float(np.linalg.norm(d))
+        d = d / L
+        h = np.asarray(hint, float)
+        h = h - (h @ d) * d
+        h = h / np.linalg.norm(h)
+        return box((p + q) / 2, [w, L, t], R=np.c_[h, d, np.cross(h, d)])
+
+    def wheel(c, r, width, axis=(1.0, 0.0, 0.0), hub=True, sections=18):
+        """A disc wheel (tyre and hub) centred at c, its axle along ``axis``."""
+        c, a = np.asarray(c, float), np.asarray(axis, float)
+        m = cylinder(c - a * width / 2, c + a * width / 2, r, sections)
+        v = np.asarray(m.vertices) - c           # the polygon's flat bottom is above c - r: widen it so
+        along = np.outer(v @ a, a)               # its lowest point is at c - r (on the ground)
+        low = -float(v[:, 1].min())
+        m.vertices = c + along + (v - along) * (r / low)
+        P.add(m, "tyre")
+        if hub:
+            P.add(cylinder(c - a * width * 0.6, c + a * width * 0.6, r * u(0.35, 0.6), 10), "metal")
+
+    def arc(c, r, t0, t1, n):
+        """Points of a circle in the (z, y) plane about c = (z, y), angles t0..t1 [rad]."""
+        ts = np.linspace(t0, t1, n)
+        return [np.array([c[0] + r * math.cos(t), c[1] + r * math.sin(t)]) for t in ts]
+
+    if kind == "kick_scooter":                # low deck on two small wheels, a stem and a T bar at the front
+        wr, ww = u(0.05, 0.1), u(0.022, 0.035)
+        L, dw, dt = u(0.45, 0.7), u(0.1, 0.15), u(0.02, 0.035)
+        yd = wr * u(0.45, 0.75)               # the deck's underside
+        zr = -L / 2 - wr * u(0.3, 0.7)
+        zf = L / 2 + wr * u(0.9, 1.5)
+        fr = wr * u(1.0, 1.25) if rng.random() < 0.4 else wr     # the front wheel may be the larger
+        wheel([0, wr, zr], wr, ww)
+        wheel([0, fr, zf], fr, ww)
+        P.add(box([0, yd + dt / 2, 0], [dw, dt, L]), "deck")
+        P.add(box([0, yd + dt + 0.002, -L * 0.02], [dw * 0.85, 0.004, L * 0.85]), "grip")   # grip tape
+        for sx in (-1, 1):                    # rear fork plates from the deck's end to the axle
+            P.add(bar([sx * (ww / 2 + 0.006), yd + dt / 2, -L / 2 + 0.02], [sx * (ww / 2 + 0.006), wr, zr],
+                      0.006, 0.025, hint=(1, 0, 0)), "metal")
+        if rng.random() < 0.7:                # a rear fender (the foot brake) over the wheel
+            pts = arc((zr, wr), wr + 0.012, math.radians(40), math.radians(160), 6)
+            for a, b in zip(pts[:-1], pts[1:]):
+                P.add(bar([0, a[1], a[0]], [0, b[1], b[0]], ww * 1.4, 0.006), "metal")
+            P.add(bar([0, yd + dt - 0.003, -L / 2 + 0.02], [0, pts[0][1], pts[0][0]], ww * 1.4, 0.006), "metal")
+        tilt = math.radians(u(5, 16))        # the stem leans back toward the rider
+        H = u(0.7, 1.0)
+        s_dir = np.array([0.0, math.cos(tilt), -math.sin(tilt)])
+        axle = np.array([0.0, fr, zf])
+        top = axle + s_dir * (H - fr) / math.cos(tilt)
+        sr = u(0.014, 0.022)
+        head = axle + s_dir * wr * u(2.2, 3.0)
+        for sx in (-1, 1):                    # front fork
+            P.add(capsule([sx * (ww / 2 + 0.008), fr, zf], head + [sx * (ww / 2 + 0.008), 0, 0], 0.008, 6), "metal")
+        P.add(cylinder(head, top, sr, 10), "metal")
+        P.add(cylinder(head - s_dir * 0.01, head + s_dir * 0.12, sr * 1.6, 10), "metal")   # head tube
+        neck = np.array([0.0, yd + dt / 2, L / 2 - 0.03])
+        P.add(capsule(neck, head + s_dir * 0.04, sr * 1.2, 6), "deck")
+        hw = u(0.32, 0.5) / 2
+        P.add(cylinder(top + [-hw, 0, 0], top + [hw, 0, 0], sr * 0.8, 10), "metal")
+        for sx in (-1, 1):
+            P.add(cylinder(top + [sx * hw * 0.72, 0, 0], top + [sx * (hw + 0.01), 0, 0], sr * 1.5, 10), "grip")
+        if rng.random() < 0.6:                # a kickstand down to the ground from the deck's side
+            a = np.array([dw / 2, yd, -L * 0.05])
+            P.add(capsule(a, a + [yd * 0.6, -yd + 0.006, -yd * 1.2], 0.006, 5), "metal")
+    elif kind == "tent":
+        if rng.random() < 0.5:                # A-frame ridge tent: ridge along x, gable ends at +-x
+            L, W, H = u(1.5, 2.4), u(1.1, 1.8), u(0.85, 1.35)
+            P.add(prism([(-W / 2, 0), (W / 2, 0), (0, H)], -L / 2, L / 2), "canvas")
+            if rng.random() < 0.6:            # a fly sheet: a larger roof over the tent
+                ov, th = u(0.05, 0.15), 0.012
+                for sz in (-1, 1):                # from the ridge down each side to 15-30 % of H
+                    yb = H * u(0.15, 0.3)
+                    b = np.array([0.0, yb, sz * ((W / 2) * (1 - yb / H) + 0.03)])
+                    P.add(bar([0.0, H + th, 0.0], b, L + 2 * ov, th, hint=(1, 0, 0)), "fly")
+            for sx in (-1, 1):                # the poles at the gable ends, sticking out above the ridge
+                P.add(cylinder([sx * (L / 2 + 0.01), 0, 0], [sx * (L / 2 + 0.01), H + u(0.04, 0.1), 0], 0.012, 8),
+                      "pole")
+                if rng.random() < 0.7:        # a guy line from the pole top to a stake on the ground
+                    tip = np.array([sx * (L / 2 + 0.01), H + 0.03, 0])
+                    st = np.array([sx * (L / 2 + H * u(0.5, 0.9)), 0.0, 0.0])
+                    P.add(capsule(tip, st + [0, 0.02, 0], 0.004, 4), "rope")
+                    P.add(cylinder(st, st + [0, 0.06, 0], 0.008, 5), "metal")
+            hd, wd = H * u(0.6, 0.85), W * u(0.4, 0.6)   # the door on the +x gable: a dark triangle
+            x0 = L / 2
+            P.add(prism([(-wd / 2, 0), (wd / 2, 0), (0, hd)], x0 - 0.002, x0 + 0.006), "door")
+            if rng.random() < 0.6:            # its flap open: a triangle swung out about the door's edge
+                A, B = np.array([x0, 0.0, wd / 2]), np.array([x0, hd, 0.0])
+                C = np.array([x0, 0.0, 0.0])
+                ax = (B - A) / np.linalg.norm(B - A)
+                th = math.radians(u(60, 160))
+                v = C - A
+                Cr = A + v * math.cos(th) + np.cross(ax, v) * math.sin(th) + ax * (ax @ v) * (1 - math.cos(th))
+                Cr[1] = max(Cr[1], 0.0)
+                n = np.cross(B - A, Cr - A)
+                n = n / np.linalg.norm(n) * 0.006
+                P.add(hull([A, B, Cr, A + n, B + n, Cr + n]), "canvas")
+        else:                                 # dome tent: a half-ellipsoid, two crossed poles, a door at +z
+            R, H, e = u(0.9, 1.4), u(0.8, 1.3), u(0.75, 1.0)
+            prof = [(R * math.cos(t), H * math.sin(t)) for t in np.linspace(0, math.pi / 2, 9)]
+            m = revolve([(0, 0)] + prof[:-1] + [(0, H)], 24)
+            m.vertices = np.asarray(m.vertices) * [1.0, 1.0, e]
+            P.add(m, "canvas")
+            for a in (math.pi / 4, -math.pi / 4):   # poles along the diagonals, just outside the skin
+                d = np.array([math.cos(a), 0.0, math.sin(a) * e])
+                pts = [d * R * 1.01 * math.cos(t) + [0, H * 1.01 * math.sin(t), 0]
+                       for t in np.linspace(0, math.pi, 13)]
+                for p, q in zip(pts[:-1], pts[1:]):
+                    P.add(capsule(p, q, 0.01, 5), "pole")
+            hd, wa = H * u(0.55, 0.8), u(0.25, 0.4)   # the door: a patch of the skin, a touch outside it
+            pts = []
+            for t in np.linspace(0, math.asin(hd / H), 5):
+                for a in np.linspace(math.pi / 2 - wa * (1 - t / 2), math.pi / 2 + wa * (1 - t / 2), 5):
+                    pts.append([R * math.cos(t) * math.cos(a), H * math.sin(t), R * math.cos(t) * math.sin(a) * e])
+            pts = np.asarray(pts)
+            P.add(hull(np.r_[pts * 0.99, pts * [1.015, 1.015, 1.015]]), "door")
+            if rng.random() < 0.5:            # its flap rolled up above the door
+                yt = hd * 0.97
+                rt = R * math.sqrt(max(1 - (yt / H) ** 2, 0.0))
+                half = wa * 0.8
+                P.add(capsule([rt * math.cos(math.pi / 2 + half), yt, rt * math.sin(math.pi / 2 + half) * e * 1.03],
+                              [rt * math.cos(math.pi / 2 - half), yt, rt * math.sin(math.pi / 2 - half) * e * 1.03],
+                              0.03, 6), "canvas")
+            if rng.random() < 0.5:            # a vestibule: a low wedge of fly sheet over the door
+                zv = R * e + u(0.3, 0.6)
+                P.add(hull([[-R * 0.5, 0, R * e * 0.6], [R * 0.5, 0, R * e * 0.6], [0, 0, zv],
+                            [-R * 0.3, hd * 1.05, R * e * 0.5], [R * 0.3, hd * 1.05, R * e * 0.5]]), "fly")
+            if rng.random() < 0.6:            # guy lines from the poles' feet region out to stakes
+                for a in np.linspace(0, 2 * math.pi, 5)[:-1] + math.pi / 4:
+                    d = np.array([math.cos(a), 0.0, math.sin(a) * e])
+                    p = d * R * math.cos(0.9) + [0, H * math.sin(0.9), 0]
+                    st = d * R * u(1.5, 1.9)
+                    P.add(capsule(p, st + [0, 0.02, 0], 0.004, 4), "rope")
+                    P.add(cylinder(st, st + [0, 0.06, 0], 0.008, 5), "metal")
+    elif kind == "suitcase":                  # upright wheeled case, its pull handle extended
+        W, H, D = u(0.35, 0.5), u(0.48, 0.78), u(0.2, 0.3)
+        wr = u(0.022, 0.038)
+        y0 = 2 * wr + u(0.005, 0.02)
+        P.add(box([0, y0 + H / 2, 0], [W, H, D]), "shell")
+        for sx in (-1, 1):                    # rounded vertical edges
+            for sz in (-1, 1):
+                P.add(cylinder([sx * (W / 2 - 0.015), y0 + 0.01, sz * (D / 2 - 0.015)],
+                               [sx * (W / 2 - 0.015), y0 + H - 0.01, sz * (D / 2 - 0.015)], 0.018, 8), "shell")
+        P.add(box([0, y0 + H * u(0.45, 0.6), 0], [W + 0.01, 0.02, D + 0.01]), "trim")   # zip line
+        if rng.random() < 0.5:                # hard-shell ribs on the front
+            n = int(rng.integers(2, 5))
+            for x in np.linspace(-W * 0.3, W * 0.3, n):
+                P.add(box([x, y0 + H / 2, D / 2 + 0.004], [0.03, H * 0.88, 0.012]), "shell")
+        four = rng.random() < 0.6
+        for sx in (-1, 1):
+            for sz in ((-1, 1) if four else (-1,)):
+                c = np.array([sx * (W / 2 - wr * 1.2), wr, sz * (D / 2 - wr * 1.3)])
+                P.add(box(c + [0, wr + (y0 - 2 * wr) / 2 + 0.01, 0], [wr * 1.6, y0 - 2 * wr + 0.03, wr * 2.4]),
+                      "plastic")     # the caster's housing
+                wheel(c, wr, wr * 0.8, hub=False, sections=14)
+            if not four:              # feet at the front instead of wheels
+                P.add(box([sx * (W / 2 - 0.04), y0 / 2, D / 2 - 0.04], [0.04, y0, 0.04]), "plastic")
+        e1, e2 = u(0.18, 0.3), u(0.15, 0.28)  # the telescopic pull handle at the back, out of its tubes
+        hx, zb = W * u(0.22, 0.32), -D / 2 + 0.025
+        top = y0 + H
+        for sx in (-1, 1):
+            P.add(box([sx * hx, top + e1 / 2 - 0.01, zb], [0.022, e1, 0.014]), "metal")
+            P.add(box([sx * hx, top + e1 + e2 / 2 - 0.03, zb], [0.016, e2, 0.01]), "metal")
+        yg = top + e1 + e2 - 0.03
+        P.add(box([0, yg + 0.015, zb], [2 * hx + 0.03, 0.035, 0.028]), "grip")
+        P.add(box([0, top + 0.012, zb], [2 * hx + 0.04, 0.024, 0.03]), "plastic")
+        if rng.random() < 0.7:                # a carry handle on the top
+            P.add(box([0, top + 0.03, D * 0.1], [W * 0.3, 0.015, 0.025]), "grip")
+            for sx in (-1, 1):
+                P.add(box([sx * W * 0.14, top + 0.015, D * 0.1], [0.02, 0.03, 0.025]), "plastic")
+    elif kind == "kettle_barbecue":           # a round bowl and domed lid on three legs
+        R, yr = u(0.2, 0.32), u(0.55, 0.8)    # bowl radius, rim height
+        bowl = [(R * math.sin(t), yr - R * math.cos(t)) for t in np.linspace(0, math.pi / 2, 8)]
+        P.add(revolve([(0, yr - R)] + bowl[1:] + [(0, yr)], 24), "paint")
+        hl = R * u(0.6, 0.95)
+        lid = [(R * 1.01 * math.cos(t), yr + hl * math.sin(t)) for t in np.linspace(0, math.pi / 2, 8)]
+        P.add(revolve([(0, yr)] + lid[:-1] + [(0, yr + hl)], 24), "paint")
+        P.add(cylinder([0, yr + hl - 0.01, 0], [0, yr + hl + 0.01, 0], R * 0.25, 12), "metal")   # vent
+        hb = np.array([0.0, yr + hl + 0.05, 0.0])          # the lid's handle
+        P.add(box(hb, [R * 0.5, 0.025, 0.03]), "handle")
+        for sx in (-1, 1):
+            P.add(box(hb + [sx * R * 0.2, -0.03, 0], [0.015, 0.05, 0.015]), "metal")
+        a0 = u(0, 2 * math.pi)
+        wheels = rng.random() < 0.5
+        wr = u(0.06, 0.1)
+        feet = []
+        for k in range(3):
+            a = a0 + k * 2 * math.pi / 3
+            d = np.array([math.cos(a), 0.0, math.sin(a)])
+            r0 = R * 0.7
+            top_p = d * r0 + [0, yr - math.sqrt(R * R - r0 * r0) + 0.01, 0]
+            lr = u(0.01, 0.016)
+            foot = d * R * u(0.95, 1.2) + [0, lr, 0]     # the leg's round end on the ground
+            if wheels and k < 2:              # two legs end in wheels, their axles across the leg
+                foot = foot + [0, wr - lr, 0]
+                wheel(foot, wr, 0.03, axis=np.cross(d, [0, 1, 0]), sections=16)
+            P.add(capsule(top_p, foot, lr, 6), "metal")
+            feet.append(foot)
+        if rng.random() < 0.6:                # an ash pan / rack between the legs
+            f = u(0.35, 0.55)
+            tops = []
+            for k in range(3):
+                a = a0 + k * 2 * math.pi / 3
+                d = np.array([math.cos(a), 0.0, math.sin(a)])
+                tops.append(d * R * 0.7 + [0, yr - math.sqrt(R * R - 0.49 * R * R), 0])
+            pts = [t + (fo - t) * f for t, fo in zip(tops, feet)]
+            yc = float(np.mean([p[1] for p in pts]))
+            rc = float(np.mean([np.hypot(p[0], p[2]) for p in pts]))
+            P.add(cylinder([0, yc - 0.01, 0], [0, yc + 0.01, 0], rc * 1.05, 20), "metal")
+        if rng.random() < 0.5:                # a side handle bar on two standoffs at the rim
+            a = a0 + math.pi / 3
+            d = np.array([math.cos(a), 0.0, math.sin(a)])
+            t = np.cross(d, [0, 1, 0])
+            c = d * (R + 0.07) + [0, yr - 0.03, 0]
+            P.add(capsule(c - t * 0.09, c + t * 0.09, 0.012, 6), "handle")
+            for s in (-1, 1):
+                P.add(capsule(c + t * s * 0.07, d * R * 0.85 + t * s * 0.07 + [0, yr - 0.03, 0], 0.006, 5),
+                      "metal")
+    elif kind == "anvil_on_stump":            # a log stump and an anvil with a horn (+x) and a heel
+        rs, hs = u(0.16, 0.28), u(0.35, 0.6)
+        P.add(cylinder([0, 0, 0], [0, hs, 0], rs, 16), "bark")
+        P.add(cylinder([0, hs - 0.005, 0], [0, hs + 0.004, 0], rs * 0.96, 16), "wood")   # end grain
+        if rng.random() < 0.5:                # root flare at the foot
+            P.add(revolve([(0, 0), (rs * u(1.15, 1.35), 0), (rs, hs * u(0.12, 0.25)), (0, hs * 0.2)], 16), "bark")
+        La = u(0.35, 0.6) * (1 + rs) / 1.2
+        ha, Wf = La * u(0.5, 0.65), La * u(0.18, 0.26)
+        y0 = hs + 0.004
+        Lb = La * u(0.55, 0.65)               # the body (face) length; the horn adds the rest
+        x0 = -La / 2 + La * 0.08
+        xb = x0 + Lb / 2
+        fh, bh = ha * u(0.15, 0.22), ha * u(0.3, 0.38)
+        Lf = Lb * u(0.75, 0.95)
+        P.add(box([xb, y0 + fh / 2, 0], [Lf, fh, Wf * 1.5]), "iron")          # the foot
+        P.add(hull([[xb - Lf * 0.45, y0 + fh, -Wf * 0.7], [xb + Lf * 0.45, y0 + fh, -Wf * 0.7],
+                    [xb - Lf * 0.45, y0 + fh, Wf * 0.7], [xb + Lf * 0.45, y0 + fh, Wf * 0.7],
+                    [xb - Lb * 0.25, y0 + ha - bh, -Wf * 0.4], [xb + Lb * 0.25, y0 + ha - bh, -Wf * 0.4],
+                    [xb - Lb * 0.25, y0 + ha - bh, Wf * 0.4], [xb + Lb * 0.25, y0 + ha - bh, Wf * 0.4]]),
+              "iron")                          # the waist
+        P.add(box([xb, y0 + ha - bh / 2, 0], [Lb, bh, Wf]), "iron")            # the body, its top the face
+        P.add(box([xb, y0 + ha - 0.002, 0], [Lb * 0.98, 0.006, Wf * 0.98]), "steel")
+        hl = La - Lb - La * 0.08              # the horn: a cone from the body's +x end
+        hr = bh * u(0.4, 0.5)
+        ring = [[x0 + Lb, y0 + ha - hr + hr * math.sin(t), hr * math.cos(t) * min(1.0, Wf / 2 / hr)]
+                for t in np.linspace(0, 2 * math.pi, 13)[:-1]]
+        P.add(hull(ring + [[x0 + Lb + hl, y0 + ha - hr * u(0.6, 1.1), 0.0]]), "iron")
+        P.add(box([x0 - La * 0.04, y0 + ha - bh * 0.3, 0], [La * 0.1, bh * 0.6, Wf * 0.75]), "iron")   # heel
+        if rng.random() < 0.5:                # a hammer lying on the face
+            a = u(-0.6, 0.6)
+            d = np.array([math.cos(a), 0.0, math.sin(a)])
+            n = np.array([-d[2], 0.0, d[0]])
+            c = np.array([xb, y0 + ha + 0.015, 0.0])
+            P.add(capsule(c - d * 0.05, c + d * 0.25, 0.012, 6), "wood")
+            P.add(bar(c - d * 0.05 - n * 0.045, c - d * 0.05 + n * 0.045, 0.03, 0.03, hint=d), "steel")
+        if rng.random() < 0.4:                # a strap or chain band around the stump
+            yb = hs * u(0.3, 0.8)
+            P.add(cylinder([0, yb - 0.015, 0], [0, yb + 0.015, 0], rs * 1.02, 16), "metal")
+    elif kind == "pram":                      # a body on a frame with four disc wheels, a push bar at the back (-z)
+        carriage = rng.random() < 0.5         # a bassinet; otherwise a seat (pushchair)
+        rr = u(0.1, 0.17)
+        fr = rr * (u(0.55, 0.8) if rng.random() < 0.6 else 1.0)
+        tw, wb = u(0.45, 0.6), u(0.55, 0.8)   # track width, wheelbase
+        zr, zf = -wb / 2, wb / 2
+        for sx in (-1, 1):
+            wheel([sx * tw / 2, rr, zr], rr, 0.035)
+            wheel([sx * tw / 2, fr, zf], fr, 0.03)
+        yb = rr * 2 + u(0.05, 0.2)            # the body's underside
+        bw, bl = tw * u(0.7, 0.85), wb * u(0.9, 1.15)
+        fx = tw / 2 - 0.03                    # the frame's side tubes, inside the wheels
+        bh, sh = u(0.15, 0.22), u(0.06, 0.1)  # the tub's / the seat's height scale
+        yf = yb + (bh * 0.3 if carriage else sh * 0.5)   # the side rails' height, through the body
+        for sx in (-1, 1):
+            P.add(capsule([sx * fx, rr, zr], [sx * fx, yf, -bl * 0.2], 0.012, 6), "frame")
+            P.add(capsule([sx * fx, fr, zf], [sx * fx, yf, bl * 0.25], 0.012, 6), "frame")
+            P.add(capsule([sx * fx, yf, -bl * 0.3], [sx * fx, yf, bl * 0.3], 0.012, 6), "frame")
+        for z in (-bl * 0.2, bl * 0.2):       # cross bars holding the body
+            P.add(capsule([-fx, yf, z], [fx, yf, z], 0.01, 6), "frame")
+        P.add(cylinder([-tw / 2, rr, zr], [tw / 2, rr, zr], 0.008, 6), "frame")   # axles
+        P.add(cylinder([-tw / 2, fr, zf], [tw / 2, fr, zf], 0.008, 6), "frame")
+        yh = u(0.95, 1.1)
+        zh = zr - u(0.15, 0.3)
+        if carriage:                          # a tub with a flat top, an opening, a hood over the back
+            e = ellipsoid([0, yb + bh, 0], [bw / 2, bh, bl / 2], subdiv=2)
+            v = np.asarray(e.vertices)
+            v[:, 1] = np.minimum(v[:, 1], yb + bh * 1.6)
+            P.add(hull(v), "fabric")
+            top = yb + bh * 1.6
+            P.add(ellipsoid([0, top, bl * 0.08], [bw * 0.36, 0.006, bl * 0.3]), "inner")
+            z_back = -bl / 2
+            hy, hz, hr = top, -bl * 0.1, bl * 0.55        # the hood: its base's height, centre, reach in z
+        else:                                 # a seat, a leaning back, a footrest
+            top = yb + sh
+            P.add(box([0, yb + sh / 2, 0], [bw, sh, bl * 0.55]), "fabric")
+            lean = math.radians(u(15, 40))
+            hb = u(0.4, 0.55)
+            P.add(_panel(bw, hb, 0.06, lean, (0, top - 0.02, -bl * 0.27)), "fabric")
+            P.add(bar([0, top - 0.02, bl * 0.27], [0, yb - u(0.1, 0.2), bl * 0.42], bw * 0.8, 0.03), "fabric")
+            for sx in (-1, 1):                # armrests / side frame
+                P.add(capsule([sx * bw / 2, top + 0.12, -bl * 0.25], [sx * bw / 2, top + 0.12, bl * 0.25], 0.012, 6),
+                      "frame")
+                P.add(capsule([sx * bw / 2, top, bl * 0.25], [sx * bw / 2, top + 0.12, bl * 0.25], 0.01, 6),
+                      "frame")
+            z_back = -bl * 0.27
+            hy = top - 0.02 + hb * 0.6 * math.cos(lean)  # over the back rest, 0.6 up it
+            hz, hr = z_back - hb * 0.6 * math.sin(lean), bl * 0.3
+        for sx in (-1, 1):                    # the push bar's side tubes from the body's back to the handle
+            P.add(capsule([sx * fx, yf, z_back * 0.6], [sx * bw * 0.45, yh, zh], 0.012, 6), "frame")
+        P.add(cylinder([-bw * 0.5, yh, zh], [bw * 0.5, yh, zh], 0.017, 10), "grip")
+        if rng.random() < 0.7:                # a hood (quarter dome) over the back of the body
+            hh = u(0.2, 0.35)
+            v = np.asarray(ellipsoid([0, hy, hz], [bw / 2 * 1.02, hh, hr], subdiv=2).vertices)
+            zc = hz + hr * u(0.0, 0.45)       # its open front
+            v = v[(v[:, 1] >= hy - 1e-9) & (v[:, 2] <= zc)]
+            v = np.r_[v, [[-bw / 2, hy, zc], [bw / 2, hy, zc]]]
+            P.add(hull(v), "hood")
+    elif kind == "sled":                      # lying on the ground along z, the front (+z) maybe curled up
+        if rng.random() < 0.5:                # toboggan: one board, a curled front, side rails, a rope
+            L, W, t = u(0.9, 1.6), u(0.32, 0.5), u(0.012, 0.02)
+            curl = rng.random() < 0.75
+            mat = "wood" if rng.random() < 0.6 else "plastic"
+            if mat == "wood":                 # lengthwise slats held by cross cleats on top
+                ns = int(rng.integers(3, 7))
+                sw = W / ns
+                for k in range(ns):
+                    P.add(box([-W / 2 + sw * (k + 0.5), t / 2, 0], [sw * u(0.8, 0.92), t, L]), "wood")
+                for z in np.linspace(-L * 0.42, L * 0.3, int(rng.integers(3, 6))):
+                    P.add(box([0, t + 0.008, z], [W * 0.96, 0.016, 0.04]), "wood2")
+            else:                             # moulded plastic: one board, grips along its sides
+                P.add(box([0, t / 2, 0], [W, t, L]), "plastic")
+                for sx in (-1, 1):
+                    for z in (-L * 0.25, L * 0.15):
+                        P.add(box([sx * (W / 2 - 0.03), t + 0.01, z], [0.03, 0.02, L * 0.15]), "grip")
+            if curl:
+                rc = u(0.1, 0.2)
+                pts = arc((L / 2, rc + t / 2), rc, -math.pi / 2, math.radians(u(100, 200)), 10)
+                for a, b in zip(pts[:-1], pts[1:]):
+                    P.add(bar([0, a[1], a[0]], [0, b[1], b[0]], W, t), mat)
+                P.add(cylinder([-W / 2, 2 * rc, L / 2 + rc * 0.2], [W / 2, 2 * rc, L / 2 + rc * 0.2], 0.012, 8),
+                      "rope")         # the rope bar across the curl
+            if rng.random() < 0.7:            # side rails on short posts
+                hr = u(0.05, 0.12)
+                for sx in (-1, 1):
+                    x = sx * (W / 2 - 0.02)
+                    P.add(cylinder([x, hr, -L / 2 + 0.05], [x, hr, L / 2 - 0.02], 0.01, 8), "rope")
+                    for z in np.linspace(-L / 2 + 0.08, L / 2 - 0.08, 4):
+                        P.add(cylinder([x, t, z], [x, hr, z], 0.008, 6), "metal")
+            if rng.random() < 0.5:            # a pull rope lying on the ground in front
+                z0 = L / 2 + (0.1 if curl else 0.0)
+                p = np.array([-W * 0.3, t + 0.01, L / 2 - 0.05])
+                for k in range(3):
+                    q = np.array([u(-0.15, 0.15), 0.01, z0 + 0.12 * (k + 1)])
+                    P.add(capsule(p, q, 0.007, 5), "rope")
+                    p = q
+        else:                                 # runner sled: two runners, posts, a slatted deck
+            L, W = u(0.8, 1.4), u(0.3, 0.45)
+            hk = u(0.1, 0.22)
+            rr = u(0.008, 0.014)
+            curl = rng.random() < 0.8
+            for sx in (-1, 1):
+                x = sx * W / 2
+                P.add(capsule([x, rr, -L / 2], [x, rr, L / 2], rr, 6), "metal")
+                if curl:                      # the runner curls up and back at the front
+                    rc = hk * u(0.45, 0.6)        # (its centre a touch up: the straight runner is the lowest)
+                    pts = arc((L / 2, rc + rr + 0.002), rc, -math.pi / 2, math.radians(u(90, 180)), 8)
+                    for a, b in zip(pts[:-1], pts[1:]):
+                        P.add(capsule([x, a[1], a[0]], [x, b[1], b[0]], rr, 5), "metal")
+                for z in np.linspace(-L * 0.4, L * 0.35, 3 if L < 1.1 else 4):
+                    P.add(box([x, (hk + rr) / 2, z], [0.025, hk - rr, 0.03]), "wood")
+                P.add(box([x, hk, 0], [0.035, 0.025, L * 0.85]), "wood")   # the deck's side beams
+            n = int(rng.integers(3, 7))
+            for z in np.linspace(-L * 0.4, L * 0.35, n):
+                P.add(box([0, hk + 0.02, z], [W + 0.08, 0.015, L * 0.75 / n * 0.7]), "wood2")
+            if rng.random() < 0.5:            # a steering bar across the front
+                P.add(box([0, hk + 0.027, L * 0.38], [W + 0.2, 0.03, 0.05]), "wood")   # on the side beams
+    else:  # step_ladder: an opened A-frame, 3-5 steps on the front (+z) rails, a cap on top
+        n = int(rng.integers(3, 6))
+        H = u(0.22, 0.3) * (n + 1)           # the top cap's height
+        af, ab = math.radians(u(11, 18)), math.radians(u(8, 14))
+        Wb = u(0.42, 0.56)                    # the width at the feet and (narrower) at the top
+        Wt = Wb * u(0.72, 0.88)
+        zf, zb = H * math.tan(af), -H * math.tan(ab)
+        rw, rd = u(0.02, 0.03), u(0.05, 0.08)
+        mat = "metal" if rng.random() < 0.7 else "wood"
+        x_at = lambda y: (Wb + (Wt - Wb) * y / H) / 2  # noqa: E731  (a rail's x at height y)
+        zf_at = lambda y: zf + (0.03 - zf) * y / H          # noqa: E731  (the front rails' z at height y)
+        zb_at = lambda y: zb + (-0.03 - zb) * y / (H - 0.02)  # noqa: E731  (the back rails')
+        for sx in (-1, 1):
+            P.add(bar([sx * x_at(0.01), 0.012, zf], [sx * Wt / 2, H, 0.03], rw, rd, hint=(1, 0, 0)), mat)
+            P.add(bar([sx * x_at(0.01), 0.012, zb], [sx * Wt / 2, H - 0.02, -0.03], rw, rd * 0.8, hint=(1, 0, 0)),
+                  mat)
+            for z in (zf, zb):                # rubber feet
+                P.add(box([sx * x_at(0.0), 0.012, z], [rw * 1.5, 0.024, rd * 1.2]), "rubber")
+            ys = H * u(0.4, 0.5)              # a spreader bar between front and back rail
+            P.add(capsule([sx * (x_at(ys) + rw * 0.6), ys, zf_at(ys)],
+                          [sx * (x_at(ys) + rw * 0.6), ys - 0.02, zb_at(ys)], 0.006, 5), "metal")
+        sd = u(0.08, 0.13)
+        for k in range(1, n + 1):             # steps: level boards between the front rails
+            y = H * k / (n + 1)
+            P.add(box([0, y, zf_at(y) - 0.01], [2 * x_at(y) - rw * 0.2, 0.025, sd]), mat)
+        for y in (H * 0.2, H * 0.6)[: int(rng.integers(1, 3))]:   # cross braces at the back
+            P.add(box([0, y, zb_at(y)], [2 * x_at(y), 0.02, 0.02]), mat)
+        P.add(box([0, H + 0.025, 0], [Wt + 0.06, 0.05, u(0.18, 0.28)]), "plastic")   # the top cap
+        if rng.random() < 0.4:                # a paint-can shelf folded out at the back
+            ys = H * 0.75
+            P.add(box([0, ys, (zb_at(ys) + zf_at(ys)) / 2], [2 * x_at(ys), 0.015, zf_at(ys) - zb_at(ys)]), "plastic")
+    return P, "heldout3/" + kind
+
+
 #: the categories whose generator returns (Parts, kind); person and animal fill a Parts given
 #: to them (they also build the figurines' small people and animals)
 _BUILDERS = {"figurine": figurine, "furniture": furniture, "product": product, "vehicle": vehicle,
              "organic": organic, "heldout": heldout, "flat": flat, "assembly": assembly, "heldout2": heldout2,
-             "rest": rest, "branch": branch}
+             "rest": rest, "branch": branch,
+             "heldout3": heldout3}
 
 
 def make_object(category: str, rng: np.random.Generator):
