@@ -455,3 +455,124 @@ def test_the_residual_benchmark_splits_a_known_residual_into_columns_rows_and_bu
     s = res.residual_stats(np.where(m, t - bump, 0.0), t, m)
     assert s["bulge"] == pytest.approx(1.0, abs=1e-9) and s["beta"] == pytest.approx(0.2, abs=1e-9)
     assert s["across"][0] > s["across"][1] > s["across"][2]
+
+
+def test_lift_adds_the_brushs_falloff_inside_the_mask():
+    """One lift on a flat map: dh at the centre, dh (1 - 1/4)^2 = 9/16 dh at r / 2, 0 at
+    and beyond r; pixels outside the mask keep their height."""
+    H, W = 80, 90
+    u, v = grid(H, W)
+    m = np.zeros((H, W), bool)
+    m[5:75, 10:70] = True
+    h = np.where(m, 7.0, 3.0)                          # 3 px outside: kept as it is, not zeroed
+    x, y, r, dh = 40.5, 40.5, 20.0, 12.0               # on pixel (40, 40)'s centre
+    out = he.lift_height(h, m, [(x, y, r, dh)])
+    assert out[40, 40] == pytest.approx(7.0 + dh)
+    assert out[40, 50] == pytest.approx(7.0 + dh * 9 / 16)        # 10 px = r / 2 to the right
+    assert out[30, 40] == pytest.approx(7.0 + dh * 9 / 16)        # and up
+    assert out[40, 60] == 7.0 and out[60, 40] == 7.0             # at r: nothing
+    d = np.hypot(u - x, v - y)
+    np.testing.assert_array_equal(out[d >= r], h[d >= r])
+    t = d / r
+    np.testing.assert_allclose(out[m], (7.0 + dh * np.where(t < 1, (1 - t ** 2) ** 2, 0.0))[m], rtol=1e-12)
+    np.testing.assert_array_equal(out[~m], 3.0)
+    # across the mask's edge: inside lifted, the pixel just outside not
+    edge = he.lift_height(h, m, [(10.0, 40.5, 8.0, 5.0)])
+    assert edge[40, 10] > 7.0 and edge[40, 9] == 3.0
+    # two lifts add; the flat form (the node's param) is the same
+    two = he.lift_height(h, m, [(x, y, r, dh), (45.0, 45.0, 10.0, -4.0)])
+    np.testing.assert_allclose(two, he.lift_height(h, m, [x, y, r, dh, 45.0, 45.0, 10.0, -4.0]))
+    np.testing.assert_allclose(two[m], (out + np.where(m, -4.0 * he.lift_falloff(u, v, 45.0, 45.0, 10.0), 0))[m])
+
+
+def test_lift_keeps_heights_at_or_above_0():
+    H, W = 40, 40
+    m = np.ones((H, W), bool)
+    h = np.full((H, W), 5.0)
+    out = he.lift_height(h, m, [(20.0, 20.0, 10.0, -20.0)])
+    u, v = grid(H, W)
+    w = he.lift_falloff(u, v, 20.0, 20.0, 10.0)
+    np.testing.assert_allclose(out, np.maximum(5.0 - 20.0 * w, 0.0))
+    assert out.min() == 0.0 and (out[w > 0.25] == 0).all() and out[0, 0] == 5.0
+    # through the whole edit (after the other edits): the same, with the tilt's gain first
+    e = he.edit_pixel_height(h, m, tilt_deg=10.0, lifts=[20.0, 20.0, 10.0, -20.0])
+    np.testing.assert_allclose(e, np.maximum(he.tilt_gain(10.0, 20.0) * 5.0 - 20.0 * w, 0.0), atol=1e-5)
+
+
+def test_no_lifts_change_nothing_bit_for_bit():
+    rng = np.random.default_rng(3)
+    H, W = 50, 40
+    h = (rng.random((H, W)) * 30).astype(np.float32)
+    m = rng.random((H, W)) > 0.3
+    for kw in ({}, {"contact_points": [10.0, 40.0]}, {"tilt": 12.0, "foot_depth": 3.0}, {"lying": True}):
+        np.testing.assert_array_equal(run(h, m.astype(np.float32), **kw),
+                                      run(h, m.astype(np.float32), lifts=[], **kw))
+        pts = kw.get("contact_points", [])
+        np.testing.assert_array_equal(
+            run(h, m.astype(np.float32), lifts=[], **kw),
+            he.edit_pixel_height(h, m, [(pts[i], pts[i + 1]) for i in range(0, len(pts), 2)],
+                                 tilt_deg=kw.get("tilt", 0.0), lying=kw.get("lying", False),
+                                 foot_depth=kw.get("foot_depth", 0.0)))
+    np.testing.assert_array_equal(he.lift_height(h, m, []), h.astype(np.float64))
+    # a lift with dh 0 changes nothing either
+    np.testing.assert_array_equal(run(h, m.astype(np.float32), lifts=[20.0, 20.0, 5.0, 0.0]), h)
+
+
+def test_node_lifts_param_checks_its_length_and_radius():
+    from pixgraph.node import ParamError
+    h = np.zeros((20, 20), np.float32)
+    m = np.ones((20, 20), np.float32)
+    with pytest.raises(InputError, match=r"param 'lifts'.*multiple of 4.*got 5"):
+        run(h, m, lifts=[1.0, 2.0, 3.0, 4.0, 5.0])
+    with pytest.raises(InputError, match=r"param 'lifts'.*radius"):
+        run(h, m, lifts=[1.0, 2.0, 0.0, 4.0])
+    with pytest.raises((ParamError, InputError), match="lifts"):
+        run(h, m, lifts=[1.0, 2.0, 3.0, float("nan")])
+    with pytest.raises(ValueError, match="multiple of 4"):
+        he.edit_pixel_height(h, m > 0, lifts=[1.0, 2.0, 3.0])
+    out = run(h, m, lifts=[10.5, 10.5, 4.0, 2.0])
+    assert out[10, 10] == pytest.approx(2.0) and out[10, 12] == pytest.approx(2.0 * 9 / 16)
+
+
+def test_node_lifts_round_trip_and_a_half_size_preview_is_the_full_size_downsampled(tmp_path):
+    """A half-size run (scale 0.5: the image and the px params halved, x, y, r and dh
+    alike) is the full-size result averaged over 2 x 2 blocks, up to the averaging's
+    own error: on a linear base the 2 x 2 mean is exact, and for the bump ``f = dh (1 -
+    d^2/r^2)^2`` the mean of f at the four fine pixel centres (offsets +-delta, delta
+    = 0.5 full-size px) differs from f at the coarse centre by at most sup|f''| delta^2
+    (the linear terms cancel; f is C1 with |f''| <= 8 |dh| / r^2 piecewise): 8 * 30 *
+    0.25 / 12^2 = 0.42 full-size px for the sharper lift (dh = -30, r = 12), 0.21 in
+    half-size px (heights halve with the image); it measured 0.10."""
+    from pixgraph import fileio
+    from pixgraph.session import Session
+    H, W = 96, 80
+    u, v = grid(H, W)
+    m = np.zeros((H, W), np.float32)
+    m[8:88, 10:70] = 1                                 # even edges: the 2 x 2 blocks are whole
+    h = (0.5 * u + 0.25 * v + 30.0).astype(np.float32)
+    g = tmp_path / "g.yaml"
+    g.write_text("""pixgraph: 1
+nodes:
+  m: {type: pixgraph.InputMask}
+  h: {type: pixgraph.InputPixelHeight}
+  e: {type: pixgraph.PixelHeightEdit, inputs: {height: h.height, mask: m.mask},
+      params: {lifts: [40, 50, 24, 16, 30, 20, 12, -30]}}
+outputs: {out: e.height}
+""")
+    s = Session()
+    graph = s.load(g)
+    saved = tmp_path / "saved.yaml"
+    fileio.dump(graph, saved)
+    assert list(s.load(saved).nodes["e"].params["lifts"]) == [40, 50, 24, 16, 30, 20, 12, -30]
+    full = s.run(graph, bind={"m": m, "h": h})["out"]
+    assert full[49, 39] == pytest.approx(h[49, 39] + 16 * (1 - 0.5 / 24 ** 2) ** 2, abs=1e-4)
+    h2 = (h.reshape(H // 2, 2, W // 2, 2).mean(axis=(1, 3)) / 2).astype(np.float32)
+    m2 = m[::2, ::2].copy()
+    half = s.run(graph, bind={"m": m2, "h": h2}, scale=0.5)["out"]
+    down = full.reshape(H // 2, 2, W // 2, 2).mean(axis=(1, 3)) / 2
+    bound = max(8 * 16 / 24 ** 2, 8 * 30 / 12 ** 2) * 0.25 / 2   # / 2: in half-size px
+    err = np.abs(half - down)[m2 > 0]
+    print(f'max |half - full downsampled| {err.max():.4f} px, bound {bound:.4f}')
+    assert err.max() <= bound + 1e-4 and err.max() > 1e-3       # the averaging error is there, and bounded
+    # the lifts really moved the preview (not a pass-through)
+    assert np.abs(half - h2)[m2 > 0].max() > 5.0
