@@ -385,7 +385,10 @@ def test_the_simulated_users_plans_moved_to_the_lab_unchanged():
     bench = _page_height_fix()
     for name in ("PLANS", "NEW_PLANS", "OTHER", "plan_method", "plan_params", "true_contacts", "known_heights"):
         assert getattr(bench, name) is getattr(ep, name), name
-    assert len(ep.PLANS) == 20 and set(ep.NEW_PLANS) <= set(ep.PLANS)
+    assert len(ep.PLANS) == 20 + len(ep.LIFT_PLANS) == 40 and set(ep.NEW_PLANS) <= set(ep.PLANS)
+    assert bench.LIFT_PLANS is ep.LIFT_PLANS and not set(ep.LIFT_PLANS) & set(ep.NEW_PLANS)
+    assert all(ep.plan_actions(pl) <= 3 for pl in ep.PLANS.values())
+    assert ep.PLANS["2 contacts + lift"] == ["contact:2", "lift"] and "2 contacts + 2 lifts" not in ep.PLANS
     assert ep.plan_method(ep.PLANS["other method + depth"], "learned") == "contact_line"
     H, W = 100, 60
     u, v = grid(H, W)
@@ -576,3 +579,44 @@ outputs: {out: e.height}
     assert err.max() <= bound + 1e-4 and err.max() > 1e-3       # the averaging error is there, and bounded
     # the lifts really moved the preview (not a pass-through)
     assert np.abs(half - h2)[m2 > 0].max() > 5.0
+
+
+def test_the_simulated_user_puts_a_lift_where_it_removes_the_most_height_error():
+    """docs/own-photo.md's lift rule: r a quarter of the object's height in the image, the
+    candidates a grid of step r / 2 inside the mask, the lift where the disc moved to the
+    true heights removes the most squared error (sum(w e)^2 / sum(w^2)), dragged by the
+    w-weighted least-squares shift sum(w e) / sum(w^2); placed greedily one after another."""
+    from pixgraph_lab.height import edit_plans as ep
+    H, W = 120, 90
+    u, v = grid(H, W)
+    m = np.zeros((H, W), bool)
+    m[20:100, 10:70] = True                           # 80 rows: r = 20, step 10
+    assert ep.lift_radius(m) == 20.0
+    c = ep.lift_candidates(m, 20.0)
+    assert c[0] == (15.0, 25.0) and c[-1] == (65.0, 95.0) and len(c) == 6 * 8
+    cur = np.where(m, 100.0 - v, 0.0)
+    # the error is exactly two brush bumps on candidates: +12 at (35, 55), -5 at (55, 85)
+    true = cur + np.where(m, 12.0 * he.lift_falloff(u, v, 35.0, 55.0, 20.0)
+                          - 5.0 * he.lift_falloff(u, v, 55.0, 85.0, 20.0), 0.0)
+    x, y, r, dh = ep.best_lift(cur, true, m)
+    assert (x, y, r) == (35.0, 55.0, 20.0)
+    # the bumps overlap a little: the least-squares shift is 12 plus the other's share there
+    w = he.lift_falloff(u, v, 35.0, 55.0, 20.0) * m
+    assert dh == pytest.approx(float((w * (true - cur)).sum() / (w * w).sum())) and abs(dh - 12.0) < 0.2
+    # brute force over the candidates: the chosen one leaves the least squared error
+    def left(pt):
+        ww = he.lift_falloff(u, v, pt[0], pt[1], 20.0) * m
+        d = (ww * (true - cur)).sum() / (ww * ww).sum()
+        return (((true - cur) - d * ww)[m] ** 2).sum()
+    assert min(c, key=left) == (35.0, 55.0)
+    # greedily: the second lift on the map as edited so far takes the other bump
+    out = ep.plan_params(["lift", "lift"], true, m, lambda p: ep.edit_with(cur, m, p))
+    L = np.reshape(out["lifts"], (-1, 4))
+    assert L[0].tolist() == [35.0, 55.0, 20.0, round(dh, 2)]
+    assert L[1][:3].tolist() == [55.0, 85.0, 20.0] and L[1][3] == pytest.approx(-5.0, abs=0.3)
+    after = ep.edit_with(cur, m, out)
+    assert (((true - after)[m]) ** 2).sum() < 0.01 * (((true - cur)[m]) ** 2).sum()
+    # after other actions: the lift is placed on the map those actions made
+    p = ep.plan_params(["lying", "lift"], true, m, lambda p: ep.edit_with(cur, m, p))
+    assert p["lying"] and ep.best_lift(ep.edit_with(cur, m, {"lying": True}), true, m) == pytest.approx(
+        tuple(p["lifts"]), abs=0.005)
