@@ -55,8 +55,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _machine import cpu_model  # noqa: E402
 
 # the simulated user (its plans and their params), shared with docs/height.md's real-photo check
-from pixgraph_lab.height.edit_plans import (LIFT_PLANS, NEW_PLANS, OTHER, PLANS, known_heights,  # noqa: E402,F401
-                                            plan_method, plan_params, true_contacts)
+from pixgraph_lab.height.edit_plans import (NEW_PLANS, OTHER, PLANS, known_heights, plan_method,  # noqa: E402,F401
+                                            plan_params, true_contacts)
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 S = 2   # the scene's size / the sample's
@@ -254,8 +254,6 @@ def in_page(url: str, plan: list, sc: dict, page_shot: str | None) -> tuple:
                 sel.select_option(OTHER[sc["method"]])
                 wait_final(page, seq)
                 actions += 1
-            elif act == "lift":
-                raise SystemExit("the page has no lift handle (the lift's plans are for --explore only)")
             elif act in ("upright", "lying"):
                 seq = last_seq(page)
                 page.check(f"#{act}")
@@ -281,7 +279,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f}")
     if a.explore:
-        gains, old_gains, no_lift, zero, rows = [], [], [], [], []
+        gains, old_gains, zero, rows = [], [], [], []
         for idx in (int(x) for x in a.explore.split(",")):
             with tempfile.TemporaryDirectory(prefix="pixgraph-hfix-") as d:
                 sc = build_scene(os.path.join(a.shadows, f"{idx:05d}.npz"), d)
@@ -292,40 +290,29 @@ def main(argv=None) -> int:
                     def removed(rmse):   # no shadow error to remove (no shadow outside the cutout): 0 % removed
                         return 1 - rmse / before["rmse"] if before["rmse"] > 0 else 0.0
                     gains.append(removed(after["rmse"]))
-                    old_gains.append(removed(min(v[1]["rmse"] for k, v in every.items()
-                                                 if k not in NEW_PLANS + LIFT_PLANS)))
-                    wo = min(every, key=lambda k: every[k][1]["rmse"] if k not in LIFT_PLANS else np.inf)
-                    no_lift.append(removed(every[wo][1]["rmse"]))
+                    old_gains.append(removed(min(v[1]["rmse"] for k, v in every.items() if k not in NEW_PLANS)))
                     zero.append(before["rmse"] == 0)
                     rows.append(f"| {idx} {sc['object'].removeprefix('named:')} | {method.replace('_', ' ')} | {best} | "
                                 f"{before['rmse']:.3f} -> {after['rmse']:.3f} ({gains[-1]:.0%}) | "
-                                f"{before['iou']:.2f} -> {after['iou']:.2f} | {wo} {every[wo][1]['rmse']:.3f} "
-                                f"({no_lift[-1]:.0%}) |")
+                                f"{before['iou']:.2f} -> {after['iou']:.2f} |")
                     print(f"{idx} {sc['object']} {method}: best {best} {before['rmse']:.3f} -> {after['rmse']:.3f} "
                           f"({gains[-1]:.0%}), IoU {before['iou']:.2f} -> {after['iou']:.2f}; " + ", ".join(
                               f"{k} {v[1]['rmse']:.3f}/{v[1]['iou']:.2f}" for k, v in every.items()), flush=True)
-        print("| sample | height | best plan (<= 3 actions) | shadow RMSE vs true heights' | IoU "
-              "| best without the lift's plans |")
-        print("|---|---|---|---|---|---|")
+        print("| sample | height | best plan (<= 3 actions) | shadow RMSE vs true heights' | IoU |")
+        print("|---|---|---|---|---|")
         for row in rows:
             print(row)
         g = np.array(gains)
         print(f"best plan of <= 3 actions over {len(g)} cases: median {np.median(g):.0%} of the shadow's RMSE "
               f"removed (min {g.min():.0%}, max {g.max():.0%}); >= 30 % in {int((g >= 0.3).sum())}; "
               f"load average {os.getloadavg()[0]:.2f}")
-        w = np.array(no_lift)
-        print(f"without the plans of LIFT_PLANS (the lift brush): median {np.median(w):.0%} "
-              f"(min {w.min():.0%}, max {w.max():.0%}); >= 30 % in {int((w >= 0.3).sum())}; "
-              f"the lift's plans: median {100 * (np.median(g) - np.median(w)):+.1f} points, "
-              f">= 30 % in {int((g >= 0.3).sum()) - int((w >= 0.3).sum()):+d}")
         if any(zero):
             z = ~np.array(zero)
             print(f"{int((~z).sum())} case(s) with no shadow error before (counted as 0 % removed above); without "
-                  f"them: median {np.median(g[z]):.0%} with the lift's plans, {np.median(w[z]):.0%} without; "
-                  f">= 30 % in {int((g[z] >= 0.3).sum())} / {int((w[z] >= 0.3).sum())} of {int(z.sum())}")
+                  f"them: median {np.median(g[z]):.0%}, >= 30 % in {int((g[z] >= 0.3).sum())} of {int(z.sum())}")
         o = np.array(old_gains)
-        print(f"without the plans of NEW_PLANS and LIFT_PLANS (foot depth, lying thickness, lift): "
-              f"median {np.median(o):.0%} (min {o.min():.0%}, max {o.max():.0%}); >= 30 % in {int((o >= 0.3).sum())}")
+        print(f"without the plans of NEW_PLANS (foot depth, lying thickness): median {np.median(o):.0%} "
+              f"(min {o.min():.0%}, max {o.max():.0%}); >= 30 % in {int((o >= 0.3).sum())}")
         return 0
     sys.path.insert(0, os.path.join(REPO, "tests"))
     from serve_helpers import running_server  # noqa: E402

@@ -1,5 +1,5 @@
 """pixgraph.PixelHeightEdit: fix a cutout's pixel height by hand (contact points, foot depth, tilt, lying
-down, lift, local lifts)."""
+down, lift)."""
 from __future__ import annotations
 
 import numpy as np
@@ -35,12 +35,8 @@ class PixelHeightEdit(Node):
     visible bottom edge; an input lifted off the ground moves by the whole depth:
     lift it with ``lift`` here instead). ``tilt`` leans it away from (> 0) or toward (< 0) the camera
     about its contact, for a camera looking down by ``elevation``; a sideways lean needs
-    no edit. ``lift`` raises it off the ground. ``lifts`` (flat list x1, y1, r1, dh1,
-    ... in the cutout's pixels) are local brushes applied after all that: each adds
-    ``dh (1 - t^2)^2`` at distance ``t r`` from ``(x, y)`` (nothing at and beyond ``r``),
-    inside the mask, heights kept >= 0 (a part whose ground is elsewhere moved alone).
-    At its defaults (no contact points, no foot depth, tilt, lift, lifts or lying) the
-    height passes through unchanged.
+    no edit. ``lift`` raises it off the ground. At its defaults (no contact points, no
+    foot depth, tilt, lift or lying) the height passes through unchanged.
 
     The page (``pixgraph serve``) draws each contact point as a handle on the placed
     cutout (an empty list: one hollow handle just under the cutout's foot; "+ contact" adds
@@ -74,16 +70,12 @@ class PixelHeightEdit(Node):
         foot_depth: float = param(0.0, unit="px",
                                   doc="the ground under the body lies this many rows in front of (> 0) or "
                                       "behind (< 0) the contact; its heights grow by it (not when lying)")
-        lifts: list[float] = param([], unit="px",
-                                   doc="x1, y1, r1, dh1, ...: local lifts, each adding dh (1 - t^2)^2 at "
-                                       "distance t r from (x, y) (cutout pixels; after the other edits)")
 
     class Outputs:
         height: T.PixelHeight = port(doc="edited pixel height [px], 0 outside the mask")
 
     # 2: defaults pass through; 3: shift is a per-column offset; 4: close points: their mean; 5: foot_depth
-    # 6: points up to EDGE_SLACK px outside the cutout are put on its edge
-    impl_version = "7"   # 7: lifts
+    impl_version = "6"   # 6: points up to EDGE_SLACK px outside the cutout are put on its edge
 
     #: what a shell's page draws (read by pixgraph_serve): contact points, the tilt handle
     #: (lying: the thickness), the body's foot-depth ring, the lying toggle, by these
@@ -120,17 +112,9 @@ class PixelHeightEdit(Node):
         if len(out):
             raise InputError(f"param 'contact_points': point(s) {out.tolist()} outside the {W}x{H} cutout")
         P = np.clip(P, 0.0, [W, H])
-        L = params.lifts
-        if len(L) % 4:
-            raise InputError(f"param 'lifts': expected x, y, r, dh per lift (a multiple of 4 numbers), "
-                             f"got {len(L)} numbers")
-        L = np.asarray(L, np.float64).reshape(-1, 4)
-        if (L[:, 2] <= 0).any():
-            raise InputError(f"param 'lifts': each lift's radius r (its third number) must be > 0, "
-                             f"got {L[:, 2].tolist()}")
         try:
             return {"height": edit_pixel_height(h, m > 0.5, P, params.contact_mode, params.tilt,
                                                 params.elevation, params.lying, params.thickness, params.lift,
-                                                params.foot_depth, L)}
+                                                params.foot_depth)}
         except ValueError as e:
             raise InputError(f"param '{'foot_depth' if 'foot_depth' in str(e) else 'tilt'}': {e}") from None

@@ -88,24 +88,6 @@ PLANS = {
 #: the plans added with the foot-depth ring and the lying thickness drag (fourth session)
 NEW_PLANS = ("lying + thickness", "depth", "depth + top", "top + depth", "1 contact + depth + top",
              "other method + depth", "other method + depth + top", "other method + top + depth")
-
-
-def plan_actions(plan: list) -> int:
-    """The page actions a plan takes: a drag per contact point (``contact:k``: k), one per other action."""
-    return sum(int(a[8:]) if a.startswith("contact:") else 1 for a in plan)
-
-
-# the lift brush (tenth session; docs/own-photo.md's rule, fixed before it was built): 1, 2 or 3
-# lifts alone, and after each plan above of 1 action (+ 1 or 2 lifts) or 2 actions (+ 1 lift),
-# the lifts last (the node applies them after its other edits)
-_BASE = dict(PLANS)
-PLANS.update({"lift": ["lift"], "2 lifts": ["lift", "lift"], "3 lifts": ["lift", "lift", "lift"]})
-for _name, _plan in _BASE.items():
-    for _k in range(1, 4 - plan_actions(_plan)):
-        PLANS[f"{_name} + {'lift' if _k == 1 else f'{_k} lifts'}"] = _plan + ["lift"] * _k
-#: the plans added with the lift brush (tenth session; docs/own-photo.md's rule)
-LIFT_PLANS = tuple(k for k, v in PLANS.items() if "lift" in v)
-del _BASE
 #: the other height method of each (the ``switch`` action)
 OTHER = {"learned": "contact_line", "contact_line": "learned"}
 
@@ -115,64 +97,13 @@ def plan_method(plan: list, method: str) -> str:
     return OTHER[method] if "switch" in plan else method
 
 
-def lift_radius(mask: np.ndarray) -> float:
-    """The lift brush's radius [px]: a quarter of the object's height in the image (rows
-    from its top visible pixel to its lowest, both counted)."""
-    rows = np.flatnonzero(np.asarray(mask).any(axis=1))
-    return (rows[-1] - rows[0] + 1) / 4.0 if len(rows) else 0.0
-
-
-def lift_candidates(mask: np.ndarray, r: float) -> list:
-    """Where the simulated user may put a lift [px]: the points of a grid of step ``r / 2``
-    over the mask's bounding box (its first point half a step in from the box's top-left
-    corner) whose pixel is in the mask."""
-    m = np.asarray(mask, bool)
-    rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
-    if not len(rows) or r <= 0:
-        return []
-    step = r / 2.0
-    us = np.arange(cols[0] + step / 2.0, cols[-1] + 1, step)
-    vs = np.arange(rows[0] + step / 2.0, rows[-1] + 1, step)
-    return [(float(u), float(v)) for v in vs for u in us if m[int(v), int(u)]]
-
-
-def best_lift(current: np.ndarray, known_h: np.ndarray, mask: np.ndarray, r: float | None = None):
-    """The lift (x, y, r, dh) [px] the simulated user places on the map as edited so far
-    (``current``): of ``lift_candidates``, the one where moving the brush's disc to the true
-    heights (``known_h``) removes the most squared height error over the mask's pixels --
-    with ``w`` the brush's falloff and ``e = known_h - current``, the best ``dh`` is the
-    ``w``-weighted least-squares shift ``sum(w e) / sum(w^2)`` and it removes ``sum(w e)^2 /
-    sum(w^2)`` -- and that ``dh``; ``r``: ``lift_radius(mask)`` by default. None for an
-    empty mask."""
-    from pixgraph_nodes.ops.height_edit import lift_falloff
-    m = np.asarray(mask, bool)
-    r = lift_radius(m) if r is None else float(r)
-    e = np.where(m, np.asarray(known_h, np.float64) - np.asarray(current, np.float64), 0.0)
-    H, W = m.shape
-    best, gain = None, -1.0
-    for x, y in lift_candidates(m, r):
-        r0, r1 = max(0, int(np.floor(y - r))), min(H, int(np.ceil(y + r)) + 1)
-        c0, c1 = max(0, int(np.floor(x - r))), min(W, int(np.ceil(x + r)) + 1)
-        v, u = np.mgrid[r0:r1, c0:c1] + 0.5
-        w = np.where(m[r0:r1, c0:c1], lift_falloff(u, v, x, y, r), 0.0)
-        ww = float((w * w).sum())
-        if ww <= 0:
-            continue
-        we = float((w * e[r0:r1, c0:c1]).sum())
-        if we * we / ww > gain:
-            best, gain = (x, y, r, we / ww), we * we / ww
-    return best
-
-
 def plan_params(plan: list, known_h: np.ndarray, mask: np.ndarray, edited) -> dict:
     """The edit's params after the plan's actions, in order (``known_h``: the heights the
     user knows [px], ``edited(params)``: the edited map with those params, params named as
     the node's: ``contact_points``, ``contact_mode``, ``tilt`` [deg], ``lying``,
     ``thickness`` [px], ``foot_depth`` [px]). ``top`` drags the tilt handle until the top's
     height is its true one, ``thickness`` (lying) the same square, ``depth`` the body's
-    ring until the body point's height is its true one (the node's elevation: 20 deg).
-    ``lift`` adds a lift (``lifts`` [px], 4 numbers each) where ``best_lift`` puts it on the
-    map as edited so far."""
+    ring until the body point's height is its true one (the node's elevation: 20 deg)."""
     from pixgraph_nodes.ops.height_edit import (body_point, depth_for_height, thickness_for_height, tilt_for_height,
                                                 tilt_gain, top_point)
     p = {}
@@ -198,10 +129,6 @@ def plan_params(plan: list, known_h: np.ndarray, mask: np.ndarray, edited) -> di
             true_body = body_point(mask, known_h)
             if body is not None and true_body is not None:
                 p["foot_depth"] = round(depth_for_height(body[3], true_body[2], g), 2)
-        elif act == "lift":
-            one = best_lift(edited(p), known_h, mask)
-            if one is not None:
-                p["lifts"] = list(p.get("lifts", [])) + [round(c, 2) for c in one]
     return p
 
 
@@ -213,5 +140,4 @@ def edit_with(height: np.ndarray, mask: np.ndarray, params: dict) -> np.ndarray:
     return edit_pixel_height(height, mask, [(pts[i], pts[i + 1]) for i in range(0, len(pts), 2)],
                              contact_mode=params.get("contact_mode", "shift"), tilt_deg=params.get("tilt", 0.0),
                              elevation_deg=20.0, lying=params.get("lying", False),
-                             thickness=params.get("thickness", 0.0), foot_depth=params.get("foot_depth", 0.0),
-                             lifts=params.get("lifts", []))
+                             thickness=params.get("thickness", 0.0), foot_depth=params.get("foot_depth", 0.0))

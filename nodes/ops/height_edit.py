@@ -1,4 +1,4 @@
-"""Editing a cutout's pixel height by hand: contact points, foot depth, tilt, lying down, lift, local lifts.
+"""Editing a cutout's pixel height by hand: contact points, foot depth, tilt, lying down, lift.
 
 Plain numpy; the node is ``pixgraph.PixelHeightEdit`` (nodes/pixel_height_edit.py).
 Pixel coordinates: ``u`` to the right, ``v`` down, pixel (row r, column c) has its
@@ -75,18 +75,8 @@ image distance from an object point down to its foot on the ground).
 4. **Lift** ``lift`` [px]: added to every pixel (the object floats; its former
    contact is ``lift`` px above the ground).
 
-Finally heights are clipped to >= 0 and set to 0 outside ``mask``.
-
-5. **Local lifts** ``lifts`` ``[(x, y, r, dh), ...]`` [px] (a brush put on a part
-   of the cutout and dragged up or down; ``lift_height``), after all the above:
-   each adds ``dh (1 - t^2)^2`` at the pixels at distance ``t r`` from its centre
-   ``(x, y)`` (``t < 1``, nothing at and beyond ``r``), inside the mask; the
-   lifts' sum is added at once (their order does not matter) and heights are
-   clipped to >= 0 where a lift reaches (elsewhere they stay as they were). The falloff is 1 at the centre, 9/16 at ``r / 2``, 0
-   with a zero slope at ``r``, so a part whose ground is elsewhere (a handle,
-   ears, a far end) or a band of rows moves alone and smoothly.
-
-With nothing to edit (no contact points, no foot depth, not lying, no tilt, no lift, no lifts) the input passes through
+Finally heights are clipped to >= 0 and set to 0 outside ``mask``. With nothing
+to edit (no contact points, no foot depth, not lying, no tilt, no lift) the input passes through
 unchanged (``is_identity``): a graph with the node at its defaults renders exactly
 as one without it.
 
@@ -302,67 +292,15 @@ def tilt_for_height(h0: float, target: float, lift: float = 0.0, elevation_deg: 
     return float(np.clip(math.degrees(math.atan((h0 / want - 1.0) / ta)), lowest, limit_deg))
 
 
-def _lifts(lifts) -> np.ndarray:
-    L = np.asarray(lifts, np.float64)
-    if L.size == 0:
-        return np.zeros((0, 4))
-    if L.ndim == 1:
-        if len(L) % 4:
-            raise ValueError(f"lifts must be x, y, r, dh per lift (a multiple of 4 numbers), got {len(L)}")
-        L = L.reshape(-1, 4)
-    if L.ndim != 2 or L.shape[1] != 4:
-        raise ValueError(f"lifts must be (x, y, r, dh) per lift, got shape {L.shape}")
-    if not np.isfinite(L).all():
-        raise ValueError("lifts must be finite")
-    if (L[:, 2] <= 0).any():
-        raise ValueError(f"lifts' radii must be > 0, got {L[:, 2].tolist()}")
-    return L
-
-
-def lift_falloff(u: np.ndarray, v: np.ndarray, x: float, y: float, r: float) -> np.ndarray:
-    """The brush's weight ``(1 - t^2)^2`` at pixel coordinates (u, v), ``t`` the distance to
-    ``(x, y)`` over ``r`` [px]; 0 at and beyond ``r`` (module doc, step 5)."""
-    t2 = ((np.asarray(u) - x) ** 2 + (np.asarray(v) - y) ** 2) / (float(r) ** 2)
-    return np.where(t2 < 1.0, (1.0 - np.minimum(t2, 1.0)) ** 2, 0.0)
-
-
-def lift_height(height: np.ndarray, mask: np.ndarray, lifts) -> np.ndarray:
-    """``height`` plus the local lifts ``[(x, y, r, dh), ...]`` [px] (or flat x1, y1, r1,
-    dh1, ...) inside ``mask``, clipped to >= 0 (module doc, step 5); float64 (H, W)."""
-    L = _lifts(lifts)
-    h = np.array(height, np.float64)
-    m = np.asarray(mask) > 0.5 if np.asarray(mask).dtype != bool else np.asarray(mask)
-    if h.shape != m.shape:
-        raise ValueError(f"height {h.shape} and mask {m.shape} differ in size")
-    if len(L) == 0:
-        return h
-    H, W = h.shape
-    add = np.zeros((H, W))
-    for x, y, r, dh in L:
-        # only the disc's bounding box
-        r0, r1 = max(0, int(math.floor(y - r))), min(H, int(math.ceil(y + r)) + 1)
-        c0, c1 = max(0, int(math.floor(x - r))), min(W, int(math.ceil(x + r)) + 1)
-        if r0 >= r1 or c0 >= c1:
-            continue
-        v, u = np.mgrid[r0:r1, c0:c1] + 0.5
-        add[r0:r1, c0:c1] += dh * lift_falloff(u, v, x, y, r)
-    # clipped where a lift reaches: elsewhere the height stays as it came (bit for bit)
-    return np.where(m & (add != 0.0), np.maximum(h + add, 0.0), h)
-
-
 def edit_pixel_height(height: np.ndarray, mask: np.ndarray, points=(), contact_mode: str = "shift",
                       tilt_deg: float = 0.0, elevation_deg: float = 20.0, lying: bool = False,
-                      thickness: float = 0.0, lift: float = 0.0, foot_depth: float = 0.0,
-                      lifts=()) -> np.ndarray:
+                      thickness: float = 0.0, lift: float = 0.0, foot_depth: float = 0.0) -> np.ndarray:
     """The edited pixel height (H, W) float32 [px] (module doc)."""
     if not math.isfinite(float(foot_depth)):
         raise ValueError(f"foot_depth must be finite, got {foot_depth}")
-    L = _lifts(lifts)
     if is_identity(points, tilt_deg, lying, lift, foot_depth):
         if np.shape(height) != np.shape(mask):
             raise ValueError(f"height {np.shape(height)} and mask {np.shape(mask)} differ in size")
-        if len(L):
-            return lift_height(height, mask, L).astype(np.float32)
         return np.asarray(height, np.float32)
     h = np.asarray(height, np.float64)
     m = np.asarray(mask) > 0.5 if np.asarray(mask).dtype != bool else np.asarray(mask)
@@ -384,5 +322,4 @@ def edit_pixel_height(height: np.ndarray, mask: np.ndarray, points=(), contact_m
     if not lying:
         h = foot_depth_height(np.where(m, h, 0.0), foot_depth)
     h = tilt_gain(tilt_deg, elevation_deg) * h + float(lift)
-    h = np.where(m, np.maximum(h, 0.0), 0.0)
-    return (lift_height(h, m, L) if len(L) else h).astype(np.float32)
+    return np.where(m, np.maximum(h, 0.0), 0.0).astype(np.float32)
