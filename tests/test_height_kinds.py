@@ -125,20 +125,20 @@ def test_assemblies_hold_together_rest_on_something_and_stand():
     assert min(counts) == 2 and max(counts) >= 7
 
 
-def test_a_flat_and_an_assembly_sample_render_and_are_deterministic():
+@pytest.mark.parametrize("cat", ["flat", "assembly", "rest", "branch"])
+def test_a_training_kinds_sample_renders_and_is_deterministic(cat):
     pytest.importorskip("mitsuba")
     from pixgraph_lab.datagen.raycast import select_variant
     from pixgraph_lab.height import generate
     select_variant()
-    for cat in ("flat", "assembly"):
-        arrays, meta = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
-        assert meta["category"] == cat and meta["object"].startswith(cat + "/")
-        mask, h = arrays["mask"], arrays["height"].astype(float)
-        assert mask.sum() > 0.004 * 64 * 64
-        assert (h[~mask] == 0).all() and (h[mask] > 0).all()
-        again, _ = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
-        for k in arrays:
-            assert np.array_equal(again[k], arrays[k]), (cat, k)
+    arrays, meta = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
+    assert meta["category"] == cat and meta["object"].startswith(cat + "/")
+    mask, h = arrays["mask"], arrays["height"].astype(float)
+    assert mask.sum() > 0.004 * 64 * 64
+    assert (h[~mask] == 0).all() and (h[mask] > 0).all()
+    again, _ = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
+    for k in arrays:
+        assert np.array_equal(again[k], arrays[k]), (cat, k)
 
 
 def test_is_stable_on_boxes_with_a_known_centre_of_mass():
@@ -329,22 +329,6 @@ def test_branches_hold_together_reach_out_over_the_ground_and_stand():
     overhangs = np.array(overhangs)
     assert (overhangs > 0.1).mean() >= 0.75, np.round(overhangs, 2)     # 0.86 when written
     assert np.median(overhangs) > 0.3, np.round(overhangs, 2)            # 0.47 when written
-
-
-def test_a_rest_and_a_branch_sample_render_and_are_deterministic():
-    pytest.importorskip("mitsuba")
-    from pixgraph_lab.datagen.raycast import select_variant
-    from pixgraph_lab.height import generate
-    select_variant()
-    for cat in ("rest", "branch"):
-        arrays, meta = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
-        assert meta["category"] == cat and meta["object"].startswith(cat + "/")
-        mask, h = arrays["mask"], arrays["height"].astype(float)
-        assert mask.sum() > 0.004 * 64 * 64
-        assert (h[~mask] == 0).all() and (h[mask] > 0).all()
-        again, _ = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
-        for k in arrays:
-            assert np.array_equal(again[k], arrays[k]), (cat, k)
 
 
 # ---------------------------------------------------------------- heldout3 (tenth session)
