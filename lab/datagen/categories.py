@@ -147,13 +147,19 @@ def ellipsoid(c, radii, subdiv=2, R=None):
     return m
 
 
+def _h(R, t=(0, 0, 0)):
+    """The 4x4 homogeneous transform of the 3x3 rotation ``R`` followed by the translation ``t``."""
+    M = np.eye(4)
+    M[:3, :3] = R
+    M[:3, 3] = t
+    return M
+
+
 def box(c, ext, R=None):
     tm = _tm()
     m = tm.creation.box(extents=ext)
     if R is not None:
-        M = np.eye(4)
-        M[:3, :3] = R
-        m.apply_transform(M)
+        m.apply_transform(_h(R))
     m.apply_translation(c)
     return m
 
@@ -1252,9 +1258,7 @@ def assembly(rng):
         axes.append(_axis(m, M, h))
 
     def place(m, R, t):
-        M = np.eye(4)
-        M[:3, :3] = R
-        M[:3, 3] = t
+        M = _h(R, t)
         m.apply_transform(M)
         return M
 
@@ -1610,13 +1614,6 @@ def _rest_body(rng, kind, L):
     else:                                     # a slab: the polygon wide, the extrusion thin
         m = prism(poly * L / 2, -L / 2 / elong, L / 2 / elong)
     return m
-
-
-def _h(R, t=(0, 0, 0)):
-    M = np.eye(4)
-    M[:3, :3] = R
-    M[:3, 3] = t
-    return M
 
 
 def rest_pose(meshes, rng, avoid_up=0.87, tries=12):
