@@ -1675,6 +1675,7 @@ def rest(rng):
     """A generic solid, or a compound of 2-3 fused, lying at rest on the ground (module doc):
     built upright, then dropped onto a stable face of its convex hull (``rest_pose``) and
     yawed at random, so it extends in depth as often as across."""
+    from pixgraph_lab.datagen.objects import _random_rotation
     u = rng.uniform
     kind = str(rng.choice(REST_KINDS, p=REST_P))
     L = u(0.3, 1.0)
@@ -1687,11 +1688,10 @@ def rest(rng):
         meshes, slots = [_rest_body(rng, kinds[0], L)], [mats[0]]
         for k in kinds[1:]:
             m = _rest_body(rng, k, L * u(0.3, 0.8))
-            from pixgraph_lab.datagen.objects import _random_rotation
             m.apply_transform(_h(_random_rotation(rng)))
             host = np.asarray(meshes[0].vertices)
             p = host[rng.integers(len(host))]
-            c = np.asarray(meshes[0].vertices).mean(0)
+            c = host.mean(0)
             ext = np.ptp(np.asarray(m.vertices), 0).min() / 2
             m.apply_translation(p + (c - p) / max(np.linalg.norm(c - p), 1e-9) * ext * u(0.3, 0.8)
                                 - np.asarray(m.vertices).mean(0))
@@ -1796,12 +1796,14 @@ def _grow(out, rng, p, d, length, r, levels, slot, tip_style, tip_slot, *, sprea
 
 
 def _mound(R, h, sections=14, rng=None):
-    """A flat-bottomed dome R wide, h high (a root flare, a rock, a foot)."""
+    """A flat-bottomed dome of radius ``R`` (at its foot) and height ``h`` (a root flare, a rock, a
+    foot), ``sections`` around; with ``rng`` its shoulder narrower at random (0.5-0.9)."""
     k = 1.0 if rng is None else rng.uniform(0.5, 0.9)
     return revolve([(0, 0), (R, 0), (R * 0.9, h * 0.25), (R * k * 0.5, h * 0.75), (R * 0.2, h), (0, h)], sections)
 
 
 def _disc_base(R, h, sections=24):
+    """A disc of radius ``R`` and height ``h`` standing on Y = 0, centred on the y axis."""
     return cylinder([0, 0, 0], [0, h, 0], R, sections)
 
 
@@ -1921,7 +1923,7 @@ def _branch_parts(rng, kind):
             _tube(up, pts, r, r * 0.35, bone)
             for _ in range(int(rng.integers(2, 6))):
                 i = int(rng.integers(2, 8))
-                td = _unit([0, 1, 0] + (pts[i + 1] - pts[i]) * 0 - back * u(0.3, 1.2) + side * u(-0.5, 0.8))
+                td = _unit([0, 1, 0] - back * u(0.3, 1.2) + side * u(-0.5, 0.8))
                 tl = L * u(0.15, 0.4)
                 tp = _curve(pts[i], td, tl, rng, 4, 0.1, pull=(0, 0.05, 0), floor=0.1)
                 ri = r * (1 - 0.65 * i / 8) * 0.7
