@@ -1809,7 +1809,9 @@ def _disc_base(R, h, sections=24):
 
 def _branch_parts(rng, kind):
     """(upper parts [(mesh, slot)], base(k) -> [(mesh, slot)]) of a ``branch`` kind; the base
-    is centred on the origin, ``k`` >= 1 widens it (the caller widens it until it stands)."""
+    is centred on the origin, ``k`` >= 1 widens it (the caller widens it until it stands).
+    Several bases draw from ``rng`` on each call (a mound's shoulder, a material, a disc's
+    thickness, a plinth's depth), so a wider base is also a fresh draw of those details."""
     u = rng.uniform
     mats = [ASSEMBLY_SLOTS[i] for i in rng.choice(len(ASSEMBLY_SLOTS), 3, replace=False)]
     up = []
