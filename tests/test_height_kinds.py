@@ -1,8 +1,11 @@
 """The ``flat`` and ``assembly`` training categories (eighth session): upright thin things
-and random assemblies of primitives; ``rest`` and ``branch`` (eleventh session): solids lying
-at rest on a face, and structures reaching out over the ground. Invariants over many seeds: a flat object's main panel
-is thin and upright; an assembly's parts hold together, each rests on the ground or is held by
-a lower part, and the whole stands (its centre of mass over its footprint)."""
+and random assemblies of primitives; ``rest`` and ``branch`` (tenth session): solids lying
+at rest on a face, and structures reaching out over the ground; ``heldout3`` (tenth session),
+validation only. Invariants over many seeds: a flat object's main panel is thin and upright;
+an assembly's parts hold together, each rests on the ground or is held by a lower part, and
+the whole stands (its centre of mass over its footprint); a rest object lies on a face, not
+upright; a branch object reaches out beyond its grounded pieces; the pieces of rest, branch
+and heldout3 objects are closed surfaces."""
 import numpy as np
 import pytest
 
@@ -212,7 +215,7 @@ def test_rest_and_branch_are_appended_and_in_no_mix():
 def test_existing_categories_and_mixes_are_unchanged():
     """The meshes of every earlier category over fixed seeds (and the random stream each leaves
     behind), and two ``--mix real`` / ``real_organic`` samples, are those recorded before
-    ``rest`` and ``branch`` were added (eleventh session), so existing data sets regenerate."""
+    ``rest`` and ``branch`` were added (tenth session), so existing data sets regenerate."""
     import hashlib
     h = hashlib.sha256()
     for c in CATEGORIES[:11]:
