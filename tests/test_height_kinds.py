@@ -74,6 +74,18 @@ def _boxes(V, pieces):
     return np.array([[V[i].min(0), V[i].max(0)] for i in pieces])
 
 
+def _group_of_first(n, joined):
+    """The pieces 0..n-1 reached from piece 0 through pairs with ``joined(i, j)`` true (a set)."""
+    seen, todo = {0}, [0]
+    while todo:
+        i = todo.pop()
+        for j in range(n):
+            if j not in seen and joined(i, j):
+                seen.add(j)
+                todo.append(j)
+    return seen
+
+
 def _overlap(a, b, tol):
     return bool((a[0] <= b[1] + tol).all() and (b[0] <= a[1] + tol).all())
 
@@ -169,8 +181,9 @@ REST_KINDS = {"superquadric", "revolved", "blob", "prism", "compound"}
 
 
 def _pieces_mass(V, F):
-    """(piece label per vertex, volumes (k,), centres of mass (k, 3)) of the mesh's closed
-    connected pieces (uniform density): the signed tetrahedra from the origin summed per piece."""
+    """(piece label per vertex, volumes (k,), centres of mass (k, 3), the k pieces' labels) of
+    the mesh's closed connected pieces (uniform density): the signed tetrahedra from the origin
+    summed per piece."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]])
@@ -185,6 +198,16 @@ def _pieces_mass(V, F):
     return lab, np.abs(vol[used]), mom[used] / vol[used][:, None], np.nonzero(used)[0]
 
 
+def _draw(cat, seed, known):
+    """``make_object(cat)`` for ``seed``, checked: its kind is one of ``known``, its vertices are
+    finite with the lowest on Y = 0, one material slot per face. Returns (V, F, L, names, kind)."""
+    V, F, L, names, kind = make_object(cat, np.random.default_rng(seed))
+    c, k = kind.split("/")
+    assert c == cat and k in known, kind
+    assert np.isfinite(V).all() and V[:, 1].min() == 0.0 and L.shape == (len(F),), kind
+    return V, F, L, names, k
+
+
 def _euler_per_piece(V, F, lab, ids):
     """V - E + F of each piece ``ids`` (2 for a closed surface without a hole: no ring)."""
     fl = lab[F[:, 0]]
@@ -196,11 +219,15 @@ def _euler_per_piece(V, F, lab, ids):
     return chi[ids]
 
 
-def _com_and_ground_hull(V, F, tol):
-    """(centre of mass of the closed pieces (uniform density), convex hull of the ground points)."""
+def _ground_hull_holds(V, com, tol):
+    """Whether the centre of mass ``com`` lies inside the convex hull of the points within
+    ``tol`` of the ground (the object stands)."""
     from scipy.spatial import ConvexHull
-    _, vol, com, _ = _pieces_mass(V, F)
-    return (vol[:, None] * com).sum(0) / vol.sum(), ConvexHull(V[V[:, 1] <= tol][:, [0, 2]])
+    g = V[V[:, 1] <= tol][:, [0, 2]]
+    if len(g) < 3 or np.linalg.matrix_rank(g - g.mean(0), tol=1e-9) < 2:
+        return False
+    hull = ConvexHull(g)
+    return bool((hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2]).max() < 0)
 
 
 def test_rest_and_branch_are_appended_and_in_no_mix():
@@ -244,11 +271,9 @@ def test_rest_objects_lie_stably_on_a_face_not_upright():
     kinds, upright, elong = set(), 0, []
     n = 120
     for s in range(n):
-        V, F, L, names, kind = make_object("rest", np.random.default_rng([s, 23]))
-        cat, k = kind.split("/")
-        assert cat == "rest" and k in REST_KINDS, kind
+        V, F, L, names, k = _draw("rest", [s, 23], REST_KINDS)
+        kind = "rest/" + k
         kinds.add(k)
-        assert np.isfinite(V).all() and V[:, 1].min() == 0.0 and L.shape == (len(F),)
         # the longest principal axis (vertices' covariance) is far from vertical in most draws
         # (built upright, they are turned onto a side; near-round ones may end either way)
         w, vec = np.linalg.eigh(np.cov((V - V.mean(0)).T))
@@ -257,9 +282,8 @@ def test_rest_objects_lie_stably_on_a_face_not_upright():
         elong.append(ext.max() / ext.min())
         # at rest: the centre of mass over the convex hull of the points touching the ground
         tol = 1e-3 * np.ptp(V, 0).max()
-        com, hull = _com_and_ground_hull(V, F, tol)
-        assert (hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2]).max() < 0, (s, kind)
-        lab, _, _, ids = _pieces_mass(V, F)
+        lab, vol, com_i, ids = _pieces_mass(V, F)
+        assert _ground_hull_holds(V, (vol[:, None] * com_i).sum(0) / vol.sum(), tol), (s, kind)
         assert (_euler_per_piece(V, F, lab, ids) == 2).all(), (s, kind)      # closed, no ring
     assert kinds == REST_KINDS
     assert upright <= 0.1 * n, upright                      # 2 of 120 when written
@@ -298,11 +322,9 @@ def test_branches_hold_together_reach_out_over_the_ground_and_stand():
     kinds, overhangs = set(), []
     n = 60
     for s in range(n):
-        V, F, L, names, kind = make_object("branch", np.random.default_rng([s, 24]))
-        cat, k = kind.split("/")
-        assert cat == "branch" and k in BRANCH_KINDS, kind
+        V, F, L, names, k = _draw("branch", [s, 24], BRANCH_KINDS)
+        kind = "branch/" + k
         kinds.add(k)
-        assert np.isfinite(V).all() and V[:, 1].min() == 0.0 and L.shape == (len(F),)
         lab, vol, com_i, ids = _pieces_mass(V, F)
         assert (_euler_per_piece(V, F, lab, ids) == 2).all(), (s, kind)      # closed, no ring
         height = V[:, 1].max()
@@ -310,18 +332,9 @@ def test_branches_hold_together_reach_out_over_the_ground_and_stand():
         # held: the pieces' bounding boxes, joined where they overlap, form one structure
         B = np.array([[V[lab == i].min(0), V[lab == i].max(0)] for i in ids])
         adj = ((B[:, None, 0] <= B[None, :, 1] + tol) & (B[None, :, 0] <= B[:, None, 1] + tol)).all(-1)
-        seen, todo = {0}, [0]
-        while todo:
-            i = todo.pop()
-            for j in np.nonzero(adj[i])[0]:
-                if int(j) not in seen:
-                    seen.add(int(j))
-                    todo.append(int(j))
-        assert len(seen) == len(ids), (s, kind)
+        assert len(_group_of_first(len(ids), lambda i, j: adj[i, j])) == len(ids), (s, kind)
         # stands: the centre of mass over the hull of the points on the ground
-        com = (vol[:, None] * com_i).sum(0) / vol.sum()
-        ground = ConvexHull(V[V[:, 1] <= tol][:, [0, 2]])
-        assert (ground.equations[:, :2] @ com[[0, 2]] + ground.equations[:, 2]).max() < 0, (s, kind)
+        assert _ground_hull_holds(V, (vol[:, None] * com_i).sum(0) / vol.sum(), tol), (s, kind)
         # overhang: how far (share of the height) the parts off the ground reach outside the
         # footprint of the pieces touching it (their whole plan, not only their contacts)
         on = np.isin(lab, ids[B[:, 0, 1] <= tol])
@@ -358,17 +371,6 @@ def test_heldout3_comes_after_the_existing_categories_and_no_mix_draws_it():
         assert real.CATEGORY_P[c] == pytest.approx(0.8 * p)
     for mix in (real.CATEGORY_P, real.CATEGORY_P_REAL):
         assert not {"heldout", "heldout2", "heldout3"} & set(mix)
-
-
-def _ground_hull_holds(V, com, tol):
-    """Whether the centre of mass ``com`` lies inside the convex hull of the points within
-    ``tol`` of the ground (the object stands)."""
-    from scipy.spatial import ConvexHull
-    g = V[V[:, 1] <= tol][:, [0, 2]]
-    if len(g) < 3 or np.linalg.matrix_rank(g - g.mean(0), tol=1e-9) < 2:
-        return False
-    hull = ConvexHull(g)
-    return bool((hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2]).max() < 0)
 
 
 def _convex_pieces_touch(P, Q, tol, EP=None, EQ=None):
@@ -430,14 +432,8 @@ def check_heldout3_objects(seeds):
         tol = 2e-3 * size
         B = _boxes(V, pieces)
         hulls = [ConvexHull(V[idx]).equations for idx in pieces]
-        seen, todo = {0}, [0]
-        while todo:
-            i = todo.pop()
-            for j in range(len(pieces)):
-                if j not in seen and _overlap(B[i], B[j], tol) and \
-                        _convex_pieces_touch(V[pieces[i]], V[pieces[j]], tol, hulls[i], hulls[j]):
-                    seen.add(j)
-                    todo.append(j)
+        seen = _group_of_first(len(pieces), lambda i, j: _overlap(B[i], B[j], tol) and _convex_pieces_touch(
+            V[pieces[i]], V[pieces[j]], tol, hulls[i], hulls[j]))
         assert len(seen) == len(pieces), (s, kind, [(names[L[np.isin(F, pieces[j]).all(1)][0]], B[j].round(3))
                                                     for j in sorted(set(range(len(pieces))) - seen)][:3])
         vol, mom = 0.0, np.zeros(3)           # uniform density over the closed parts
