@@ -268,7 +268,8 @@ def test_existing_categories_and_mixes_are_unchanged():
 
 
 def test_rest_objects_lie_stably_on_a_face_not_upright():
-    kinds, upright, elong = set(), 0, []
+    from scipy.spatial import ConvexHull
+    kinds, upright, elong, compounds, apart = set(), 0, [], [], []
     n = 120
     for s in range(n):
         V, F, L, names, k = _draw("rest", [s, 23], REST_KINDS)
@@ -285,7 +286,20 @@ def test_rest_objects_lie_stably_on_a_face_not_upright():
         lab, vol, com_i, ids = _pieces_mass(V, F)
         assert _ground_hull_holds(V, (vol[:, None] * com_i).sum(0) / vol.sum(), tol), (s, kind)
         assert (_euler_per_piece(V, F, lab, ids) == 2).all(), (s, kind)      # closed, no ring
+        if k == "compound":       # its 2-3 bodies are joined where their convex hulls meet (necessary)
+            pieces = parts_of(V, F)
+            hulls = [ConvexHull(V[idx]).equations for idx in pieces]
+            joined = _group_of_first(len(pieces), lambda i, j: _convex_pieces_touch(
+                V[pieces[i]], V[pieces[j]], tol, hulls[i], hulls[j]))
+            assert len(pieces) >= 2, (s, kind)
+            compounds.append(s)
+            apart += [s] if len(joined) < len(pieces) else []
     assert kinds == REST_KINDS
+    # A compound's later bodies are moved from a point of the first toward its vertices' mean,
+    # which can leave one beside it: seed 22 here (a body 2.5 % of the object's size away from
+    # the others), 1 of 125 compounds over seeds 0-599. Known, not mended (train_rest was made
+    # with it); no more than that here.
+    assert len(compounds) >= 20 and apart == [22], (len(compounds), apart)
     assert upright <= 0.1 * n, upright                      # 2 of 120 when written
     # elongations (longest : shortest extent along the principal axes) from about 1:1 to past 1:6
     elong = np.array(elong)
@@ -302,12 +316,14 @@ def test_rest_pose_keeps_a_box_off_its_ends_and_rolls_a_wedge_off_a_face_it_over
     from pixgraph_lab.datagen.categories import box, prism, rest_pose
     for s in range(20):
         R = rest_pose([box([0, 0, 0], [1, 4, 0.5])], np.random.default_rng(s))
+        assert np.abs(R @ R.T - np.eye(3)).max() < 1e-12 and np.linalg.det(R) == pytest.approx(1.0, abs=1e-12)
         down = R.T @ np.array([0.0, -1.0, 0.0])              # the face turned down, build frame
         assert np.abs(down).max() == pytest.approx(1.0, abs=1e-9), (s, down)
         assert abs(down[1]) < 1e-9, (s, down)
     ends = 0
     for s in range(40):
         R = rest_pose([prism([(0, 0), (1, 0), (3, 1)], -0.5, 0.5)], np.random.default_rng(s), avoid_up=2.0)
+        assert np.abs(R @ R.T - np.eye(3)).max() < 1e-12 and np.linalg.det(R) == pytest.approx(1.0, abs=1e-12)
         down = R.T @ np.array([0.0, -1.0, 0.0])
         assert down[1] > -0.99, (s, down)                     # never on the base y = 0
         ends += abs(down[0]) > 0.99                             # on a triangular end (stable)
