@@ -269,7 +269,7 @@ def test_existing_categories_and_mixes_are_unchanged():
 
 def test_rest_objects_lie_stably_on_a_face_not_upright():
     from scipy.spatial import ConvexHull
-    kinds, upright, elong, compounds, apart = set(), 0, [], [], []
+    kinds, upright, elong, apart = set(), 0, [], []
     n = 120
     for s in range(n):
         V, F, L, names, k = _draw("rest", [s, 23], REST_KINDS)
@@ -286,20 +286,20 @@ def test_rest_objects_lie_stably_on_a_face_not_upright():
         lab, vol, com_i, ids = _pieces_mass(V, F)
         assert _ground_hull_holds(V, (vol[:, None] * com_i).sum(0) / vol.sum(), tol), (s, kind)
         assert (_euler_per_piece(V, F, lab, ids) == 2).all(), (s, kind)      # closed, no ring
-        if k == "compound":       # its 2-3 bodies are joined where their convex hulls meet (necessary)
-            pieces = parts_of(V, F)
+        # one body, or a compound's 2-3 fused: its pieces are joined where their convex hulls meet
+        pieces = parts_of(V, F)                              # (a linear program; necessary)
+        assert len(pieces) >= 2 or k != "compound", (s, kind)
+        if len(pieces) > 1:
             hulls = [ConvexHull(V[idx]).equations for idx in pieces]
             joined = _group_of_first(len(pieces), lambda i, j: _convex_pieces_touch(
                 V[pieces[i]], V[pieces[j]], tol, hulls[i], hulls[j]))
-            assert len(pieces) >= 2, (s, kind)
-            compounds.append(s)
             apart += [s] if len(joined) < len(pieces) else []
     assert kinds == REST_KINDS
-    # A compound's later bodies are moved from a point of the first toward its vertices' mean,
-    # which can leave one beside it: seed 22 here (a body 2.5 % of the object's size away from
-    # the others), 1 of 125 compounds over seeds 0-599. Known, not mended (train_rest was made
-    # with it); no more than that here.
-    assert len(compounds) >= 20 and apart == [22], (len(compounds), apart)
+    # A soft union of ellipsoids (``blob``, alone or in a compound) can come out of the grid in
+    # pieces that do not touch, one of them sometimes off the ground: here seeds 5 (a piece a
+    # quarter of the size up in the air), 22 (a compound's blob) and 49; 7 of 99 blob objects
+    # over seeds 0-399. Known, not mended (train_rest was made with it); no more than those.
+    assert apart == [5, 22, 49], apart
     assert upright <= 0.1 * n, upright                      # 2 of 120 when written
     # elongations (longest : shortest extent along the principal axes) from about 1:1 to past 1:6
     elong = np.array(elong)
