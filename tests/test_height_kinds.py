@@ -312,7 +312,8 @@ def test_rest_pose_keeps_a_box_off_its_ends_and_rolls_a_wedge_off_a_face_it_over
     face, but never ends on its small ends (the build's vertical axis is avoided); an obtuse
     triangular prism (z, y) (0, 0), (1, 0), (3, 1) has its centre of mass at z = 4/3, beyond
     its base (z 0 to 1), so it rolls off the base onto another face from every drop (the
-    avoidance of the vertical axis switched off: ``avoid_up`` > 1 keeps the first drop)."""
+    avoidance of the vertical axis switched off: ``avoid_up`` > 1 keeps the first drop), and
+    the face it ends on holds it (its centre of mass over that face)."""
     from pixgraph_lab.datagen.categories import box, prism, rest_pose
     for s in range(20):
         R = rest_pose([box([0, 0, 0], [1, 4, 0.5])], np.random.default_rng(s))
@@ -321,12 +322,17 @@ def test_rest_pose_keeps_a_box_off_its_ends_and_rolls_a_wedge_off_a_face_it_over
         assert np.abs(down).max() == pytest.approx(1.0, abs=1e-9), (s, down)
         assert abs(down[1]) < 1e-9, (s, down)
     ends = 0
+    wedge = prism([(0, 0), (1, 0), (3, 1)], -0.5, 0.5)
+    W, com = np.asarray(wedge.vertices), np.array([0.0, 1 / 3, 4 / 3])   # (x, y, z)
     for s in range(40):
-        R = rest_pose([prism([(0, 0), (1, 0), (3, 1)], -0.5, 0.5)], np.random.default_rng(s), avoid_up=2.0)
+        R = rest_pose([wedge], np.random.default_rng(s), avoid_up=2.0)
         assert np.abs(R @ R.T - np.eye(3)).max() < 1e-12 and np.linalg.det(R) == pytest.approx(1.0, abs=1e-12)
         down = R.T @ np.array([0.0, -1.0, 0.0])
         assert down[1] > -0.99, (s, down)                     # never on the base y = 0
         ends += abs(down[0]) > 0.99                             # on a triangular end (stable)
+        # turned, it rests on that face: the centre of mass over the points on the ground
+        lift = (W @ R.T)[:, 1].min()
+        assert _ground_hull_holds(W @ R.T - [0, lift, 0], R @ com - [0, lift, 0], 1e-9), (s, down)
     assert ends < 40
 
 
