@@ -16,8 +16,11 @@
 set -u
 ROOT=$PWD
 WHAT=${*:-photo page}
-mkdir -p /etc/OpenCL/vendors
-test -f /etc/OpenCL/vendors/nvidia.icd || echo /usr/local/nvidia/lib64/libnvidia-opencl.so.1 > /etc/OpenCL/vendors/nvidia.icd
+NVIDIA_OPENCL=${NVIDIA_OPENCL:-/usr/local/nvidia/lib64/libnvidia-opencl.so.1}   # where the lent machines have it
+if [ ! -f /etc/OpenCL/vendors/nvidia.icd ]; then
+  test -f "$NVIDIA_OPENCL" || { echo "no $NVIDIA_OPENCL: set NVIDIA_OPENCL to NVIDIA's OpenCL library" >&2; exit 3; }
+  mkdir -p /etc/OpenCL/vendors && echo "$NVIDIA_OPENCL" > /etc/OpenCL/vendors/nvidia.icd || exit 3
+fi
 python3 -m pip install -q --upgrade --target /tmp/site --no-index --no-deps --find-links .whl pyopencl pytools \
     platformdirs siphash24 typing_extensions OpenImageIO isal tqdm networkx jsonschema jsonschema-specifications \
     referencing rpds-py attrs PyYAML Pillow starlette uvicorn h11 click anyio sniffio idna httpx httpcore certifi \
@@ -26,16 +29,18 @@ PYTHONPATH=/tmp/site python3 -m pip install -q --upgrade --target /tmp/site --no
     --no-build-isolation . || exit 5
 export XDG_CACHE_HOME=${XDG_CACHE_HOME:-/tmp/xdg} PYTHONPATH=/tmp/site
 python3 -m pixgraph devices
+failed=0
 for what in $WHAT; do
   for dev in nvidia pocl; do
     echo "== $what on $dev"
     if [ "$what" = photo ]; then
       PIXGRAPH_DEVICE=$dev python3 benchmarks/photo_bench.py --case soft --case glossy --size 20mp --ext .png \
-          --ext .jpg --repeat 3
+          --ext .jpg --repeat 3 || failed=1
     else   # twice each: the first open of a device builds its kernels (an empty kernel cache)
       for h in learned contact_line learned contact_line; do
-        PIXGRAPH_DEVICE=$dev python3 benchmarks/serve_bench.py --photo 5120x3840 --scales 5 --height $h
+        PIXGRAPH_DEVICE=$dev python3 benchmarks/serve_bench.py --photo 5120x3840 --scales 5 --height $h || failed=1
       done
     fi
   done
 done
+exit $failed

@@ -1,8 +1,11 @@
 """The ``flat`` and ``assembly`` training categories (eighth session): upright thin things
-and random assemblies of primitives; ``rest`` and ``branch`` (eleventh session): solids lying
-at rest on a face, and structures reaching out over the ground. Invariants over many seeds: a flat object's main panel
-is thin and upright; an assembly's parts hold together, each rests on the ground or is held by
-a lower part, and the whole stands (its centre of mass over its footprint)."""
+and random assemblies of primitives; ``rest`` and ``branch`` (tenth session): solids lying
+at rest on a face, and structures reaching out over the ground; ``heldout3`` (tenth session),
+validation only. Invariants over many seeds: a flat object's main panel is thin and upright;
+an assembly's parts hold together, each rests on the ground or is held by a lower part, and
+the whole stands (its centre of mass over its footprint); a rest object lies on a face, not
+upright; a branch object reaches out beyond its grounded pieces; the pieces of rest, branch
+and heldout3 objects are closed surfaces."""
 import numpy as np
 import pytest
 
@@ -71,6 +74,18 @@ def _boxes(V, pieces):
     return np.array([[V[i].min(0), V[i].max(0)] for i in pieces])
 
 
+def _group_of_first(n, joined):
+    """The pieces 0..n-1 reached from piece 0 through pairs with ``joined(i, j)`` true (a set)."""
+    seen, todo = {0}, [0]
+    while todo:
+        i = todo.pop()
+        for j in range(n):
+            if j not in seen and joined(i, j):
+                seen.add(j)
+                todo.append(j)
+    return seen
+
+
 def _overlap(a, b, tol):
     return bool((a[0] <= b[1] + tol).all() and (b[0] <= a[1] + tol).all())
 
@@ -125,20 +140,20 @@ def test_assemblies_hold_together_rest_on_something_and_stand():
     assert min(counts) == 2 and max(counts) >= 7
 
 
-def test_a_flat_and_an_assembly_sample_render_and_are_deterministic():
+@pytest.mark.parametrize("cat", ["flat", "assembly", "rest", "branch"])
+def test_a_training_kinds_sample_renders_and_is_deterministic(cat):
     pytest.importorskip("mitsuba")
     from pixgraph_lab.datagen.raycast import select_variant
     from pixgraph_lab.height import generate
     select_variant()
-    for cat in ("flat", "assembly"):
-        arrays, meta = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
-        assert meta["category"] == cat and meta["object"].startswith(cat + "/")
-        mask, h = arrays["mask"], arrays["height"].astype(float)
-        assert mask.sum() > 0.004 * 64 * 64
-        assert (h[~mask] == 0).all() and (h[mask] > 0).all()
-        again, _ = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
-        for k in arrays:
-            assert np.array_equal(again[k], arrays[k]), (cat, k)
+    arrays, meta = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
+    assert meta["category"] == cat and meta["object"].startswith(cat + "/")
+    mask, h = arrays["mask"], arrays["height"].astype(float)
+    assert mask.sum() > 0.004 * 64 * 64
+    assert (h[~mask] == 0).all() and (h[mask] > 0).all()
+    again, _ = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
+    for k in arrays:
+        assert np.array_equal(again[k], arrays[k]), (cat, k)
 
 
 def test_is_stable_on_boxes_with_a_known_centre_of_mass():
@@ -166,8 +181,9 @@ REST_KINDS = {"superquadric", "revolved", "blob", "prism", "compound"}
 
 
 def _pieces_mass(V, F):
-    """(piece label per vertex, volumes (k,), centres of mass (k, 3)) of the mesh's closed
-    connected pieces (uniform density): the signed tetrahedra from the origin summed per piece."""
+    """(piece label per vertex, volumes (k,), centres of mass (k, 3), the k pieces' labels) of
+    the mesh's closed connected pieces (uniform density): the signed tetrahedra from the origin
+    summed per piece."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]]])
@@ -182,6 +198,16 @@ def _pieces_mass(V, F):
     return lab, np.abs(vol[used]), mom[used] / vol[used][:, None], np.nonzero(used)[0]
 
 
+def _draw(cat, seed, known):
+    """``make_object(cat)`` for ``seed``, checked: its kind is one of ``known``, its vertices are
+    finite with the lowest on Y = 0, one material slot per face. Returns (V, F, L, names, kind)."""
+    V, F, L, names, kind = make_object(cat, np.random.default_rng(seed))
+    c, k = kind.split("/")
+    assert c == cat and k in known, kind
+    assert np.isfinite(V).all() and V[:, 1].min() == 0.0 and L.shape == (len(F),), kind
+    return V, F, L, names, k
+
+
 def _euler_per_piece(V, F, lab, ids):
     """V - E + F of each piece ``ids`` (2 for a closed surface without a hole: no ring)."""
     fl = lab[F[:, 0]]
@@ -193,11 +219,15 @@ def _euler_per_piece(V, F, lab, ids):
     return chi[ids]
 
 
-def _com_and_ground_hull(V, F, tol):
-    """(centre of mass of the closed pieces (uniform density), convex hull of the ground points)."""
+def _ground_hull_holds(V, com, tol):
+    """Whether the centre of mass ``com`` lies inside the convex hull of the points within
+    ``tol`` of the ground (the object stands)."""
     from scipy.spatial import ConvexHull
-    _, vol, com, _ = _pieces_mass(V, F)
-    return (vol[:, None] * com).sum(0) / vol.sum(), ConvexHull(V[V[:, 1] <= tol][:, [0, 2]])
+    g = V[V[:, 1] <= tol][:, [0, 2]]
+    if len(g) < 3 or np.linalg.matrix_rank(g - g.mean(0), tol=1e-9) < 2:
+        return False
+    hull = ConvexHull(g)
+    return bool((hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2]).max() < 0)
 
 
 def test_rest_and_branch_are_appended_and_in_no_mix():
@@ -212,7 +242,7 @@ def test_rest_and_branch_are_appended_and_in_no_mix():
 def test_existing_categories_and_mixes_are_unchanged():
     """The meshes of every earlier category over fixed seeds (and the random stream each leaves
     behind), and two ``--mix real`` / ``real_organic`` samples, are those recorded before
-    ``rest`` and ``branch`` were added (eleventh session), so existing data sets regenerate."""
+    ``rest`` and ``branch`` were added (tenth session), so existing data sets regenerate."""
     import hashlib
     h = hashlib.sha256()
     for c in CATEGORIES[:11]:
@@ -238,14 +268,13 @@ def test_existing_categories_and_mixes_are_unchanged():
 
 
 def test_rest_objects_lie_stably_on_a_face_not_upright():
-    kinds, upright, elong = set(), 0, []
+    from scipy.spatial import ConvexHull
+    kinds, upright, elong, apart = set(), 0, [], []
     n = 120
     for s in range(n):
-        V, F, L, names, kind = make_object("rest", np.random.default_rng([s, 23]))
-        cat, k = kind.split("/")
-        assert cat == "rest" and k in REST_KINDS, kind
+        V, F, L, names, k = _draw("rest", [s, 23], REST_KINDS)
+        kind = "rest/" + k
         kinds.add(k)
-        assert np.isfinite(V).all() and V[:, 1].min() == 0.0 and L.shape == (len(F),)
         # the longest principal axis (vertices' covariance) is far from vertical in most draws
         # (built upright, they are turned onto a side; near-round ones may end either way)
         w, vec = np.linalg.eigh(np.cov((V - V.mean(0)).T))
@@ -254,11 +283,23 @@ def test_rest_objects_lie_stably_on_a_face_not_upright():
         elong.append(ext.max() / ext.min())
         # at rest: the centre of mass over the convex hull of the points touching the ground
         tol = 1e-3 * np.ptp(V, 0).max()
-        com, hull = _com_and_ground_hull(V, F, tol)
-        assert (hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2]).max() < 0, (s, kind)
-        lab, _, _, ids = _pieces_mass(V, F)
+        lab, vol, com_i, ids = _pieces_mass(V, F)
+        assert _ground_hull_holds(V, (vol[:, None] * com_i).sum(0) / vol.sum(), tol), (s, kind)
         assert (_euler_per_piece(V, F, lab, ids) == 2).all(), (s, kind)      # closed, no ring
+        # one body, or a compound's 2-3 fused: its pieces are joined where their convex hulls meet
+        pieces = parts_of(V, F)                              # (a linear program; necessary)
+        assert len(pieces) >= 2 or k != "compound", (s, kind)
+        if len(pieces) > 1:
+            hulls = [ConvexHull(V[idx]).equations for idx in pieces]
+            joined = _group_of_first(len(pieces), lambda i, j: _convex_pieces_touch(
+                V[pieces[i]], V[pieces[j]], tol, hulls[i], hulls[j]))
+            apart += [s] if len(joined) < len(pieces) else []
     assert kinds == REST_KINDS
+    # a soft union of ellipsoids (``blob``, alone or in a compound) came out of the grid in
+    # pieces that did not touch on seeds 5 (a piece a quarter of the size up in the air), 22 and
+    # 49 before the builder kept only the largest piece (train_rest of the tenth session was
+    # made before that: docs/height-record.md, "Measured: generic kinds on a lent GPU")
+    assert apart == [], apart
     assert upright <= 0.1 * n, upright                      # 2 of 120 when written
     # elongations (longest : shortest extent along the principal axes) from about 1:1 to past 1:6
     elong = np.array(elong)
@@ -271,19 +312,27 @@ def test_rest_pose_keeps_a_box_off_its_ends_and_rolls_a_wedge_off_a_face_it_over
     face, but never ends on its small ends (the build's vertical axis is avoided); an obtuse
     triangular prism (z, y) (0, 0), (1, 0), (3, 1) has its centre of mass at z = 4/3, beyond
     its base (z 0 to 1), so it rolls off the base onto another face from every drop (the
-    avoidance of the vertical axis switched off: ``avoid_up`` > 1 keeps the first drop)."""
+    avoidance of the vertical axis switched off: ``avoid_up`` > 1 keeps the first drop), and
+    the face it ends on holds it (its centre of mass over that face)."""
     from pixgraph_lab.datagen.categories import box, prism, rest_pose
     for s in range(20):
         R = rest_pose([box([0, 0, 0], [1, 4, 0.5])], np.random.default_rng(s))
+        assert np.abs(R @ R.T - np.eye(3)).max() < 1e-12 and np.linalg.det(R) == pytest.approx(1.0, abs=1e-12)
         down = R.T @ np.array([0.0, -1.0, 0.0])              # the face turned down, build frame
         assert np.abs(down).max() == pytest.approx(1.0, abs=1e-9), (s, down)
         assert abs(down[1]) < 1e-9, (s, down)
     ends = 0
+    wedge = prism([(0, 0), (1, 0), (3, 1)], -0.5, 0.5)
+    W, com = np.asarray(wedge.vertices), np.array([0.0, 1 / 3, 4 / 3])   # (x, y, z)
     for s in range(40):
-        R = rest_pose([prism([(0, 0), (1, 0), (3, 1)], -0.5, 0.5)], np.random.default_rng(s), avoid_up=2.0)
+        R = rest_pose([wedge], np.random.default_rng(s), avoid_up=2.0)
+        assert np.abs(R @ R.T - np.eye(3)).max() < 1e-12 and np.linalg.det(R) == pytest.approx(1.0, abs=1e-12)
         down = R.T @ np.array([0.0, -1.0, 0.0])
         assert down[1] > -0.99, (s, down)                     # never on the base y = 0
         ends += abs(down[0]) > 0.99                             # on a triangular end (stable)
+        # turned, it rests on that face: the centre of mass over the points on the ground
+        lift = (W @ R.T)[:, 1].min()
+        assert _ground_hull_holds(W @ R.T - [0, lift, 0], R @ com - [0, lift, 0], 1e-9), (s, down)
     assert ends < 40
 
 
@@ -295,11 +344,9 @@ def test_branches_hold_together_reach_out_over_the_ground_and_stand():
     kinds, overhangs = set(), []
     n = 60
     for s in range(n):
-        V, F, L, names, kind = make_object("branch", np.random.default_rng([s, 24]))
-        cat, k = kind.split("/")
-        assert cat == "branch" and k in BRANCH_KINDS, kind
+        V, F, L, names, k = _draw("branch", [s, 24], BRANCH_KINDS)
+        kind = "branch/" + k
         kinds.add(k)
-        assert np.isfinite(V).all() and V[:, 1].min() == 0.0 and L.shape == (len(F),)
         lab, vol, com_i, ids = _pieces_mass(V, F)
         assert (_euler_per_piece(V, F, lab, ids) == 2).all(), (s, kind)      # closed, no ring
         height = V[:, 1].max()
@@ -307,18 +354,9 @@ def test_branches_hold_together_reach_out_over_the_ground_and_stand():
         # held: the pieces' bounding boxes, joined where they overlap, form one structure
         B = np.array([[V[lab == i].min(0), V[lab == i].max(0)] for i in ids])
         adj = ((B[:, None, 0] <= B[None, :, 1] + tol) & (B[None, :, 0] <= B[:, None, 1] + tol)).all(-1)
-        seen, todo = {0}, [0]
-        while todo:
-            i = todo.pop()
-            for j in np.nonzero(adj[i])[0]:
-                if int(j) not in seen:
-                    seen.add(int(j))
-                    todo.append(int(j))
-        assert len(seen) == len(ids), (s, kind)
+        assert len(_group_of_first(len(ids), lambda i, j: adj[i, j])) == len(ids), (s, kind)
         # stands: the centre of mass over the hull of the points on the ground
-        com = (vol[:, None] * com_i).sum(0) / vol.sum()
-        ground = ConvexHull(V[V[:, 1] <= tol][:, [0, 2]])
-        assert (ground.equations[:, :2] @ com[[0, 2]] + ground.equations[:, 2]).max() < 0, (s, kind)
+        assert _ground_hull_holds(V, (vol[:, None] * com_i).sum(0) / vol.sum(), tol), (s, kind)
         # overhang: how far (share of the height) the parts off the ground reach outside the
         # footprint of the pieces touching it (their whole plan, not only their contacts)
         on = np.isin(lab, ids[B[:, 0, 1] <= tol])
@@ -329,22 +367,6 @@ def test_branches_hold_together_reach_out_over_the_ground_and_stand():
     overhangs = np.array(overhangs)
     assert (overhangs > 0.1).mean() >= 0.75, np.round(overhangs, 2)     # 0.86 when written
     assert np.median(overhangs) > 0.3, np.round(overhangs, 2)            # 0.47 when written
-
-
-def test_a_rest_and_a_branch_sample_render_and_are_deterministic():
-    pytest.importorskip("mitsuba")
-    from pixgraph_lab.datagen.raycast import select_variant
-    from pixgraph_lab.height import generate
-    select_variant()
-    for cat in ("rest", "branch"):
-        arrays, meta = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
-        assert meta["category"] == cat and meta["object"].startswith(cat + "/")
-        mask, h = arrays["mask"], arrays["height"].astype(float)
-        assert mask.sum() > 0.004 * 64 * 64
-        assert (h[~mask] == 0).all() and (h[mask] > 0).all()
-        again, _ = generate.make_sample("train", 2, seed=0, res=64, mix="real", category=cat)
-        for k in arrays:
-            assert np.array_equal(again[k], arrays[k]), (cat, k)
 
 
 # ---------------------------------------------------------------- heldout3 (tenth session)
@@ -371,17 +393,6 @@ def test_heldout3_comes_after_the_existing_categories_and_no_mix_draws_it():
         assert real.CATEGORY_P[c] == pytest.approx(0.8 * p)
     for mix in (real.CATEGORY_P, real.CATEGORY_P_REAL):
         assert not {"heldout", "heldout2", "heldout3"} & set(mix)
-
-
-def _ground_hull_holds(V, com, tol):
-    """Whether the centre of mass ``com`` lies inside the convex hull of the points within
-    ``tol`` of the ground (the object stands)."""
-    from scipy.spatial import ConvexHull
-    g = V[V[:, 1] <= tol][:, [0, 2]]
-    if len(g) < 3 or np.linalg.matrix_rank(g - g.mean(0), tol=1e-9) < 2:
-        return False
-    hull = ConvexHull(g)
-    return bool((hull.equations[:, :2] @ com[[0, 2]] + hull.equations[:, 2]).max() < 0)
 
 
 def _convex_pieces_touch(P, Q, tol, EP=None, EQ=None):
@@ -443,14 +454,8 @@ def check_heldout3_objects(seeds):
         tol = 2e-3 * size
         B = _boxes(V, pieces)
         hulls = [ConvexHull(V[idx]).equations for idx in pieces]
-        seen, todo = {0}, [0]
-        while todo:
-            i = todo.pop()
-            for j in range(len(pieces)):
-                if j not in seen and _overlap(B[i], B[j], tol) and \
-                        _convex_pieces_touch(V[pieces[i]], V[pieces[j]], tol, hulls[i], hulls[j]):
-                    seen.add(j)
-                    todo.append(j)
+        seen = _group_of_first(len(pieces), lambda i, j: _overlap(B[i], B[j], tol) and _convex_pieces_touch(
+            V[pieces[i]], V[pieces[j]], tol, hulls[i], hulls[j]))
         assert len(seen) == len(pieces), (s, kind, [(names[L[np.isin(F, pieces[j]).all(1)][0]], B[j].round(3))
                                                     for j in sorted(set(range(len(pieces))) - seen)][:3])
         vol, mom = 0.0, np.zeros(3)           # uniform density over the closed parts

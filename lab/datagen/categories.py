@@ -147,13 +147,19 @@ def ellipsoid(c, radii, subdiv=2, R=None):
     return m
 
 
+def _h(R, t=(0, 0, 0)):
+    """The 4x4 homogeneous transform of the 3x3 rotation ``R`` followed by the translation ``t``."""
+    M = np.eye(4)
+    M[:3, :3] = R
+    M[:3, 3] = t
+    return M
+
+
 def box(c, ext, R=None):
     tm = _tm()
     m = tm.creation.box(extents=ext)
     if R is not None:
-        M = np.eye(4)
-        M[:3, :3] = R
-        m.apply_transform(M)
+        m.apply_transform(_h(R))
     m.apply_translation(c)
     return m
 
@@ -1252,9 +1258,7 @@ def assembly(rng):
         axes.append(_axis(m, M, h))
 
     def place(m, R, t):
-        M = np.eye(4)
-        M[:3, :3] = R
-        M[:3, 3] = t
+        M = _h(R, t)
         m.apply_transform(M)
         return M
 
@@ -1594,7 +1598,10 @@ def _rest_body(rng, kind, L):
                 C.append(C[-1] + d * L / n)
         C = np.array(C) - np.mean(C, 0)
         m, _ = blob_surface(C, Rd, np.array(Rs), sharp=u(2.0, 5.0), res=44)
-        return m
+        # where two of the chain's ellipsoids barely meet, the union can come out of the grid in
+        # pieces that do not touch (7 of 99 draws before this): the largest is the body
+        pieces = m.split(only_watertight=False)
+        return max(pieces, key=lambda p: abs(p.volume)) if len(pieces) > 1 else m
     # a convex prism: a random convex polygon (z, y) extruded along x, then turned so that the
     # extrusion is the long (y) axis when it is long, or a slab when short
     k = int(rng.integers(3, 9))
@@ -1610,13 +1617,6 @@ def _rest_body(rng, kind, L):
     else:                                     # a slab: the polygon wide, the extrusion thin
         m = prism(poly * L / 2, -L / 2 / elong, L / 2 / elong)
     return m
-
-
-def _h(R, t=(0, 0, 0)):
-    M = np.eye(4)
-    M[:3, :3] = R
-    M[:3, 3] = t
-    return M
 
 
 def rest_pose(meshes, rng, avoid_up=0.87, tries=12):
@@ -1678,6 +1678,7 @@ def rest(rng):
     """A generic solid, or a compound of 2-3 fused, lying at rest on the ground (module doc):
     built upright, then dropped onto a stable face of its convex hull (``rest_pose``) and
     yawed at random, so it extends in depth as often as across."""
+    from pixgraph_lab.datagen.objects import _random_rotation
     u = rng.uniform
     kind = str(rng.choice(REST_KINDS, p=REST_P))
     L = u(0.3, 1.0)
@@ -1690,11 +1691,10 @@ def rest(rng):
         meshes, slots = [_rest_body(rng, kinds[0], L)], [mats[0]]
         for k in kinds[1:]:
             m = _rest_body(rng, k, L * u(0.3, 0.8))
-            from pixgraph_lab.datagen.objects import _random_rotation
             m.apply_transform(_h(_random_rotation(rng)))
             host = np.asarray(meshes[0].vertices)
             p = host[rng.integers(len(host))]
-            c = np.asarray(meshes[0].vertices).mean(0)
+            c = host.mean(0)
             ext = np.ptp(np.asarray(m.vertices), 0).min() / 2
             m.apply_translation(p + (c - p) / max(np.linalg.norm(c - p), 1e-9) * ext * u(0.3, 0.8)
                                 - np.asarray(m.vertices).mean(0))
@@ -1799,18 +1799,22 @@ def _grow(out, rng, p, d, length, r, levels, slot, tip_style, tip_slot, *, sprea
 
 
 def _mound(R, h, sections=14, rng=None):
-    """A flat-bottomed dome R wide, h high (a root flare, a rock, a foot)."""
+    """A flat-bottomed dome of radius ``R`` (at its foot) and height ``h`` (a root flare, a rock, a
+    foot), ``sections`` around; with ``rng`` its shoulder narrower at random (0.5-0.9)."""
     k = 1.0 if rng is None else rng.uniform(0.5, 0.9)
     return revolve([(0, 0), (R, 0), (R * 0.9, h * 0.25), (R * k * 0.5, h * 0.75), (R * 0.2, h), (0, h)], sections)
 
 
 def _disc_base(R, h, sections=24):
+    """A disc of radius ``R`` and height ``h`` standing on Y = 0, centred on the y axis."""
     return cylinder([0, 0, 0], [0, h, 0], R, sections)
 
 
 def _branch_parts(rng, kind):
     """(upper parts [(mesh, slot)], base(k) -> [(mesh, slot)]) of a ``branch`` kind; the base
-    is centred on the origin, ``k`` >= 1 widens it (the caller widens it until it stands)."""
+    is centred on the origin, ``k`` >= 1 widens it (the caller widens it until it stands).
+    Several bases draw from ``rng`` on each call (a mound's shoulder, a material, a disc's
+    thickness, a plinth's depth), so a wider base is also a fresh draw of those details."""
     u = rng.uniform
     mats = [ASSEMBLY_SLOTS[i] for i in rng.choice(len(ASSEMBLY_SLOTS), 3, replace=False)]
     up = []
@@ -1924,7 +1928,7 @@ def _branch_parts(rng, kind):
             _tube(up, pts, r, r * 0.35, bone)
             for _ in range(int(rng.integers(2, 6))):
                 i = int(rng.integers(2, 8))
-                td = _unit([0, 1, 0] + (pts[i + 1] - pts[i]) * 0 - back * u(0.3, 1.2) + side * u(-0.5, 0.8))
+                td = _unit([0, 1, 0] - back * u(0.3, 1.2) + side * u(-0.5, 0.8))
                 tl = L * u(0.15, 0.4)
                 tp = _curve(pts[i], td, tl, rng, 4, 0.1, pull=(0, 0.05, 0), floor=0.1)
                 ri = r * (1 - 0.65 * i / 8) * 0.7
