@@ -24,8 +24,9 @@ that blocks it (:func:`hard_shadow_distance`, one march per pixel, as
    ``round(softness * mean d)`` around it (a box over a straight hard edge gives
    the linear ramp a disk light's penumbra roughly is).
 
-2'. (what ``pixgraph.PreviewShadow`` uses for a disk light since its version 4:
-   docs/server.md, "A stretched penumbra") with a geometry, a background pixel's
+2'. (a candidate, not what ``pixgraph.PreviewShadow`` uses: its version 4 did, and
+   version 5 went back to the square box after it left seams on a wall; docs/server.md,
+   "A stretched penumbra") with a geometry, a background pixel's
    box is stretched along the penumbra's long axis in the image:
    :func:`penumbra_axes` casts the blocking point from the disk's 4 extreme
    points onto the receiver's tangent plane, which gives the penumbra's
