@@ -65,9 +65,9 @@ def test_training_batches_are_the_host_indexed_crops(tmp_path, monkeypatch):
     seen = []
     real = train.augment
 
-    def recording(x, t, w, gen):
+    def recording(x, t, w, gen, *rest):
         seen.append(tuple(v.detach().cpu().clone() for v in (x, t, w)))
-        return real(x, t, w, gen)
+        return real(x, t, w, gen, *rest)
 
     monkeypatch.setattr(train, "augment", recording)
     args = ["--data", str(tmp_path), "--out", str(tmp_path / "run"), "--size", "16", "--base", "4",

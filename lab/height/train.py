@@ -15,7 +15,12 @@ cutout's bounding-box height [px] (module doc of learned_height).
 Augmentation (per sample, each step): horizontal flip (a mirrored photo has the
 same heights), zoom 0.8-1.2 and shift up to 8 % of the crop (the targets and the
 heuristic / row channels are in units of bh, so they are unchanged), colour
-gains 0.6-1.4 per channel, channel permutation, grey 20 % of the time.
+gains 0.6-1.4 per channel, channel permutation, grey 20 % of the time. With
+``--stretch A`` (> 1) half the samples also have one image axis (x or y, at
+random) shrunk by a factor drawn log-uniformly from [1, A]: a squatter or
+slimmer variant of the object with exact targets, since a vertical stretch
+scales the heights and bh alike and a horizontal one neither (the heuristic's
+and the row channel are unchanged for the same reason).
 
 Resumable: ``OUT/last.pt`` (model, optimiser, step, RNG states, curve) is
 written every ``--checkpoint-minutes``; a new run with the same ``--out`` resumes.
@@ -87,8 +92,9 @@ def load_splits(data: str, splits, size: int, limit: int | None = None):
     return out
 
 
-def augment(x, t, w, gen):
-    """Random flips / zoom / shift / colour (module doc) on a batch (torch tensors)."""
+def augment(x, t, w, gen, stretch: float = 1.0):
+    """Random flips / zoom / shift / colour and, with ``stretch`` > 1, one axis
+    shrunk (module doc) on a batch (torch tensors)."""
     import torch
     import torch.nn.functional as F
     B = x.shape[0]
@@ -98,8 +104,18 @@ def augment(x, t, w, gen):
     tx = torch.empty(B).uniform_(-0.08, 0.08, generator=gen)
     ty = torch.empty(B).uniform_(-0.08, 0.08, generator=gen)
     sx = torch.where(flip, -1.0, 1.0) / s
+    sy = 1.0 / s
+    if stretch > 1.0:
+        # drawn only when asked, so the default run consumes the generator as before
+        on = torch.rand(B, generator=gen) < 0.5
+        k = torch.exp(torch.empty(B).uniform_(0.0, float(np.log(stretch)), generator=gen))
+        k = torch.where(on, k, torch.ones_like(k))
+        along_x = torch.rand(B, generator=gen) < 0.5
+        # the grid reads k times further out along that axis: the content shrinks by k
+        sx = sx * torch.where(along_x, k, torch.ones_like(k))
+        sy = sy * torch.where(along_x, torch.ones_like(k), k)
     theta = torch.zeros(B, 2, 3)
-    theta[:, 0, 0], theta[:, 1, 1] = sx, 1.0 / s
+    theta[:, 0, 0], theta[:, 1, 1] = sx, sy
     theta[:, 0, 2], theta[:, 1, 2] = tx, ty
     grid = F.affine_grid(theta.to(dev), list(x.shape), align_corners=False)
     # t is normalised (height / bh where w > 0): resample t w and w, then divide
@@ -208,6 +224,8 @@ def main(argv=None) -> int:
                     help="start from this narrower checkpoint widened to --base (lab/height/widen.py: the same "
                          "function, copies broken by --widen-noise)")
     ap.add_argument("--widen-noise", type=float, default=0.01)
+    ap.add_argument("--stretch", type=float, default=1.0,
+                    help="> 1: half the samples get one axis shrunk by a factor in [1, STRETCH] (module doc)")
     ap.add_argument("--pin", action="store_true",
                     help="train the contact-pinned height (the contact pixels' mean shifted to 0, "
                          "as predict does with contact='ground')")
@@ -254,6 +272,8 @@ def main(argv=None) -> int:
     config = {"size": a.size, "base": a.base, "levels": a.levels, "in_channels": 6, "outputs": a.outputs,
               "pin": bool(a.pin), "init": a.init or a.widen_from,
               "target": "pixel height / cutout bounding-box height"}
+    if a.stretch > 1.0:
+        config["stretch"] = a.stretch
     state = {"step": 0, "curve": [], "best": float("inf"), "seconds": 0.0}
     last = os.path.join(a.out, "last.pt")
     if os.path.exists(last):
@@ -305,7 +325,7 @@ def main(argv=None) -> int:
     while state["step"] < a.steps:
         idx = torch.from_numpy(rng.integers(N, size=a.batch)).to(device)
         x, t, w = (on_dev[k].index_select(0, idx).float() for k in ("x", "t", "w"))
-        x, t, w = augment(x, t, w, gen)
+        x, t, w = augment(x, t, w, gen, a.stretch)
         p, e = split_output(model(x))
         if a.pin:
             p = contact_pin(p, x)
