@@ -122,8 +122,9 @@ def pixel_heights(where=None, **maps) -> None:
     ground: NaN, infinite or negative values (a point below the ground) are
     impossible and would make the tracers' results meaningless. ``where``: a
     boolean (H, W) of the pixels that matter (e.g. the cutout's mask: its height
-    map is unused outside it); default all. A frozen map that was valid everywhere
-    before is not read again.
+    map is unused outside it), or a function that makes it, called only when a
+    map is not valid everywhere (a 20 MP mask costs a full pass); default all. A
+    frozen map that was valid everywhere before is not read again.
     """
     for name, h in maps.items():
         if h is None or _passed("pixel_heights", h):
@@ -135,6 +136,8 @@ def pixel_heights(where=None, **maps) -> None:
             continue
         finite = np.isfinite(h)
         bad = ~finite | (np.where(finite, h, 0.0) < 0.0)
+        if callable(where):
+            where = where()
         if where is not None:
             bad &= where
         n = int(np.count_nonzero(bad))
@@ -154,6 +157,9 @@ def finite_outputs(**arrays) -> None:
     """Raise ``RuntimeError`` (a bug in the node, exit 1) when an output the node
     declares finite holds NaN or inf: never hand one on silently."""
     for name, a in arrays.items():
+        a = np.asarray(a)
+        if a.size == 0 or np.isfinite(a.min()) and np.isfinite(a.max()):   # two reductions, no temporary
+            continue
         if not np.all(np.isfinite(a)):
             raise RuntimeError(f"output {name!r} holds {int(np.count_nonzero(~np.isfinite(a)))} "
                                "non-finite value(s) (a bug: please report it with the graph)")

@@ -85,8 +85,8 @@ class Reflection(Node):
                   mask=inputs.mask, receiver=inputs.receiver)
         rgba(cutout=inputs.cutout)
         finite(cutout=inputs.cutout, mask=inputs.mask)
-        covered = inside(inputs.cutout[..., 3] if inputs.mask is None else inputs.mask)
-        pixel_heights(covered, fg_height=inputs.fg_height)
+        pixel_heights(lambda: inside(inputs.cutout[..., 3] if inputs.mask is None else inputs.mask),
+                      fg_height=inputs.fg_height)
         pixel_heights(bg_height=inputs.bg_height)
         finite(receiver=inputs.receiver)
         side = max(inputs.bg_height.shape) if params.proxy == 0 else max(16, params.proxy)
@@ -100,7 +100,7 @@ class Reflection(Node):
                              progress=ctx.progress, check_cancelled=ctx.check_cancelled)
         finite_outputs(layer=r["layer"])
         return {"layer": r["layer"],
-                "stats": {"spp": r["spp"].astype(np.float32), "steps": r["steps"].astype(np.float32)}}
+                "stats": {"spp": r["spp"], "steps": r["steps"]}}    # float32 from proxy_reflection
 
 
 def _receiver_mask(receiver, bg_height, receivers: str):

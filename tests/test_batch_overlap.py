@@ -187,6 +187,14 @@ def test_checks_skip_frozen_arrays_that_passed_and_only_those():
     where[4:, 4:] = True
     C.pixel_heights(where, fg_height=h)
     assert not C._passed("pixel_heights", h)
+    # ``where`` as a function: made only when a map is not valid everywhere
+    made = []
+    C.pixel_heights(lambda: made.append(1) or where, fg_height=h)
+    assert made == [1]
+    C.pixel_heights(lambda: made.append(2) or where, fg_height=np.ones((16, 16), np.float32))
+    assert made == [1]
+    with pytest.raises(InputError, match="u=0, v=0"):
+        C.pixel_heights(lambda: ~where, fg_height=h)
     with pytest.raises(InputError, match="negative"):
         C.pixel_heights(fg_height=h)
     g = np.full((16, 16), 2.0, np.float32)

@@ -86,6 +86,52 @@ def test_the_proxy_pieces_give_the_numbers_of_the_whole_image_versions():
             np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-6)
 
 
+def test_the_faster_pieces_give_the_numbers_of_their_plain_numpy_references():
+    """image_box / nonzero_pixels (from the bits), the integer block mean, the
+    nearest-neighbour stats, enlarge_sparse with per-tile maps and cutout_scene
+    searched within a box: the same numbers as the plain expressions they replace."""
+    from pixgraph_nodes.ops.reflection_proxy import _block_mean, _edges, _nearest, enlarge_sparse
+    from pixgraph_nodes.ops.resample import Window, image_box, nonzero_box, nonzero_pixels
+    from pixgraph_nodes.ops.upsample import cutout_scene
+    rng = np.random.default_rng(5)
+    for C in (4, 3):
+        img = np.zeros((61, 47, C), np.float32)
+        assert image_box(img) is None and not nonzero_pixels(img).any()
+        img[7, 9, C - 1] = -0.0                              # -0.0 == 0: not a pixel
+        assert image_box(img) is None
+        img[12:30, 5:20] = rng.random((18, 15, C)) * (rng.random((18, 15, C)) < 0.3)
+        img[40, 33, 1] = np.nan                              # NaN != 0
+        img[50, 2, 0] = -1e-30
+        ref = (img != 0).any(axis=2)
+        np.testing.assert_array_equal(nonzero_pixels(img), ref)
+        assert image_box(img) == nonzero_box(ref) == (12, 51, 2, 34)
+    for (H, W), (h, w) in [((190, 251), (37, 53)), ((100, 80), (20, 16)), ((64, 64), (64, 64))]:
+        a = rng.random((H, W)) < 0.3
+        re, ce = _edges(H, h), _edges(W, w)
+        s = np.add.reduceat(np.add.reduceat(a.astype(np.float32), re, axis=0), ce, axis=1)
+        n = np.diff(np.append(re, H))[:, None] * np.diff(np.append(ce, W))[None, :]
+        np.testing.assert_array_equal(_block_mean(a, (h, w)), (s / n).astype(np.float32))
+        small = rng.integers(0, 200, (h, w)).astype(np.int32)
+        iy, ix = np.minimum((np.arange(H) * h) // H, h - 1), np.minimum((np.arange(W) * w) // W, w - 1)
+        got = _nearest(small, (H, W))
+        assert got.dtype == np.float32
+        np.testing.assert_array_equal(got, small[:, ix][iy])
+    h, w, H, W = 37, 53, 190, 251
+    lo = rng.random((h, w, 4)).astype(np.float32) * (rng.random((h, w, 1)) < 0.3)
+    m_lo = (rng.random((h, w)) < 0.4).astype(np.float32)
+    m_hi = rng.random((H, W)) < 0.4
+    wt = rng.random((H, W)).astype(np.float32)
+    want = enlarge_sparse(lo, m_lo, m_hi, (H, W), weight=wt, tile=32)
+    got = enlarge_sparse(lo, m_lo, lambda r, c: m_hi[r, c], (H, W), weight=lambda r, c: wt[r, c], tile=32)
+    np.testing.assert_array_equal(got, want)
+    mask = np.zeros((H, W), np.float32)
+    mask[60:120, 80:130] = rng.random((60, 50))
+    fg = rng.random((H, W)).astype(np.float32) * 40
+    win = Window.whole(H, W, 64)
+    for a, b in zip(cutout_scene(win, mask, fg, within=(50, 125, 70, 140)), cutout_scene(win, mask, fg)):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_receivers_masked_off_are_not_traced(device, full):
     """receive=: the pixels masked off cost nothing and stay 0; the others get the
     numbers of the full trace (their samples are the same), except within the

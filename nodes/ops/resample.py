@@ -209,6 +209,39 @@ def nonzero_box(nonzero: np.ndarray):
     return r0, r1, int(cols[0]), int(cols[-1]) + 1
 
 
+def nonzero_pixels(image: np.ndarray) -> np.ndarray:
+    """``(image != 0).any(axis=2)`` of a float32 (H, W, C) image, bool (H, W), from the
+    bits: a float is nonzero (NaN included) when any bit but its sign is set, and
+    with C even two channels are tested as one 64-bit word (a reduction over a
+    short last axis is slow in numpy)."""
+    a = np.ascontiguousarray(image, np.float32)
+    if a.shape[2] % 2:
+        return (a != 0).any(axis=2)
+    q = a.view(np.uint64)
+    acc = q[..., 0].copy()
+    for k in range(1, q.shape[2]):
+        acc |= q[..., k]
+    return (acc & np.uint64(0x7FFFFFFF7FFFFFFF)) != 0
+
+
+def image_box(image: np.ndarray):
+    """``nonzero_box`` of the pixels of a float32 (H, W, C) image with a channel != 0
+    (NaN included), or None, with no full-size temporaries: the rows from one OR
+    over each row's bits, the columns from the box's rows only."""
+    a = np.ascontiguousarray(image, np.float32)
+    H, W, C = a.shape
+    bits = a.view(np.uint32)
+    magnitude = np.uint32(0x7FFFFFFF)          # all bits but the sign: -0.0 == 0
+    if H * W * C == 0:
+        return None
+    rows = np.flatnonzero(np.bitwise_or.reduce(bits.reshape(H, W * C), axis=1) & magnitude)
+    if rows.size == 0:
+        return None
+    r0, r1 = int(rows[0]), int(rows[-1]) + 1
+    cols = np.flatnonzero((np.bitwise_or.reduce(bits[r0:r1], axis=0) & magnitude).any(axis=1))
+    return r0, r1, int(cols[0]), int(cols[-1]) + 1
+
+
 def shrink_part(part: np.ndarray, origin, full_shape, shape) -> np.ndarray:
     """``resize`` to ``shape`` of a (H, W, C) image that is 0 outside ``part``, the
     block of it whose top-left pixel is ``origin`` (row, col): each output pixel

@@ -128,20 +128,23 @@ def support_box(active_lo: np.ndarray, shape, pad: int = 2):
             max(0, int(np.floor(c * W / w))), min(W, int(np.ceil(d * W / w))))
 
 
-def cutout_scene(win: Window, mask, fg_height):
+def cutout_scene(win: Window, mask, fg_height, within=None):
     """The cutout's half of ``win.scene`` of a whole-image window: (mask, fg_height)
     at (out_h, out_w), the same numbers, resized only over the cutout's box (the
     two maps are zero off it, and a cutout covers a small part of a 20 MP photo;
-    ``resample.shrink_part``). Heights in proxy pixels."""
+    ``resample.shrink_part``). Heights in proxy pixels. ``within``: (r0, r1, c0, c1)
+    a box the caller knows holds every pixel of ``mask > 0.5`` (e.g. the nonzero
+    box of a cutout whose alpha is the mask): only it is searched."""
     mask = np.asarray(mask)
     H, W = mask.shape
     h, w = win.out_h, win.out_w
-    inside = mask > 0.5
+    a0, a1, b0, b1 = (0, H, 0, W) if within is None else within
+    inside = mask[a0:a1, b0:b1] > 0.5
     box = nonzero_box(inside)
     if box is None:
         return np.zeros((h, w), np.float32), np.zeros((h, w), np.float32)
-    r0, r1, c0, c1 = box
-    ins = inside[r0:r1, c0:c1]
+    r0, r1, c0, c1 = box[0] + a0, box[1] + a0, box[2] + b0, box[3] + b0
+    ins = inside[r0 - a0:r1 - a0, c0 - b0:c1 - b0]
     fg = np.where(ins, np.nan_to_num(np.asarray(fg_height[r0:r1, c0:c1], np.float32)), 0.0)
     part = np.stack([ins.astype(np.float32), fg.astype(np.float32)], axis=2)
     cover, fg_sum = np.moveaxis(shrink_part(part, (r0, c0), (H, W), (h, w)), 2, 0)
@@ -150,17 +153,17 @@ def cutout_scene(win: Window, mask, fg_height):
     return m, fg_w.astype(np.float32)
 
 
-def proxy_scene(win: Window, mask, fg_height, bg_height):
+def proxy_scene(win: Window, mask, fg_height, bg_height, within=None):
     """``win.scene(mask, fg_height, bg_height)`` of a whole-image window (``Window.whole``):
-    the cutout's coverage and height as :func:`cutout_scene` (the same numbers), the
-    background's height rows first (``resample.shrink``), the same up to float
-    rounding.
+    the cutout's coverage and height as :func:`cutout_scene` (the same numbers;
+    ``within`` as there), the background's height rows first (``resample.shrink``),
+    the same up to float rounding.
 
     Returns (mask, fg_height, bg_height) at (out_h, out_w), heights in proxy pixels."""
     H, W = np.shape(mask)
     if (win.x0, win.y0, win.w, win.h) != (0, 0, W, H):
         raise ValueError(f"proxy_scene takes a whole-image window, got {win} for {W}x{H}")
-    m, fg_w = cutout_scene(win, mask, fg_height)
+    m, fg_w = cutout_scene(win, mask, fg_height, within)
     return m, fg_w, proxy_bg_height(win, bg_height)
 
 
