@@ -1,0 +1,42 @@
+#!/bin/bash
+# Two versions of pixgraph side by side on a GPU machine without a network (docs/server.md, "On a GPU"):
+# this tree ("after") and the same tree with the files of an older revision laid over it ("before"),
+# each installed into its own folder from the wheels carried in .whl/ (see gpu_machine.sh's header),
+# then the Reflection node's host benchmark (twice each, interleaved) and the 20 MP glossy final.
+#
+# On the machine with the repository (REV: the older revision; only files that REV and this tree
+# both have are laid over, which is what a change to existing code needs):
+#   for f in $(git diff --name-only --diff-filter=M REV -- nodes pixgraph); do
+#     mkdir -p .before/$(dirname $f); git show REV:$f > .before/$f; done
+# then carry .whl and .before to the GPU machine and, from the repository's root there:
+#   bash benchmarks/gpu_before_after.sh [.before]
+set -u
+OVER=${1:-.before}
+NVIDIA_OPENCL=${NVIDIA_OPENCL:-/usr/local/nvidia/lib64/libnvidia-opencl.so.1}
+if [ ! -f /etc/OpenCL/vendors/nvidia.icd ]; then
+  test -f "$NVIDIA_OPENCL" || { echo "no $NVIDIA_OPENCL: set NVIDIA_OPENCL to NVIDIA's OpenCL library" >&2; exit 3; }
+  mkdir -p /etc/OpenCL/vendors && echo "$NVIDIA_OPENCL" > /etc/OpenCL/vendors/nvidia.icd || exit 3
+fi
+test -d "$OVER" || { echo "no folder $OVER of the older revision's files" >&2; exit 2; }
+python3 -m pip install -q --target /tmp/deps --no-index --no-deps --find-links .whl pyopencl pytools \
+    platformdirs siphash24 typing_extensions OpenImageIO isal tqdm networkx jsonschema jsonschema-specifications \
+    referencing rpds-py attrs PyYAML Pillow starlette uvicorn h11 click anyio sniffio idna httpx httpcore certifi \
+    setuptools wheel || exit 4
+rm -rf /tmp/before && mkdir /tmp/before && cp -r . /tmp/before/ && cp -r "$OVER"/. /tmp/before/ || exit 5
+for v in after:. before:/tmp/before; do
+  PYTHONPATH=/tmp/deps python3 -m pip install -q --target "/tmp/site_${v%%:*}" --no-index --no-deps \
+      --no-build-isolation "${v#*:}" || exit 5
+done
+export XDG_CACHE_HOME=${XDG_CACHE_HOME:-/tmp/xdg} PIXGRAPH_DEVICE=${PIXGRAPH_DEVICE:-nvidia}
+PYTHONPATH=/tmp/site_after:/tmp/deps python3 -m pixgraph devices
+failed=0
+for v in before after before after; do
+  echo "== reflection host work, $v"
+  PYTHONPATH=/tmp/site_$v:/tmp/deps python3 benchmarks/reflection_host_bench.py --size 20mp --repeat 3 || failed=1
+done
+for v in before after; do
+  echo "== 20 MP glossy final, $v"
+  PYTHONPATH=/tmp/site_$v:/tmp/deps python3 benchmarks/photo_bench.py --case glossy --size 20mp --ext .png \
+      --repeat 3 || failed=1
+done
+exit $failed
