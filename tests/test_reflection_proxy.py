@@ -98,6 +98,7 @@ def test_the_faster_pieces_give_the_numbers_of_their_plain_numpy_references():
         img = np.zeros((61, 47, C), np.float32)
         assert image_box(img) is None and not nonzero_pixels(img).any()
         img[7, 9, C - 1] = -0.0                              # -0.0 == 0: not a pixel
+        img[8, 9, 0] = -0.0                                  # (either half of a 64-bit pair)
         assert image_box(img) is None
         img[12:30, 5:20] = rng.random((18, 15, C)) * (rng.random((18, 15, C)) < 0.3)
         img[40, 33, 1] = np.nan                              # NaN != 0
