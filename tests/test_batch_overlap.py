@@ -204,3 +204,15 @@ def test_checks_skip_frozen_arrays_that_passed_and_only_those():
     key = ("pixel_heights", id(g))
     del g  # forgotten with the array: a new array at the same address is checked
     assert key not in C._PASSED
+
+
+def test_finite_outputs_finds_nan_and_either_infinity():
+    """_checks.finite_outputs (found by min / max first): NaN, +inf or -inf anywhere
+    is a RuntimeError that counts them; finite and empty arrays pass."""
+    from pixgraph_nodes import _checks as C
+    C.finite_outputs(a=np.zeros((4, 4, 4), np.float32), e=np.zeros((0, 3), np.float32))
+    for bad in (np.nan, np.inf, -np.inf):
+        a = np.ones((4, 4, 4), np.float32)
+        a[2, 1, 3] = a[0, 0, 0] = bad
+        with pytest.raises(RuntimeError, match="'a' holds 2 non-finite"):
+            C.finite_outputs(ok=np.ones(3, np.float32), a=a)

@@ -98,6 +98,7 @@ def test_the_faster_pieces_give_the_numbers_of_their_plain_numpy_references():
         img = np.zeros((61, 47, C), np.float32)
         assert image_box(img) is None and not nonzero_pixels(img).any()
         img[7, 9, C - 1] = -0.0                              # -0.0 == 0: not a pixel
+        img[8, 9, 0] = -0.0                                  # (either half of a 64-bit pair)
         assert image_box(img) is None
         img[12:30, 5:20] = rng.random((18, 15, C)) * (rng.random((18, 15, C)) < 0.3)
         img[40, 33, 1] = np.nan                              # NaN != 0
@@ -130,6 +131,57 @@ def test_the_faster_pieces_give_the_numbers_of_their_plain_numpy_references():
     win = Window.whole(H, W, 64)
     for a, b in zip(cutout_scene(win, mask, fg, within=(50, 125, 70, 140)), cutout_scene(win, mask, fg)):
         np.testing.assert_array_equal(a, b)
+
+
+def test_the_host_part_gives_the_numbers_of_the_plain_expressions(monkeypatch):
+    """proxy_reflection's work around the trace (the trace replaced by a recorder):
+    the proxy scene of the given mask (which may reach past the cutout's colour) or
+    of the alpha, the receivers' proxy, and the enlargement against the plain
+    whole-image expressions (Window.scene, the float block mean, array maps)."""
+    from pixgraph_nodes.ops import reflection_proxy as RP
+    from pixgraph_nodes.ops.resample import Window
+    cam, cut, fg, bg = scene()
+    H, W = bg.shape
+    rng = np.random.default_rng(7)
+    mask = (cut[..., 3] > 0.3).astype(np.float32)
+    mask[20:60, 10:200] = 1.0                     # partly off the cutout's colour box
+    recv = np.clip(rng.random((H, W)) * 2 - 0.3, 0, 1).astype(np.float32)
+    recv[:, :100] = 0.0
+    seen = {}
+
+    def traced(h, w):                             # the lower half, sparse: empty and busy tiles
+        busy = (np.arange(h)[:, None] >= h // 2) & (np.arange(w)[None, :] % 3 == 0)
+        return np.random.default_rng(1).random((h, w, 4)).astype(np.float32) * busy[..., None]
+
+    def trace(device, cam_lo, cut_lo, fg_lo, bg_lo, *, mask, receive, **kw):
+        h, w = mask.shape
+        seen.update(mask=mask, fg=fg_lo, receive=receive)
+        return {"layer": traced(h, w), "spp": np.full((h, w), 16, np.int32), "steps": np.ones((h, w), np.int32)}
+    monkeypatch.setattr(RP, "reflection_cl", trace)
+    for m_in, r_in in [(None, None), (mask, None), (mask, recv)]:
+        seen.clear()
+        got = RP.proxy_reflection(None, cam, cut, fg, bg, max_side=128, mask=m_in, receive=r_in, **KW)
+        win = Window.whole(H, W, 128)
+        m_full = cut[..., 3] if m_in is None else m_in
+        m, fg_lo, _ = win.scene(m_full, fg, bg)
+        np.testing.assert_allclose(seen["mask"], m, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(seen["fg"], fg_lo, rtol=1e-6, atol=1e-6)
+        lo = traced(*m.shape)
+        side_lo, side_hi = seen["mask"], m_full
+        if r_in is not None:
+            on = r_in > 0
+            re, ce = RP._edges(H, m.shape[0]), RP._edges(W, m.shape[1])
+            s = np.add.reduceat(np.add.reduceat(on.astype(np.float32), re, axis=0), ce, axis=1)
+            frac = s / (np.diff(np.append(re, H))[:, None] * np.diff(np.append(ce, W))[None, :])
+            np.testing.assert_array_equal(seen["receive"], RP._grow(frac > 0))
+            side_lo = np.maximum(seen["mask"], (frac < 0.5).astype(np.float32))
+            side_hi = (m_full > 0.5) | ~on
+        else:
+            assert seen["receive"] is None
+        want = RP.enlarge_sparse(lo, side_lo, side_hi, (H, W), weight=r_in)
+        assert want.any()
+        np.testing.assert_array_equal(got["layer"], want)
+        assert got["spp"].dtype == np.float32 and (got["spp"] == 16).all()
 
 
 def test_receivers_masked_off_are_not_traced(device, full):
