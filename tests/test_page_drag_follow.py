@@ -126,3 +126,34 @@ def test_the_cutouts_handles_follow_its_box_and_its_scale(browser, tmp_path):
         assert centre(page, "#tilt-handle") == pytest.approx((fx + (tx - fx) * f, fy + (ty - fy) * f), abs=2.5)
         assert not errors, errors
         page.close()
+
+
+def test_saved_stays_shown_when_an_earlier_final_comes_after_the_save(browser, tmp_path):
+    """On a 20 MP photo a final takes seconds: "save" pressed meanwhile showed "saved
+    PATH", and the final, asked before the save, replaced that line as soon as it came
+    (often before it could be read). Renders asked before the save now leave it; the next
+    edit's replace it."""
+    import yaml
+    graph = edit_graph(str(tmp_path))
+    with open(graph) as f:
+        doc = yaml.safe_load(f)
+    # a final that takes a while here (a soft shadow of many samples), previews as quick as ever
+    doc["nodes"]["shadow"] = {**doc["nodes"]["shadow"], "type": "pixgraph.SoftShadow", "params": {"samples": 256}}
+    with open(graph, "w") as f:
+        yaml.safe_dump(doc, f, sort_keys=False)
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        seq = last_seq(page)
+        page.click("#flip")                        # its final is asked now and takes a while
+        page.fill("#save-name", "mine.yaml")
+        page.click("#save")
+        page.wait_for_function("document.getElementById('status').textContent.startsWith('saved')", timeout=60000)
+        wait_final(page, seq)
+        assert page.inner_text("#status").startswith("saved "), page.inner_text("#status")
+        assert (tmp_path / "mine.yaml").exists()
+        seq = last_seq(page)
+        page.click("#flip")                        # a new edit: its render's line again
+        wait_final(page, seq)
+        assert page.inner_text("#status").startswith("final "), page.inner_text("#status")
+        assert not errors, errors
+        page.close()
