@@ -108,6 +108,7 @@ export function wireFiles(reload) {
     try {
       const name = $("save-name").value.trim();
       const res = await api("POST", "/api/save_files", name ? {path: name} : {});
+      ui.savedSeq = ui.seq;        // renders asked before the save leave this line (render.js)
       $("status").textContent = `saved ${res.path}` + (res.copied.length ? ` with ${res.copied.join(", ")}` : "");
       showError("");
       ui.saved = res;

@@ -113,8 +113,16 @@ export function drawHandles() {
   if (s.background && roles.background) drawWall(s.background, roles.background, line);
   const light = s.light;
   if (light && light.tip_uv) {
-    if (light.top_uvh) line("light", light.top_uvh.slice(0, 2), light.tip_uv);
-    handle("light", "light-handle", light.tip_uv, (p) => ({edits: {light_tip: p.map((x) => round(x))}, at: p}));
+    // the dotted line from the top ends under the held tip
+    const guide = light.top_uvh ? line("light", light.top_uvh.slice(0, 2), light.tip_uv) : null;
+    handle("light", "light-handle", light.tip_uv, (p) => {
+      if (guide) {
+        const [x, y] = toScreen(...p);
+        guide.setAttribute("x2", x);
+        guide.setAttribute("y2", y);
+      }
+      return {edits: {light_tip: p.map((x) => round(x))}, at: p};
+    });
   }
   for (const f of extraHandles) f(s, roles);
   drawFinder();
@@ -168,21 +176,43 @@ function drawCutout(pl, id) {
   const [u0, v0, u1, v1] = pl.bbox;
   const [fu, fv] = pl.foot;
   const [x0, y0] = toScreen(u0, v0), [x1, y1] = toScreen(u1, v1);
-  const box = svgEl("rect", {class: "cutout-box", id: "cutout-box", x: x0, y: y0,
+  const box = svgEl("rect", {class: "cutout-box on-cutout", id: "cutout-box", x: x0, y: y0,
                              width: Math.max(1, x1 - x0), height: Math.max(1, y1 - y0)});
   // the box: move the foot by the drag
   grab(box, (p, start) => {
     const foot = [round(fu + p[0] - start[0]), round(fv + p[1] - start[1])];
     return {edits: param(id, "foot", foot), at: foot, dx: p[0] - start[0], dy: p[1] - start[1]};
-  }, (res) => box.setAttribute("transform", `translate(${res.dx * view.k} ${res.dy * view.k})`));
-  handle("cutout", "foot-handle", [fu, fv], (p) => ({edits: param(id, "foot", p.map((x) => round(x))), at: p}), "rect");
+  }, (res) => followCutout([fu, fv], 1, res.dx, res.dy));
+  handle("cutout on-cutout", "foot-handle", [fu, fv], (p) => {
+    followCutout([fu, fv], 1, p[0] - fu, p[1] - fv);
+    return {edits: param(id, "foot", p.map((x) => round(x))), at: p};
+  }, "rect");
   // the top right corner: scale about the foot
   const top = [u1, v0];
-  handle("cutout", "scale-handle", top, (p) => {
+  handle("cutout on-cutout", "scale-handle", top, (p) => {
     const s = scaledBy(pl, (fv - p[1]) / Math.max(1e-6, fv - v0));
     const k = s / pl.scale;
+    followCutout([fu, fv], k, 0, 0);
     return {edits: param(id, "scale", s), at: [fu + (u1 - fu) * k, fv - (fv - v0) * k]};
   });
+}
+
+// While the cutout is moved (its box or foot: by du, dv image px) or scaled about its
+// foot (by k), the handles and guides drawn on it (class "on-cutout": its box, foot and
+// scale handles, heightedit.js's contact points, top and body) follow at once, before the
+// drag's final brings the new scene: each point p goes to foot + (p - foot) k + (du, dv),
+// handles keeping their size on the screen, lines their stroke. The held one places itself.
+function followCutout(foot, k, du, dv) {
+  const [fx, fy] = toScreen(...foot), tx = du * view.k + fx * (1 - k), ty = dv * view.k + fy * (1 - k);
+  for (const el of $("handles").querySelectorAll(".on-cutout")) {
+    if (ui.drag && el === ui.drag.el && el.id !== "cutout-box") continue;
+    if (el.classList.contains("handle")) {
+      const b = el.getBBox(), cx = b.x + b.width / 2, cy = b.y + b.height / 2;
+      el.setAttribute("transform", `translate(${tx + cx * (k - 1)} ${ty + cy * (k - 1)})`);
+    } else {
+      el.setAttribute("transform", `translate(${tx} ${ty}) scale(${k})`);
+    }
+  }
 }
 
 function scaledBy(pl, factor) {

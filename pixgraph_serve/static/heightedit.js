@@ -103,23 +103,31 @@ function drawHeightEdit(s) {
   const vals = e.values;
   const pts = pairs(vals.points || []);
   const lying = !!vals.lying;
-  if (pts.length > 1) {
-    const line = [...pts].sort((a, b) => a[0] - b[0]).map((p) => toScreen(...toCanvas(e, p)).join(","));
-    svgEl("polyline", {class: `guide contact${lying ? " off" : ""}`, points: line.join(" ")});
-  }
+  // the line through the contact points (two or more), sorted along u; redrawn while a
+  // point is held, so it follows the pointer before the drag's final comes
+  const line = svgEl("polyline", {class: `guide contact on-cutout${lying ? " off" : ""}`});
+  const drawLine = (flat) => {
+    const at = pairs(flat).sort((a, b) => a[0] - b[0]).map((p) => toScreen(...toCanvas(e, p)).join(","));
+    line.setAttribute("points", at.length > 1 ? at.join(" ") : "");
+  };
+  drawLine(vals.points || []);
   if (!lying) {
     // just under the cutout's foot (GHOST_BELOW screen px, clear of the cutout's own foot
     // square, which moves the cutout): dragged from there, a new contact point where it is
     // let go (the first replaces the input's implicit contact, the lowest row; more: a
     // line, several feet)
-    const el = handle("contact ghost", "contact-new", ghostAt(toCanvas(e, e.foot)), (p) =>
-      ({edits: param(e, "points", [...(vals.points || []), ...toCutout(e, p)]), at: p}));
+    const el = handle("contact ghost on-cutout", "contact-new", ghostAt(toCanvas(e, e.foot)), (p) => {
+      const next = [...(vals.points || []), ...toCutout(e, p)];
+      drawLine(next);
+      return {edits: param(e, "points", next), at: p};
+    });
     el.setAttribute("title", "drag from the cutout's foot to where it touches the ground: a contact point");
   }
   pts.forEach((pt, i) => {
-    const el = handle(`contact${lying ? " off" : ""}`, `contact-${i}`, toCanvas(e, pt), (p) => {
+    const el = handle(`contact on-cutout${lying ? " off" : ""}`, `contact-${i}`, toCanvas(e, pt), (p) => {
       const next = (vals.points || []).slice();
       [next[2 * i], next[2 * i + 1]] = toCutout(e, p);
+      drawLine(next);
       return {edits: param(e, "points", next), at: p};
     });
     el.setAttribute("title", "a contact point: where the object touches the ground");
@@ -128,14 +136,14 @@ function drawHeightEdit(s) {
     // the tilt handle on the object's top, a guide down to the ground under it: pulled up
     // the object stands taller (leans toward the camera), pushed down shorter (leans back)
     const [tu, tv, h, h0] = e.top;
-    const el = heightHandle(e, "tilt", "tilt-handle", [tu, tv, h], "rect",
+    const el = heightHandle(e, "tilt on-cutout", "tilt-handle", [tu, tv, h], "rect",
       (target) => param(e, "tilt", tiltFor(h0, target, vals.lift || 0, vals.elevation)));
     el.setAttribute("title", "the object's top: drag up = taller (leaning forward), down = shorter (leaning back)");
   } else if (e.top && lying && e.params.thickness) {
     // lying: the same square sets how tall the object lies (its thickness; at least 0.01 px,
     // ops.height_edit.MIN_THICKNESS: 0 means the default, half the median column extent)
     const [tu, tv, h] = e.top;
-    const el = heightHandle(e, "tilt", "tilt-handle", [tu, tv, h], "rect", (target) => param(e, "thickness",
+    const el = heightHandle(e, "tilt on-cutout", "tilt-handle", [tu, tv, h], "rect", (target) => param(e, "thickness",
       Math.max(0.01, round((target - (vals.lift || 0)) / gain(vals), 2))));
     el.setAttribute("title", "lying: the object's top; drag up = thicker, down = flatter");
   }
@@ -143,7 +151,7 @@ function drawHeightEdit(s) {
     // the body's ground point: pulled up, the ground under the body lies in front of
     // the contact (the body is taller), pushed down, behind it
     const [bu, bv, h, h0] = e.body;
-    const el = heightHandle(e, "depth", "depth-handle", [bu, bv, h], "circle",
+    const el = heightHandle(e, "depth on-cutout", "depth-handle", [bu, bv, h], "circle",
       (target) => param(e, "depth", depthFor(h0, target, vals)));
     el.setAttribute("title", "the body: drag up = its ground lies in front of the contact (taller), "
       + "down = behind it (shorter)");

@@ -24,7 +24,7 @@ export const RELEASE_PIXELS = 4e6;
 
 export const ui = {
   client: Math.random().toString(36).slice(2), seq: 0, shownSeq: 0,
-  inflight: false, pending: null, info: null, scene: null,
+  inflight: false, pending: null, info: null, scene: null, savedSeq: 0,
   drag: null, renders: 0, onScene: [],
   action: null, actions: 0,   // the user action in progress (previews sent, final to come), how many so far
   editing: Promise.resolve(), // the last finalize that carried edits (undo waits for it)
@@ -76,8 +76,11 @@ export async function render(edits, mode, kind = "move") {
   show(bmp, scale);
   ui.renders++;
   const ms = Math.round(performance.now() - t0);
-  $("status").textContent = `${mode} ${bmp.width}x${bmp.height} (1/${round2(scale)}) in ${ms} ms; ` +
-    `ran: ${r.headers.get("X-Pixgraph-Ran") || "nothing (cached)"}`;
+  // a render asked before the last save (a 20 MP final takes seconds) keeps "saved ..." shown
+  if (seq > ui.savedSeq) {
+    $("status").textContent = `${mode} ${bmp.width}x${bmp.height} (1/${round2(scale)}) in ${ms} ms; ` +
+      `ran: ${r.headers.get("X-Pixgraph-Ran") || "nothing (cached)"}`;
+  }
   const entry = {seq, mode, kind: mode === "preview" ? kind : "final", ms, scale, width: bmp.width,
                  height: bmp.height, server_ms: 1000 * Number(r.headers.get("X-Pixgraph-Seconds") || 0),
                  ran: r.headers.get("X-Pixgraph-Ran") || ""};
