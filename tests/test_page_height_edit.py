@@ -220,7 +220,6 @@ def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_pa
             return ((photo - img).mean(axis=2) > 0.05) & (alpha < 0.02)
 
         before = shadow(shown(page))
-        stage = page.locator("#stage").bounding_box()["height"]
         heights = {}
         # the last two come from the cache: what the node said when it ran with those params
         for method in ("learned", "auto", "contact_line", "learned"):
@@ -241,8 +240,6 @@ def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_pa
                 assert said == [], logs
             else:
                 assert len(said) == 1 and said[0].startswith(f"fg_h: {method}: ") and "confidence 0." in said[0], logs
-            # the line under the image comes and goes without moving the image
-            assert page.locator("#stage").bounding_box()["height"] == stage
         assert np.logical_xor(heights["learned"], before).sum() > 100, "the learned height changed nothing"
         assert np.array_equal(heights["contact_line"], before)
         assert not errors, errors
