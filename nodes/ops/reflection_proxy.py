@@ -60,7 +60,7 @@ def proxy_reflection(device, camera: Camera, cutout, fg_height, bg_height, *, ma
         r = reflection_cl(device, camera, cutout, fg_height, bg_height, mask=mask, thickness=thickness,
                           roughness=roughness, receive=None if recv is None else recv > 0, **kw)
         if recv is not None:
-            _weigh(r["layer"], recv, _box_of(r["layer"]))
+            _weigh(r["layer"], recv, image_box(r["layer"]))
         return dict(r, spp=r["spp"].astype(np.float32), steps=r["steps"].astype(np.float32), proxy=(H, W))
     cutout = np.asarray(cutout, np.float32)
     box = image_box(cutout)
@@ -171,11 +171,6 @@ def enlarge_sparse(lo: np.ndarray, side_lo: np.ndarray, side_hi, shape, weight=N
                             out=dest)
     for_bands(tile_row, 0, H, tile)
     return out
-
-
-def _box_of(layer):
-    """(r0, r1, c0, c1) of the pixels of an (H, W, 4) layer that are not all 0, or None."""
-    return image_box(layer)
 
 
 def _weigh(layer, recv, box) -> None:
