@@ -70,3 +70,9 @@ def test_stretch_changes_proportions_within_its_range():
     # changed sample covers about 1 / k of its unstretched area
     area = (x2[:, 3].sum((1, 2)) / alpha.sum((1, 2))).numpy()
     assert area.max() < 1.02 and area[changed].max() < 0.95
+
+
+def test_a_stretch_below_one_is_refused(tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        train.main(["--data", str(tmp_path), "--out", str(tmp_path / "run"), "--stretch", "0.7"])
+    assert e.value.code == 2 and "--stretch 0.7: a factor >= 1" in capsys.readouterr().err

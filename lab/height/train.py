@@ -230,6 +230,8 @@ def main(argv=None) -> int:
                     help="train the contact-pinned height (the contact pixels' mean shifted to 0, "
                          "as predict does with contact='ground')")
     a = ap.parse_args(argv)
+    if a.stretch < 1.0:
+        ap.error(f"--stretch {a.stretch}: a factor >= 1 (1 = off), the most an axis is shrunk by")
     import torch
     torch.set_num_threads(a.threads)
     torch.manual_seed(a.seed)
