@@ -1,7 +1,7 @@
 #!/bin/bash
 # Two versions of pixgraph side by side on a GPU machine without a network (docs/server.md, "On a GPU"):
 # this tree ("after") and the same tree with the files of an older revision laid over it ("before"),
-# each installed into its own folder from the wheels carried in .whl/ (see gpu_machine.sh's header),
+# each installed into its own folder from the wheels carried in .whl/ (see gpu_setup.sh's header),
 # then the Reflection node's host benchmark (twice each, interleaved) and the 20 MP glossy final.
 #
 # On the machine with the repository (REV: the older revision; only files that REV and this tree
@@ -12,16 +12,9 @@
 #   bash benchmarks/gpu_before_after.sh [.before]
 set -u
 OVER=${1:-.before}
-NVIDIA_OPENCL=${NVIDIA_OPENCL:-/usr/local/nvidia/lib64/libnvidia-opencl.so.1}
-if [ ! -f /etc/OpenCL/vendors/nvidia.icd ]; then
-  test -f "$NVIDIA_OPENCL" || { echo "no $NVIDIA_OPENCL: set NVIDIA_OPENCL to NVIDIA's OpenCL library" >&2; exit 3; }
-  mkdir -p /etc/OpenCL/vendors && echo "$NVIDIA_OPENCL" > /etc/OpenCL/vendors/nvidia.icd || exit 3
-fi
 test -d "$OVER" || { echo "no folder $OVER of the older revision's files" >&2; exit 2; }
-python3 -m pip install -q --target /tmp/deps --no-index --no-deps --find-links .whl pyopencl pytools \
-    platformdirs siphash24 typing_extensions OpenImageIO isal tqdm networkx jsonschema jsonschema-specifications \
-    referencing rpds-py attrs PyYAML Pillow starlette uvicorn h11 click anyio sniffio idna httpx httpcore certifi \
-    setuptools wheel || exit 4
+source benchmarks/gpu_setup.sh
+install_deps /tmp/deps || exit 4
 rm -rf /tmp/before && mkdir /tmp/before && cp -r . /tmp/before/ && cp -r "$OVER"/. /tmp/before/ || exit 5
 for v in after:. before:/tmp/before; do
   PYTHONPATH=/tmp/deps python3 -m pip install -q --target "/tmp/site_${v%%:*}" --no-index --no-deps \
