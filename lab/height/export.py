@@ -102,6 +102,8 @@ def write_numpy_weights(pt: pathlib.Path) -> pathlib.Path:
     pj = pt.with_suffix(".json")
     if pj.exists():
         prov = json.loads(pj.read_text())
+        # the checkpoint's config, inference rules included (a study's --write changes them in the .pt)
+        prov["config"] = json.loads(ck["config"]) if isinstance(ck["config"], str) else ck["config"]
         prov["numpy_weights"] = {
             "file": out.name, "bytes": out.stat().st_size, "source_sha256": digest,
             "dtype": ", ".join(dtypes) + " (the checkpoint's own values; BatchNorm folded at load in float32)",

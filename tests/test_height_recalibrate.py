@@ -1,0 +1,60 @@
+"""The confidence's recalibration on unseen kinds (lab/height/recalibrate.py): the
+win rates per bin, the calibration numbers the rule judged by, and that the shipped
+checkpoint carries refitted rates with the validation-chosen signal, threshold and
+bins unchanged (docs/height-record.md, "Measured: the confidence on unseen kinds")."""
+import json
+import pathlib
+
+import numpy as np
+import pytest
+
+from pixgraph_lab.height.recalibrate import bin_of, calibration, fit_win_rates
+from pixgraph_nodes.ops.learned_height import calibrated_confidence
+
+WEIGHTS = pathlib.Path(__file__).resolve().parents[1] / "nodes" / "weights"
+
+
+def test_bin_of_is_calibrated_confidences_bin():
+    edges = [-3.0, -1.0, 2.0]
+    rule = {"bins": edges, "win_rate": [0.1, 0.2, 0.3, 0.4]}
+    for s in (-5.0, -3.0, -2.0, -1.0, 0.0, 2.0, 9.0):
+        assert rule["win_rate"][int(bin_of(np.array([s]), edges)[0])] == calibrated_confidence(s, rule)
+
+
+def test_fit_win_rates_per_bin_and_pooled_for_small_bins():
+    bins = np.array([0] * 25 + [1] * 30 + [2] * 3)
+    win = np.array([True] * 20 + [False] * 5 + [True] * 6 + [False] * 24 + [True] * 3)
+    rates = fit_win_rates(bins, win, 4, min_bin=20)
+    pooled = 29 / 58
+    assert rates == pytest.approx([20 / 25, 6 / 30, pooled, pooled])   # bin 2 (3) and bin 3 (0): pooled
+    assert fit_win_rates(bins, win, 4, min_bin=1)[2] == 1.0
+
+
+def test_calibration_numbers():
+    # two bins: 10 cutouts said 0.9 and won 5; 30 said 0.5 and won 15
+    conf = np.array([0.9] * 10 + [0.5] * 30)
+    win = np.array([True] * 5 + [False] * 5 + [True] * 15 + [False] * 15)
+    bins = np.array([0] * 10 + [1] * 30)
+    c = calibration(conf, win, bins, 2)
+    assert c["n"] == 40
+    assert c["mean_conf"] == pytest.approx(0.6)
+    assert c["win"] == pytest.approx(0.5)
+    assert c["gap"] == pytest.approx(0.1)
+    assert c["binned_error"] == pytest.approx((10 * 0.4 + 30 * 0.0) / 40)
+    # rates refitted on the same cutouts are calibrated on them exactly
+    rates = fit_win_rates(bins, win, 2, min_bin=1)
+    assert calibration(np.take(rates, bins), win, bins, 2)["binned_error"] == pytest.approx(0.0)
+
+
+def test_shipped_rule_refitted_on_unseen_kinds_only_in_its_rates():
+    cfg = json.loads((WEIGHTS / "cutout_height.json").read_text())["config"]["inference"]["confidence"]
+    assert cfg["chosen_on"].startswith("data/hreal/val ")              # signal, threshold, bins
+    assert "u4_heldout" in cfg["win_rate_chosen_on"]                   # the rates
+    assert len(cfg["win_rate"]) == len(cfg["bins"]) + 1
+    # fitted on the three held-out sets, not validation's rates: all well below them
+    assert max(cfg["win_rate"]) < 0.75 and min(cfg["win_rate"]) > 0.45
+    # auto's choice is the threshold's, which lies in the top bin
+    assert cfg["threshold"] > cfg["bins"][-1]
+    # what the node reads (the numpy weights' config) is the provenance's rule
+    from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor
+    assert LearnedHeightPredictor().confidence_rule == cfg
