@@ -18,7 +18,9 @@ candidate. The ship rule: the candidate's out-of-fold MAE at most ``--bar``
 (0.98) x the current auto's MAE (the learned map, or the contact line where the
 signal is above the rule's threshold). On the fifth model the rule was not met
 (docs/height-record.md, "Measured: auto's blend and large cutouts"), so ``CutoutHeight`` has no blend;
-this study is how to try it again for another checkpoint.
+this study is how to try it again for another checkpoint. ``--apply W`` judges one
+weight on other folders instead (docs/height-record.md, "Rules fixed before
+measuring: auto's blend for unseen kinds").
 """
 from __future__ import annotations
 
@@ -67,6 +69,10 @@ def main(argv=None) -> int:
     ap.add_argument("--heights", required=True, nargs="+", help="validation folders, pooled")
     ap.add_argument("--limit", type=int, default=0)
     ap.add_argument("--bar", type=float, default=0.98, help="ship if out-of-fold MAE <= bar x auto's")
+    ap.add_argument("--apply", type=float, default=None,
+                    help="judge one weight W of the learned map instead of fitting: auto's map against "
+                         "W * learned + (1 - W) * contact line where auto keeps the learned map, per sample, "
+                         "with the paired bootstrap interval of the difference")
     ap.add_argument("--out", required=True)
     a = ap.parse_args(argv)
     import torch
@@ -90,6 +96,8 @@ def main(argv=None) -> int:
                          "signal": r["signal"], "use_learned": int(r["use_learned"]),
                          "mae_learned": mae[-1], "mae_heuristic": mae[0]})
     mae = np.array(maes)
+    if a.apply is not None:
+        return judge_weight(a, rows, mae)
     sig = np.array([r["signal"] for r in rows])
     edges = np.asarray(rule["bins"], float)
     cands = {"G": (np.zeros(len(rows), int), 1, []),
@@ -125,6 +133,37 @@ def main(argv=None) -> int:
                      f"{oof[best][sel].mean():.2f} | {mae[sel, 0].mean():.2f} | "
                      f"{np.mean(mae[sel, -1] < mae[sel, 0]):.0%} | {np.mean(oof[best][sel] < mae[sel, 0]):.0%} |")
     write_report(a.out, "blend_study.md", lines)
+    return 0
+
+
+def judge_weight(a, rows, mae) -> int:
+    """``--apply W``: per sample the MAE [px] of auto's map today (the learned map, or the
+    contact line where auto falls back) and of the blend at ``W`` where auto keeps the
+    learned map; their means, the paired 95 % bootstrap interval of blend - auto
+    (``scale_study.interval``: 10,000 resamples, seed 0), per category; rows in ``--out``."""
+    from .evaluate import _write, write_report
+    from .scale_study import interval
+    k = int(np.argmin(np.abs(GRID - a.apply)))
+    if abs(GRID[k] - a.apply) > 1e-9:
+        raise SystemExit(f"--apply {a.apply}: not on the grid {GRID.tolist()}")
+    use = np.array([r["use_learned"] for r in rows], bool)
+    auto = np.where(use, mae[:, -1], mae[:, 0])
+    blend = np.where(use, mae[:, k], mae[:, 0])
+    lo, hi = interval(blend - auto)
+    mean = float((blend - auto).mean())
+    for i, r in enumerate(rows):
+        r.update(mae_auto=float(auto[i]), mae_blend=float(blend[i]))
+    os.makedirs(a.out, exist_ok=True)
+    _write(os.path.join(a.out, "blend_apply.csv"), rows)
+    lines = [f"weights {a.weights}; {len(rows)} samples of {', '.join(a.heights)}; w = {GRID[k]}", "",
+             f"auto {auto.mean():.3f} px, blend {blend.mean():.3f} px ({blend.mean() / auto.mean():.4f}x); "
+             f"blend - auto {mean:+.3f} px, 95 % interval {lo:+.3f} to {hi:+.3f}", "",
+             "| category | n | MAE auto | MAE blend | contact line |", "|---|---|---|---|---|"]
+    for c in ["all"] + sorted({r["category"] for r in rows}):
+        sel = np.array([c == "all" or r["category"] == c for r in rows])
+        lines.append(f"| {c} | {sel.sum()} | {auto[sel].mean():.3f} | {blend[sel].mean():.3f} | "
+                     f"{mae[sel, 0].mean():.3f} |")
+    write_report(a.out, "blend_apply.md", lines)
     return 0
 
 
