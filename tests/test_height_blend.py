@@ -42,3 +42,17 @@ def test_apply_refuses_a_weight_off_the_grid(tmp_path):
     a = argparse.Namespace(apply=0.83, weights="w.pt", heights=["x"], out=str(tmp_path))
     with pytest.raises(SystemExit, match="not on the grid"):
         judge_weight(a, [{"category": "a", "use_learned": 1}], np.array([_grid(0.8)]))
+
+
+def test_kind_errors_signs_and_halves():
+    from pixgraph_lab.height.kind_bias import kind_errors
+    mask = np.zeros((12, 6), bool)
+    mask[2:12, 1:5] = True                      # box rows 2..11: height 10
+    true = np.zeros((12, 6))
+    learned = true.copy()
+    learned[2:7] += 5.0                          # upper half 5 px too tall
+    contact = true - 2.0                         # 2 px too short everywhere
+    e = kind_errors(true, learned, contact, mask)
+    assert e["signed_upper"] == pytest.approx(0.5) and e["signed_lower"] == pytest.approx(0.0)
+    assert e["signed_learned"] == pytest.approx(0.25) and e["abs_learned"] == pytest.approx(0.25)
+    assert e["signed_contact"] == pytest.approx(-0.2) and e["abs_contact"] == pytest.approx(0.2)
