@@ -220,6 +220,9 @@ def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_pa
             return ((photo - img).mean(axis=2) > 0.05) & (alpha < 0.02)
 
         before = shadow(shown(page))
+        # the view (the stage's box and the image's place on it) before any line was said
+        view = page.evaluate("[document.getElementById('stage').getBoundingClientRect().toJSON(),"
+                             " window.pixgraphView.state.k, window.pixgraphView.state.ox, window.pixgraphView.state.oy]")
         heights = {}
         # the last two come from the cache: what the node said when it ran with those params
         for method in ("learned", "auto", "contact_line", "learned"):
@@ -232,7 +235,12 @@ def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_pa
             wait_final(page, seq)
             assert graph_params(url)["fg_h"]["method"] == method
             heights.setdefault(method, shadow(shown(page)))
-            # what the node said (its confidence, auto's choice) under the image; the
+            # the line comes and goes without resizing the stage or moving the image on it
+            # (it was under the stage: a switch to or from the contact line refit the image)
+            assert page.evaluate("[document.getElementById('stage').getBoundingClientRect().toJSON(),"
+                                 " window.pixgraphView.state.k, window.pixgraphView.state.ox,"
+                                 " window.pixgraphView.state.oy]") == view, method
+            # what the node said (its confidence, auto's choice) over the image's bottom edge; the
             # contact line says nothing
             logs = page.inner_text("#logs") if page.locator("#logs").is_visible() else ""
             said = [x for x in logs.splitlines() if x.startswith("fg_h: ")]
@@ -240,6 +248,12 @@ def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_pa
                 assert said == [], logs
             else:
                 assert len(said) == 1 and said[0].startswith(f"fg_h: {method}: ") and "confidence 0." in said[0], logs
+                # the line lies over the stage's bottom edge, under the handles (a press there
+                # reaches the handle layer): on the stage, not below it
+                stage, box = page.locator("#stage").bounding_box(), page.locator("#logs").bounding_box()
+                assert stage["y"] < box["y"] and box["y"] + box["height"] <= stage["y"] + stage["height"], (box, stage)
+                assert page.evaluate("(() => { const b = document.getElementById('logs').getBoundingClientRect();"
+                                     " return document.elementFromPoint(b.x + 5, b.y + b.height / 2).closest('#handles') !== null; })()")
         assert np.logical_xor(heights["learned"], before).sum() > 100, "the learned height changed nothing"
         assert np.array_equal(heights["contact_line"], before)
         assert not errors, errors

@@ -150,9 +150,11 @@ export async function refresh() {
   if (failed) throw failed;
 }
 
-// Lines of text under the image: the graph check's warnings (#notes, e.g. a horizon
+// Lines of text: the graph check's warnings under the image (#notes, e.g. a horizon
 // above the cutout's foot) and what the nodes said in the last final (#logs, ctx.log:
-// e.g. a height predictor's confidence, or that it fell back to another method).
+// e.g. a height predictor's confidence, or that it fell back to another method), over
+// the stage's bottom left corner: a method that says something and one that does not
+// would otherwise resize the stage, and the image would jump at every switch.
 function showLines(id, lines) {
   const el = $(id);
   el.replaceChildren(...(lines || []).map((n) => Object.assign(document.createElement("div"), {textContent: n})));
