@@ -335,3 +335,37 @@ def test_the_new_contact_ring_is_grabbable_when_the_foot_is_on_the_photos_bottom
         assert graph_params(url)["place"]["foot"] == [320, 480]      # the cutout did not move
         assert not errors, errors
         page.close()
+
+
+def test_the_lights_handle_is_grabbable_on_a_flat_lying_object(browser, tmp_path):
+    """Lying at thickness ~0 the top's shadow falls on the top itself: the light's tip was
+    drawn under the top's square, only its rim to grab. The light's handle now goes aside
+    (on the shadow's side, a dotted line on to it) and both handles are whole; its drag
+    moves the tip by the pointer's move."""
+    import yaml
+    graph = edit_graph(str(tmp_path))
+    with open(graph) as f:
+        doc = yaml.safe_load(f)
+    doc["nodes"]["edit"].setdefault("params", {}).update({"lying": True, "thickness": 0.01})
+    with open(graph, "w") as f:
+        yaml.safe_dump(doc, f, sort_keys=False)
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        k = page.evaluate("window.pixgraphView.state.k")
+        light = httpx.get(url + "/api/scene", timeout=60).json()["light"]
+        e = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        tip = screen(page, *light["tip_uv"])
+        assert screen(page, *to_canvas(e, *e["top"][:2])) == pytest.approx(tip, abs=2.0)   # the case
+        # a press on either handle's centre grabs that handle
+        for sel in ("#light-handle", "#tilt-handle"):
+            x, y = centre(page, sel)
+            hit = page.evaluate(f"document.elementFromPoint({x}, {y}).id")
+            assert hit == sel[1:], (sel, hit)
+        x, y = centre(page, "#light-handle")
+        assert 2.4 * 7 < np.hypot(x - tip[0], y - tip[1]) < 2.8 * 7           # aside, LIGHT_ASIDE
+        # its drag moves the tip by the pointer's move (not to the pointer)
+        drag(page, (x, y), (x - 60, y + 30))
+        new = graph_params(url)["light"]["tip_uv"]
+        assert new == pytest.approx([light["tip_uv"][0] - 60 / k, light["tip_uv"][1] + 30 / k], abs=1 / k + 0.2)
+        assert not errors, errors
+        page.close()
