@@ -18,9 +18,9 @@ build Python objects (``!!python/object``) are rejected, as are duplicate keys
 
 Older formats are migrated step by step (``MIGRATIONS[n]`` turns version ``n``
 into ``n + 1``) on the parsed document, before validation; a version newer than
-``FORMAT_VERSION`` is a clear error. ``dump`` writes a canonical text (node ids
-and params sorted, fixed key order), so load -> dump -> load gives the same graph
-and the same text.
+``FORMAT_VERSION`` is a clear error. ``dump`` writes a canonical text (the nodes
+in the graph's order, which is the file's for a loaded graph; params sorted, fixed
+key order), so load -> dump -> load gives the same graph and the same text.
 """
 from __future__ import annotations
 
@@ -303,9 +303,11 @@ def _plain(v: Any) -> Any:
 # -- dump -----------------------------------------------------------------------
 
 def to_document(graph: Graph) -> dict:
-    """The canonical plain-data form of a graph (sorted ids and params)."""
+    """The canonical plain-data form of a graph: its nodes in the graph's order (a
+    loaded graph's is its file's, so a graph saved and opened again lists its nodes as
+    they were written), params, inputs and outputs sorted."""
     nodes = {}
-    for nid in sorted(graph.nodes):
+    for nid in graph.nodes:
         inst = graph.nodes[nid]
         n: dict[str, Any] = {"type": inst.type}
         if inst.params:

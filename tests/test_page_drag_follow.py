@@ -128,19 +128,25 @@ def test_the_cutouts_handles_follow_its_box_and_its_scale(browser, tmp_path):
         page.close()
 
 
+def slow_final_graph(tmp_path) -> str:
+    """The hand-edit graph with a final that takes a while here (a soft shadow of many
+    samples), its previews as quick as ever."""
+    import yaml
+    graph = edit_graph(str(tmp_path))
+    with open(graph) as f:
+        doc = yaml.safe_load(f)
+    doc["nodes"]["shadow"] = {**doc["nodes"]["shadow"], "type": "pixgraph.SoftShadow", "params": {"samples": 256}}
+    with open(graph, "w") as f:
+        yaml.safe_dump(doc, f, sort_keys=False)
+    return graph
+
+
 def test_saved_stays_shown_when_an_earlier_final_comes_after_the_save(browser, tmp_path):
     """On a 20 MP photo a final takes seconds: "save" pressed meanwhile showed "saved
     PATH", and the final, asked before the save, replaced that line as soon as it came
     (often before it could be read). Renders asked before the save now leave it; the next
     edit's replace it."""
-    import yaml
-    graph = edit_graph(str(tmp_path))
-    with open(graph) as f:
-        doc = yaml.safe_load(f)
-    # a final that takes a while here (a soft shadow of many samples), previews as quick as ever
-    doc["nodes"]["shadow"] = {**doc["nodes"]["shadow"], "type": "pixgraph.SoftShadow", "params": {"samples": 256}}
-    with open(graph, "w") as f:
-        yaml.safe_dump(doc, f, sort_keys=False)
+    graph = slow_final_graph(tmp_path)
     with running_server(graph) as (url, _):
         page, errors = open_page(browser, url)
         seq = last_seq(page)
@@ -153,6 +159,45 @@ def test_saved_stays_shown_when_an_earlier_final_comes_after_the_save(browser, t
         assert (tmp_path / "mine.yaml").exists()
         seq = last_seq(page)
         page.click("#flip")                        # a new edit: its render's line again
+        wait_final(page, seq)
+        assert page.inner_text("#status").startswith("final "), page.inner_text("#status")
+        assert not errors, errors
+        page.close()
+
+
+def test_the_status_line_says_a_final_is_on_its_way(browser, tmp_path):
+    """On a 20 MP photo the final takes seconds after a drag: the status line went on
+    showing the last preview's line, as if that were all. While a final is on its way it
+    now starts with "rendering the final..." (the line shown before it still there); the
+    final's own line replaces it."""
+    graph = slow_final_graph(tmp_path)
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        # the light held and moved until a preview came, then let go: its final is asked
+        x, y = centre(page, "#light-handle")
+        seq = last_seq(page)
+        held(page, (x, y), (x - 40, y + 25))
+        page.wait_for_function(f"window.pixgraphShown.some((s) => s.mode === 'preview' && s.seq > {seq})",
+                               timeout=60000)
+        page.mouse.up()
+        # what the line says while that final runs (no final newer than the drag shown yet)
+        said = page.wait_for_function(f"""() => {{
+            const line = document.getElementById('status').textContent;
+            const done = window.pixgraphShown.some((s) => s.mode === 'final' && s.seq > {seq});
+            return done ? 'final came first: ' + line : line.startsWith('rendering the final') && line; }}""",
+                                      timeout=60000).json_value()
+        assert said.startswith("rendering the final\u2026 (shown: preview "), said
+        wait_final(page, seq)
+        assert page.inner_text("#status").startswith("final "), page.inner_text("#status")
+        # an edit with no previews (a toggle): the same while its final runs
+        seq = last_seq(page)
+        page.click("#flip")
+        said = page.wait_for_function(f"""() => {{
+            const line = document.getElementById('status').textContent;
+            const done = window.pixgraphShown.some((s) => s.mode === 'final' && s.seq > {seq});
+            return done ? 'final came first: ' + line : line.startsWith('rendering the final') && line; }}""",
+                                      timeout=60000).json_value()
+        assert said.startswith("rendering the final\u2026 (shown: final "), said
         wait_final(page, seq)
         assert page.inner_text("#status").startswith("final "), page.inner_text("#status")
         assert not errors, errors

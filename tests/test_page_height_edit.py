@@ -220,6 +220,9 @@ def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_pa
             return ((photo - img).mean(axis=2) > 0.05) & (alpha < 0.02)
 
         before = shadow(shown(page))
+        # the view (the stage's box and the image's place on it) before any line was said
+        view = page.evaluate("[document.getElementById('stage').getBoundingClientRect().toJSON(),"
+                             " window.pixgraphView.state.k, window.pixgraphView.state.ox, window.pixgraphView.state.oy]")
         heights = {}
         # the last two come from the cache: what the node said when it ran with those params
         for method in ("learned", "auto", "contact_line", "learned"):
@@ -232,7 +235,12 @@ def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_pa
             wait_final(page, seq)
             assert graph_params(url)["fg_h"]["method"] == method
             heights.setdefault(method, shadow(shown(page)))
-            # what the node said (its confidence, auto's choice) under the image; the
+            # the line comes and goes without resizing the stage or moving the image on it
+            # (it was under the stage: a switch to or from the contact line refit the image)
+            assert page.evaluate("[document.getElementById('stage').getBoundingClientRect().toJSON(),"
+                                 " window.pixgraphView.state.k, window.pixgraphView.state.ox,"
+                                 " window.pixgraphView.state.oy]") == view, method
+            # what the node said (its confidence, auto's choice) over the image's bottom edge; the
             # contact line says nothing
             logs = page.inner_text("#logs") if page.locator("#logs").is_visible() else ""
             said = [x for x in logs.splitlines() if x.startswith("fg_h: ")]
@@ -240,6 +248,12 @@ def test_the_learned_and_auto_heights_are_one_choice_in_the_page(browser, tmp_pa
                 assert said == [], logs
             else:
                 assert len(said) == 1 and said[0].startswith(f"fg_h: {method}: ") and "confidence 0." in said[0], logs
+                # the line lies over the stage's bottom edge, under the handles (a press there
+                # reaches the handle layer): on the stage, not below it
+                stage, box = page.locator("#stage").bounding_box(), page.locator("#logs").bounding_box()
+                assert stage["y"] < box["y"] and box["y"] + box["height"] <= stage["y"] + stage["height"], (box, stage)
+                assert page.evaluate("(() => { const b = document.getElementById('logs').getBoundingClientRect();"
+                                     " return document.elementFromPoint(b.x + 5, b.y + b.height / 2).closest('#handles') !== null; })()")
         assert np.logical_xor(heights["learned"], before).sum() > 100, "the learned height changed nothing"
         assert np.array_equal(heights["contact_line"], before)
         assert not errors, errors
@@ -319,5 +333,39 @@ def test_the_new_contact_ring_is_grabbable_when_the_foot_is_on_the_photos_bottom
         assert graph_params(url)["edit"]["contact_points"] == pytest.approx(
             list(to_cutout(e, fu - 10, fv - 40)), abs=1.0 / k + 0.2)
         assert graph_params(url)["place"]["foot"] == [320, 480]      # the cutout did not move
+        assert not errors, errors
+        page.close()
+
+
+def test_the_lights_handle_is_grabbable_on_a_flat_lying_object(browser, tmp_path):
+    """Lying at thickness ~0 the top's shadow falls on the top itself: the light's tip was
+    drawn under the top's square, only its rim to grab. The light's handle now goes aside
+    (on the shadow's side, a dotted line on to it) and both handles are whole; its drag
+    moves the tip by the pointer's move."""
+    import yaml
+    graph = edit_graph(str(tmp_path))
+    with open(graph) as f:
+        doc = yaml.safe_load(f)
+    doc["nodes"]["edit"].setdefault("params", {}).update({"lying": True, "thickness": 0.01})
+    with open(graph, "w") as f:
+        yaml.safe_dump(doc, f, sort_keys=False)
+    with running_server(graph) as (url, _):
+        page, errors = open_page(browser, url)
+        k = page.evaluate("window.pixgraphView.state.k")
+        light = httpx.get(url + "/api/scene", timeout=60).json()["light"]
+        e = httpx.get(url + "/api/scene", timeout=60).json()["height_edit"]
+        tip = screen(page, *light["tip_uv"])
+        assert screen(page, *to_canvas(e, *e["top"][:2])) == pytest.approx(tip, abs=2.0)   # the case
+        # a press on either handle's centre grabs that handle
+        for sel in ("#light-handle", "#tilt-handle"):
+            x, y = centre(page, sel)
+            hit = page.evaluate(f"document.elementFromPoint({x}, {y}).id")
+            assert hit == sel[1:], (sel, hit)
+        x, y = centre(page, "#light-handle")
+        assert 2.4 * 7 < np.hypot(x - tip[0], y - tip[1]) < 2.8 * 7           # aside, LIGHT_ASIDE
+        # its drag moves the tip by the pointer's move (not to the pointer)
+        drag(page, (x, y), (x - 60, y + 30))
+        new = graph_params(url)["light"]["tip_uv"]
+        assert new == pytest.approx([light["tip_uv"][0] - 60 / k, light["tip_uv"][1] + 30 / k], abs=1 / k + 0.2)
         assert not errors, errors
         page.close()

@@ -435,7 +435,8 @@ def test_a_graph_a_node_refuses_opens_with_its_panel_to_mend_it(browser, tmp_pat
 
 def save_name_shown(page) -> bool:
     """The save box's whole name is in its hover text (the box is 16 characters wide: the
-    toolbar's two rows are laid out for that; a longer name is cut off in the box)."""
+    toolbar's two rows are laid out for that; a longer name shows its end in the box:
+    test_page_save.py)."""
     return page.evaluate("(() => { const b = document.getElementById('save-name');"
                          " return b.value.length > 0 && b.title.startsWith(b.value + ':'); })()")
 

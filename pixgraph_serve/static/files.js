@@ -65,10 +65,13 @@ export async function openChosen(reload) {
 }
 
 /** Put ``name`` in the save box; a name longer than the box shows whole on hover (its
- * title): the box keeps its width, which the toolbar's two rows were laid out for. */
+ * title) and, while the box is not being typed in, with its end in view (the file name;
+ * a browser shows a text box's start, and goes back to it when the box loses the focus):
+ * the box keeps its width, which the toolbar's two rows were laid out for. */
 export function setSaveName(name) {
   $("save-name").value = name;
   titleSaveName();
+  showNameEnd();
 }
 
 function titleSaveName() {
@@ -76,8 +79,15 @@ function titleSaveName() {
   box.title = `${box.value}: file name, in the served graph's folder`;
 }
 
+function showNameEnd() {
+  const box = $("save-name");
+  if (document.activeElement !== box) box.scrollLeft = box.scrollWidth;
+}
+
 export function wireFiles(reload) {
   $("save-name").addEventListener("input", titleSaveName);
+  // after the browser's own return to the start, which follows the blur event
+  $("save-name").addEventListener("blur", () => requestAnimationFrame(showNameEnd));
   $("open").addEventListener("click", () => { $("open-form").hidden = !$("open-form").hidden; });
   for (const role of ROLES) {
     const input = $(`open-${role}`);

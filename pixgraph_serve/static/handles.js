@@ -5,7 +5,8 @@
 //   horizon (pink): the Camera's horizon row;
 //   wall (blue): the ends of the wall-floor line (BackgroundHeight's
 //     junction_points), or the corner and the two slopes of the corner templates;
-//   light (yellow): the shadow tip, where the shadow of the object's top falls;
+//   light (yellow): the shadow tip, where the shadow of the object's top falls (set
+//     aside, a dotted line on to it, when the tip lies under another handle);
 //   and whatever the modules in `extraHandles` draw (heightedit.js: the cutout's
 //   contact points and tilt).
 "use strict";
@@ -111,21 +112,50 @@ export function drawHandles() {
     el.addEventListener("pointermove", () => el.setAttribute("x", sx - R + 1));
   }
   if (s.background && roles.background) drawWall(s.background, roles.background, line);
-  const light = s.light;
-  if (light && light.tip_uv) {
-    // the dotted line from the top ends under the held tip
-    const guide = light.top_uvh ? line("light", light.top_uvh.slice(0, 2), light.tip_uv) : null;
-    handle("light", "light-handle", light.tip_uv, (p) => {
-      if (guide) {
-        const [x, y] = toScreen(...p);
-        guide.setAttribute("x2", x);
-        guide.setAttribute("y2", y);
-      }
-      return {edits: {light_tip: p.map((x) => round(x))}, at: p};
-    });
-  }
   for (const f of extraHandles) f(s, roles);
+  if (s.light && s.light.tip_uv) drawLight(s.light, line);
   drawFinder();
+}
+
+//: how far the light's handle is drawn from a tip that lies under another handle [screen px]
+const LIGHT_ASIDE = 2.6 * R;
+
+// The light's handle on the shadow tip, the dotted line from the object's top ending under
+// it. Drawn after the others, to see where they are: a tip under another handle (a lying
+// object of thickness ~0, whose top's square sits on its own shadow's tip; a light straight
+// above the foot) puts the handle LIGHT_ASIDE screen px from it, on the shadow's side (else
+// straight up), with the dotted line on to it: both handles whole and grabbable. The drag
+// keeps that offset (the tip is the pointer less it), so the tip never jumps to the pointer.
+function drawLight(light, line) {
+  const tip = light.tip_uv, top = light.top_uvh ? light.top_uvh.slice(0, 2) : null;
+  const [x, y] = toScreen(...tip);
+  const under = [...$("handles").querySelectorAll(".handle")].some((el) => {
+    const b = el.getBBox();
+    return Math.hypot(b.x + b.width / 2 - x, b.y + b.height / 2 - y) < 2 * R + 2;
+  });
+  let off = [0, 0];                           // handle - tip [image px]
+  if (under) {
+    const d = top ? [tip[0] - top[0], tip[1] - top[1]] : [0, 0], n = Math.hypot(...d);
+    const dir = n > 1e-9 ? [d[0] / n, d[1] / n] : [0, -1];
+    off = [dir[0] * LIGHT_ASIDE / view.k, dir[1] * LIGHT_ASIDE / view.k];
+  }
+  const guide = top ? line("light", top, tip) : null;
+  const aside = under ? line("light", tip, [tip[0] + off[0], tip[1] + off[1]]) : null;
+  const el = handle("light", "light-handle", [tip[0] + off[0], tip[1] + off[1]], (p) => {
+    const at = [p[0] - off[0], p[1] - off[1]], [tx, ty] = toScreen(...at), [px, py] = toScreen(...p);
+    if (guide) {
+      guide.setAttribute("x2", tx);
+      guide.setAttribute("y2", ty);
+    }
+    if (aside) {
+      aside.setAttribute("x1", tx);
+      aside.setAttribute("y1", ty);
+      aside.setAttribute("x2", px);
+      aside.setAttribute("y2", py);
+    }
+    return {edits: {light_tip: at.map((v) => round(v))}, at: p};
+  });
+  if (under) el.classList.add("aside");
 }
 
 function drawWall(bg, id, line) {

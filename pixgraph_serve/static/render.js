@@ -25,6 +25,7 @@ export const RELEASE_PIXELS = 4e6;
 export const ui = {
   client: Math.random().toString(36).slice(2), seq: 0, shownSeq: 0,
   inflight: false, pending: null, info: null, scene: null, savedSeq: 0,
+  finalSeq: 0, statusLine: "",  // the final on its way (0: none), the last shown render's line
   drag: null, renders: 0, onScene: [],
   action: null, actions: 0,   // the user action in progress (previews sent, final to come), how many so far
   editing: Promise.resolve(), // the last finalize that carried edits (undo waits for it)
@@ -44,9 +45,36 @@ function merge(a, b) {
   return {...(a || {}), ...b, params: {...((a || {}).params || {}), ...(b.params || {})}};
 }
 
-// kind: "move" (while the pointer moves: <= PREVIEW_PIXELS), "release" (screen-sized)
+// kind: "move" (while the pointer moves: <= PREVIEW_PIXELS), "release" (screen-sized).
+// Returns true (shown, or a newer image was), "stale" (superseded) or false (failed).
 export async function render(edits, mode, kind = "move") {
   const seq = ++ui.seq;
+  if (mode === "final") {
+    ui.finalSeq = seq;
+    showStatus();
+  }
+  try {
+    return await ask(seq, edits, mode, kind);
+  } finally {
+    if (ui.finalSeq === seq) {
+      ui.finalSeq = 0;
+      showStatus();
+    }
+  }
+}
+
+// The status line: the last shown render's line, led by "rendering the final..." while a
+// final asked after it is on its way (seconds on a 20 MP photo: the previews' line alone
+// said nothing of it). "saved PATH" (files.js) stays until a render asked after the save
+// (a final asked before it may come after it) is asked or shown.
+function showStatus() {
+  if (Math.max(ui.finalSeq, ui.shownSeq) <= ui.savedSeq) return;
+  const line = ui.statusLine;
+  $("status").textContent = ui.finalSeq > ui.savedSeq
+    ? `rendering the final\u2026${line ? ` (shown: ${line})` : ""}` : line;
+}
+
+async function ask(seq, edits, mode, kind) {
   // previews at least at half resolution, and while moving at most PREVIEW_PIXELS
   let scale = mode === "preview" ? Math.max(2, screenScale()) : screenScale();
   if (mode === "preview" && kind === "move") scale = Math.max(scale, Math.sqrt(view.W * view.H / PREVIEW_PIXELS));
@@ -76,11 +104,10 @@ export async function render(edits, mode, kind = "move") {
   show(bmp, scale);
   ui.renders++;
   const ms = Math.round(performance.now() - t0);
-  // a render asked before the last save (a 20 MP final takes seconds) keeps "saved ..." shown
-  if (seq > ui.savedSeq) {
-    $("status").textContent = `${mode} ${bmp.width}x${bmp.height} (1/${round2(scale)}) in ${ms} ms; ` +
-      `ran: ${r.headers.get("X-Pixgraph-Ran") || "nothing (cached)"}`;
-  }
+  if (ui.finalSeq === seq) ui.finalSeq = 0;
+  ui.statusLine = `${mode} ${bmp.width}x${bmp.height} (1/${round2(scale)}) in ${ms} ms; ` +
+    `ran: ${r.headers.get("X-Pixgraph-Ran") || "nothing (cached)"}`;
+  showStatus();
   const entry = {seq, mode, kind: mode === "preview" ? kind : "final", ms, scale, width: bmp.width,
                  height: bmp.height, server_ms: 1000 * Number(r.headers.get("X-Pixgraph-Seconds") || 0),
                  ran: r.headers.get("X-Pixgraph-Ran") || ""};
@@ -150,9 +177,11 @@ export async function refresh() {
   if (failed) throw failed;
 }
 
-// Lines of text under the image: the graph check's warnings (#notes, e.g. a horizon
+// Lines of text: the graph check's warnings under the image (#notes, e.g. a horizon
 // above the cutout's foot) and what the nodes said in the last final (#logs, ctx.log:
-// e.g. a height predictor's confidence, or that it fell back to another method).
+// e.g. a height predictor's confidence, or that it fell back to another method), over
+// the stage's bottom left corner: a method that says something and one that does not
+// would otherwise resize the stage, and the image would jump at every switch.
 function showLines(id, lines) {
   const el = $(id);
   el.replaceChildren(...(lines || []).map((n) => Object.assign(document.createElement("div"), {textContent: n})));
