@@ -5,7 +5,7 @@ import numpy as np
 
 from .bands import for_bands
 from .memo import FrozenMemo
-from .resample import nonzero_box
+from .resample import image_box, nonzero_box
 
 #: the box a frozen cutout touches (ops/memo.py): a light sweep composites the same cutout again and again
 _BOXES = FrozenMemo(size=4)
@@ -72,9 +72,9 @@ def apply_shadow(background: np.ndarray, darkness: np.ndarray, opacity: float = 
 
 def _over_plan(shape, fg_premultiplied: np.ndarray, alpha: np.ndarray):
     """What ``over`` needs, once: the cutout, its coverage, the box where it has
-    coverage or colour (elsewhere the result is the background; remembered for a
-    frozen cutout, ``_BOXES``) and which of its channels go where; None when the
-    cutout touches nothing."""
+    coverage or a channel != 0 (elsewhere the result is the background, exactly:
+    ``bg * 1 + 0``; remembered for a frozen cutout, ``_BOXES``) and which of its
+    channels go where; None when the cutout touches nothing."""
     fg = _hwc(fg_premultiplied, "cutout")
     a = np.asarray(alpha, dtype=np.float32)
     if fg.shape[:2] != tuple(shape[:2]) or a.shape != tuple(shape[:2]):
@@ -84,12 +84,26 @@ def _over_plan(shape, fg_premultiplied: np.ndarray, alpha: np.ndarray):
     key = (fg_premultiplied, alpha)
     box = _BOXES.get(key)
     if box is None:
-        touched = a != 0.0
-        for c in range(nf):
-            touched |= fg[:, :, c] != 0.0
-        box = nonzero_box(touched) or ()
+        box = _union(image_box(fg), None if _channel_of(a, fg) is not None else nonzero_box(a != 0.0)) or ()
         _BOXES.put(key, None, box)
     return (fg, a, box, nf) if box else None
+
+
+def _union(*boxes):
+    """The smallest (r0, r1, c0, c1) holding every box that is not None, or None."""
+    boxes = [b for b in boxes if b]
+    if not boxes:
+        return None
+    return (min(b[0] for b in boxes), max(b[1] for b in boxes), min(b[2] for b in boxes), max(b[3] for b in boxes))
+
+
+def _channel_of(a: np.ndarray, fg: np.ndarray) -> int | None:
+    """k when the coverage ``a`` (H, W) is channel k of ``fg`` (H, W, C), the same
+    memory (a reflection layer's own alpha), else None."""
+    if a.ndim != 2 or fg.ndim != 3 or a.strides != fg.strides[:2] or a.dtype != fg.dtype:
+        return None
+    k, rem = divmod(a.__array_interface__["data"][0] - fg.__array_interface__["data"][0], fg.itemsize)
+    return k if rem == 0 and 0 <= k < fg.shape[2] and fg.strides[2] == fg.itemsize else None
 
 
 def _over_rows(out: np.ndarray, plan, r0: int, r1: int) -> None:
