@@ -6,7 +6,9 @@
 // C > ncol, the next one alpha. Each launch covers one input's box, ``w`` x ``h``
 // pixels, whose pixel (0, 0) is the out box's pixel (ox, oy).
 // No contraction into fused multiply-adds: each step rounds as numpy's does, so
-// the results are numpy's, bit for bit, on a device with IEEE float32 arithmetic.
+// the results are numpy's, bit for bit, on a device with IEEE float32 arithmetic
+// (the host builds with -cl-fp32-correctly-rounded-divide-sqrt where the device
+// has it; elsewhere a grey composite's mean of three may differ by 2.5 ulp).
 #pragma OPENCL FP_CONTRACT OFF
 
 // bg * (1 + clip(d, 0, 1) * k_c) per colour channel, k_c = -opacity (1 - tint_c)

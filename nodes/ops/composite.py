@@ -255,8 +255,10 @@ def composite_layers_cl(device, background, darkness=None, opacity: float = 1.0,
     if u is None:
         return out
     ctx, queue = device.context, device.queue
-    # IEEE division (a grey composite's mean of three), as numpy's
-    prg = device.program(load_kernel_source(__file__, "composite.cl"), ("-cl-fp32-correctly-rounded-divide-sqrt",))
+    # IEEE division (a grey composite's mean of three), as numpy's, where the device has it
+    exact = device.queue.device.single_fp_config & cl.device_fp_config.CORRECTLY_ROUNDED_DIVIDE_SQRT
+    prg = device.program(load_kernel_source(__file__, "composite.cl"),
+                         ("-cl-fp32-correctly-rounded-divide-sqrt",) if exact else ())
     mf = cl.mem_flags
     uw = V1 - V0
     obuf = cl.Buffer(ctx, mf.READ_WRITE, (U1 - U0) * uw * C * 4)
