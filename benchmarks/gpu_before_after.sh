@@ -28,6 +28,12 @@ for v in before after before after; do
   echo "== reflection host work, $v"
   PYTHONPATH=/tmp/site_$v:/tmp/deps python3 benchmarks/reflection_host_bench.py --size 20mp --repeat 3 || failed=1
 done
+echo "== the composite's kernels against numpy on this device (tests/test_composite_device.py)"
+if PYTHONPATH=/tmp/site_after:/tmp/deps python3 -c "import pytest" 2>/dev/null; then
+  PYTHONPATH=/tmp/site_after:/tmp/deps python3 -m pytest -q -p no:cacheprovider tests/test_composite_device.py || failed=1
+else
+  echo "no pytest on this machine: not run (composite_bench.py below prints the largest difference on the photo)"
+fi
 for v in before after before after; do
   echo "== composite, $v"
   PYTHONPATH=/tmp/site_$v:/tmp/deps python3 benchmarks/composite_bench.py --size 20mp --repeat 3 || failed=1
