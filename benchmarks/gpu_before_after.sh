@@ -2,7 +2,8 @@
 # Two versions of pixgraph side by side on a GPU machine without a network (docs/server.md, "On a GPU"):
 # this tree ("after") and the same tree with the files of an older revision laid over it ("before"),
 # each installed into its own folder from the wheels carried in .whl/ (see gpu_setup.sh's header),
-# then the Reflection node's host benchmark (twice each, interleaved) and the 20 MP glossy final.
+# then the Reflection node's host benchmark and the composite's (composite_bench.py: the node, its
+# parts, numpy and the device side by side; twice each, interleaved) and the 20 MP finals.
 #
 # On the machine with the repository (REV: the older revision; only files that REV and this tree
 # both have are laid over, which is what a change to existing code needs):
@@ -27,9 +28,19 @@ for v in before after before after; do
   echo "== reflection host work, $v"
   PYTHONPATH=/tmp/site_$v:/tmp/deps python3 benchmarks/reflection_host_bench.py --size 20mp --repeat 3 || failed=1
 done
+echo "== the composite's kernels against numpy on this device (tests/test_composite_device.py)"
+if PYTHONPATH=/tmp/site_after:/tmp/deps python3 -c "import pytest" 2>/dev/null; then
+  PYTHONPATH=/tmp/site_after:/tmp/deps python3 -m pytest -q -p no:cacheprovider tests/test_composite_device.py || failed=1
+else
+  echo "no pytest on this machine: not run (composite_bench.py below prints the largest difference on the photo)"
+fi
+for v in before after before after; do
+  echo "== composite, $v"
+  PYTHONPATH=/tmp/site_$v:/tmp/deps python3 benchmarks/composite_bench.py --size 20mp --repeat 3 || failed=1
+done
 for v in before after; do
-  echo "== 20 MP glossy final, $v"
-  PYTHONPATH=/tmp/site_$v:/tmp/deps python3 benchmarks/photo_bench.py --case glossy --size 20mp --ext .png \
-      --repeat 3 || failed=1
+  echo "== 20 MP soft and glossy finals, $v"
+  PYTHONPATH=/tmp/site_$v:/tmp/deps python3 benchmarks/photo_bench.py --case soft --case glossy --size 20mp \
+      --ext .png --repeat 3 || failed=1
 done
 exit $failed

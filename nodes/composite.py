@@ -5,7 +5,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, same_size
-from .ops.composite import composite
+from .ops.composite import composite_layers, composite_layers_cl, device_for
 
 
 @node("pixgraph.Composite", version=1)
@@ -14,7 +14,8 @@ class Composite(Node):
     linear light), then put the premultiplied cutout over it with its alpha.
 
     The result is linear light with the background's channels; SaveImage encodes it
-    (sRGB for PNG, linear for EXR).
+    (sRGB for PNG, linear for EXR). A full-size image is composited on the OpenCL
+    device when that is a GPU (``ops.composite.device_for``; the same numbers).
     """
 
     class Inputs:
@@ -37,5 +38,6 @@ class Composite(Node):
     def compute(self, ctx, inputs, params):
         same_size(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha, shadow=inputs.shadow)
         finite(background=inputs.background, cutout=inputs.cutout, alpha=inputs.alpha, shadow=inputs.shadow)
-        return {"image": composite(inputs.background, inputs.cutout, inputs.alpha, inputs.shadow,
-                                   params.opacity, params.tint)}
+        args = (inputs.background, inputs.shadow, params.opacity, params.tint, [(inputs.cutout, inputs.alpha)])
+        device = device_for(inputs.background.shape, lambda: ctx.device)
+        return {"image": composite_layers(*args) if device is None else composite_layers_cl(device, *args)}

@@ -5,7 +5,7 @@ from pixgraph_nodes import types as T
 from pixgraph.node import Node, node, param, port
 
 from ._checks import finite, same_size
-from .ops.composite import composite_layers
+from .ops.composite import composite_layers, composite_layers_cl, device_for
 
 
 @node("pixgraph.ReflectionComposite", version=1)
@@ -16,7 +16,8 @@ class ReflectionComposite(Node):
     the background darkened by the shadow (``bg (1 - opacity darkness (1 - tint))``),
     the reflection layer over it (premultiplied *over*: the floor's own reflection of
     what the cutout now hides is replaced), then the cutout, and the refraction layer
-    on top where the cutout is transparent.
+    on top where the cutout is transparent. A full-size image is composited on the
+    OpenCL device when that is a GPU (``ops.composite.device_for``; the same numbers).
     """
 
     class Inputs:
@@ -48,5 +49,6 @@ class ReflectionComposite(Node):
             layers.insert(0, (inputs.reflection, inputs.reflection[..., 3]))
         if inputs.refraction is not None:
             layers.append((inputs.refraction, inputs.refraction[..., 3]))
-        out = composite_layers(inputs.background, inputs.shadow, params.opacity, params.tint, layers)
-        return {"image": out}
+        args = (inputs.background, inputs.shadow, params.opacity, params.tint, layers)
+        device = device_for(inputs.background.shape, lambda: ctx.device)
+        return {"image": composite_layers(*args) if device is None else composite_layers_cl(device, *args)}
