@@ -112,6 +112,11 @@ def test_device_for_full_size_on_a_gpu_only(device):
     assert C.device_for(big, lambda: _Fake(cl.device_type.CPU)) is None
     assert C.device_for(big, lambda: device) is (None if device.queue.device.type & cl.device_type.CPU else device)
 
+    def no_platform():
+        raise RuntimeError("no OpenCL platform")
+    # a composite needs no device: numpy where none opens
+    assert C.device_for(big, no_platform) is None
+
 
 @pytest.mark.parametrize("node", ["composite", "reflection"])
 def test_nodes_on_the_device_give_the_numpy_image(device, monkeypatch, node):

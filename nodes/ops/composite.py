@@ -191,12 +191,17 @@ def device_for(shape, open_device):
     ``DEVICE_MIN_PIXELS`` or more) when it is not a CPU. On a CPU device (PoCL) the
     host's own cores would do the same work after copying the boxes: measured a
     little slower than numpy there (benchmarks/composite_bench.py, docs/server.md,
-    "On a GPU")."""
+    "On a GPU"). A composite needs no device: where none opens (no OpenCL
+    platform, no pyopencl) it is numpy, and the nodes that do need one say why."""
     if int(shape[0]) * int(shape[1]) < DEVICE_MIN_PIXELS:
         return None
-    import pyopencl as cl
-    device = open_device()
-    return None if device.queue.device.type & cl.device_type.CPU else device
+    try:
+        import pyopencl as cl
+        device = open_device()
+        is_cpu = bool(device.queue.device.type & cl.device_type.CPU)
+    except Exception:       # noqa: BLE001 - any failure to open one: the numpy path
+        return None
+    return None if is_cpu else device
 
 
 #: work-group size (columns, rows) of the composite's kernels; the launches are
