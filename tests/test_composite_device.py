@@ -93,6 +93,26 @@ def test_boxes_hold_every_touched_pixel():
     assert C._over_plan((20, 30, 3), np.zeros_like(fg), np.zeros_like(a)) is None
 
 
+def test_channel_of_only_where_the_coverage_is_that_channel():
+    """``_channel_of`` reads the coverage's address: a channel of the same memory, seen
+    through the same strides, and no other (views with negative or skipping strides,
+    copies); where it is wrong the cutout's box would miss coverage."""
+    X = np.zeros((12, 10, 4), np.float32)
+    assert C._channel_of(X[..., 3], X) == 3
+    R = X[::-1, ::-1]                                  # negative row and column strides
+    assert C._channel_of(R[..., 3], R) == 3 and C._channel_of(X[..., 3], R) is None
+    S = X[..., ::2]                                    # channels 0 and 2: X's channel 1 lies between
+    assert C._channel_of(X[..., 1], S) is None
+    assert C._channel_of(X[..., 3], X[..., :3]) is None     # past the view's channels
+    assert C._channel_of(X[..., 3].copy(), X) is None
+    assert C._channel_of(X[::2, :, 3], X[:6]) is None            # every other row: the same start, other rows
+    X[5, 6, 1] = 0.8                                   # coverage only in the channel S skips
+    assert C._over_plan((12, 10, 3), S, X[..., 1])[2] == (5, 6, 6, 7)
+    bg = np.full((12, 10, 3), 0.5, np.float32)
+    np.testing.assert_array_equal(composite_layers(bg, layers=[(S, X[..., 1])])[5, 6],
+                                  np.float32(0.5) * (np.float32(1.0) - np.float32(0.8)))       # bg (1 - a) + 0
+
+
 class _Fake:
     """A device whose OpenCL type is ``kind``."""
     def __init__(self, kind):
@@ -103,9 +123,14 @@ class _Fake:
 def test_device_for_full_size_on_a_gpu_only(device):
     import pyopencl as cl
 
-    def never():
-        raise AssertionError("a small image must not open the device")
+    opened = []
+
+    def never():            # device_for turns any exception into numpy: record the call instead
+        opened.append(True)
+        return _Fake(cl.device_type.GPU)
     assert C.device_for((512, 384, 3), never) is None
+    assert C.device_for((1999, 2001, 3), never) is None           # 3,999,999 pixels: still the host
+    assert opened == [], "a small image must not open the device"
     big = (2000, 2000, 3)
     gpu = _Fake(cl.device_type.GPU)
     assert C.device_for(big, lambda: gpu) is gpu

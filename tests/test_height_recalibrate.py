@@ -28,6 +28,9 @@ def test_fit_win_rates_per_bin_and_pooled_for_small_bins():
     pooled = 29 / 58
     assert rates == pytest.approx([20 / 25, 6 / 30, pooled, pooled])   # bin 2 (3) and bin 3 (0): pooled
     assert fit_win_rates(bins, win, 4, min_bin=1)[2] == 1.0
+    # a bin of exactly min_bin cutouts keeps its own share; one fewer takes the pooled one
+    assert fit_win_rates(bins, win, 4, min_bin=25)[0] == pytest.approx(20 / 25)
+    assert fit_win_rates(bins, win, 4, min_bin=26)[0] == pytest.approx(pooled)
 
 
 def test_calibration_numbers():
@@ -44,6 +47,25 @@ def test_calibration_numbers():
     # rates refitted on the same cutouts are calibrated on them exactly
     rates = fit_win_rates(bins, win, 2, min_bin=1)
     assert calibration(np.take(rates, bins), win, bins, 2)["binned_error"] == pytest.approx(0.0)
+    # saying less than it wins: a negative gap
+    assert calibration(np.full(40, 0.3), win, bins, 2)["gap"] == pytest.approx(-0.2)
+
+
+def test_export_keeps_the_provenance_config_in_step(tmp_path):
+    """``recalibrate --write`` changes the .pt's config; ``export --npz`` writes it into
+    the provenance JSON beside it (which the test above and docs read)."""
+    torch = pytest.importorskip("torch")
+    from pixgraph_lab.height.export import write_numpy_weights
+    ck = torch.load(WEIGHTS / "cutout_height.pt", map_location="cpu", weights_only=True)
+    cfg = json.loads(ck["config"]) if isinstance(ck["config"], str) else ck["config"]
+    cfg["inference"]["confidence"]["win_rate"] = [0.1, 0.2, 0.3, 0.4, 0.5]
+    ck["config"] = json.dumps(cfg) if isinstance(ck["config"], str) else cfg
+    torch.save(ck, tmp_path / "w.pt")
+    (tmp_path / "w.json").write_text((WEIGHTS / "cutout_height.json").read_text())
+    write_numpy_weights(tmp_path / "w.pt")
+    prov = json.loads((tmp_path / "w.json").read_text())
+    assert prov["config"] == cfg
+    assert prov["numpy_weights"]["bytes"] == (tmp_path / "w.npz").stat().st_size
 
 
 def test_shipped_rule_refitted_on_unseen_kinds_only_in_its_rates():
