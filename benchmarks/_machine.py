@@ -26,3 +26,17 @@ def peak_rss_mib() -> float:
             if line.startswith("VmHWM:"):
                 return int(line.split()[1]) / 1024
     return float("nan")
+
+
+class NodeContext:
+    """The least a node's ``compute`` needs from its context when a benchmark calls it
+    directly: the session's ``device``, progress and cancellation doing nothing."""
+
+    def __init__(self, device):
+        self.device = device
+
+    def progress(self, *_):
+        pass
+
+    def check_cancelled(self):
+        pass

@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from _machine import cpu_model
+from _machine import NodeContext, cpu_model
 from photo_bench import ROOT, SIZES, make_graph
 
 PORTS = {"soft": dict(background="photo.image", cutout="place.image", alpha="place.alpha", shadow="shadow.darkness"),
@@ -55,15 +55,6 @@ def main() -> int:
           f"{SIZES[a.size][0]}x{SIZES[a.size][1]}; device {device.name}; "
           f"PIXGRAPH_THREADS={os.environ.get('PIXGRAPH_THREADS', '(default)')}")
 
-    class Ctx:
-        def __init__(self):
-            self.device = device
-
-        def progress(self, *_):
-            pass
-
-        def check_cancelled(self):
-            pass
 
     def forget():
         _checks._PASSED.clear()
@@ -93,7 +84,7 @@ def main() -> int:
             layers.insert(0, (inputs["reflection"], inputs["reflection"][..., 3]))
         args = (inputs["background"], inputs["shadow"], params["opacity"], params["tint"], layers)
         print(f"== {case} ({g.nodes['comp'].type}), load {os.getloadavg()[0]:.2f}")
-        print(f"  node compute:          {timed(lambda: spec.cls().compute(Ctx(), Namespace(inputs), Namespace(params)))}")
+        print(f"  node compute:          {timed(lambda: spec.cls().compute(NodeContext(device), Namespace(inputs), Namespace(params)))}")
         print(f"  input checks:          {timed(lambda: (_checks.same_size(**inputs), _checks.finite(**inputs)))}")
         bg = inputs["background"]
         print(f"  boxes (plans):         {timed(lambda: [C._shadow_plan(bg.shape, inputs['shadow'], 0.5, (0, 0, 0))] + [C._over_plan(bg.shape, f, al) for f, al in layers])}")

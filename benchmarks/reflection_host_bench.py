@@ -20,7 +20,7 @@ import statistics
 import sys
 import time
 
-from _machine import cpu_model
+from _machine import NodeContext, cpu_model
 from photo_bench import ROOT, SIZES, make_graph
 
 
@@ -47,15 +47,6 @@ def main() -> int:
                             bg_height=up["bg_h.height"], mask=None, receiver=None))
     device = s.device
 
-    class Ctx:
-        def __init__(self):
-            self.device = device
-
-        def progress(self, *_):
-            pass
-
-        def check_cancelled(self):
-            pass
     trace = []
     traced = reflection_proxy.reflection_cl
 
@@ -67,7 +58,7 @@ def main() -> int:
     reflection_proxy.reflection_cl = timed
     print(f"machine: {cpu_model()}; load average {os.getloadavg()[0]:.2f} at start; "
           f"{SIZES[a.size][0]}x{SIZES[a.size][1]}; params {dict(sorted(set_params.items()))}")
-    spec.cls().compute(Ctx(), Namespace(dict(inputs)), Namespace(params))     # builds the kernels
+    spec.cls().compute(NodeContext(device), Namespace(dict(inputs)), Namespace(params))     # builds the kernels
     trace.clear()
     total = []
     for k in range(a.repeat):
@@ -78,7 +69,7 @@ def main() -> int:
             prof = cProfile.Profile()
             prof.enable()
         t0 = time.perf_counter()
-        spec.cls().compute(Ctx(), Namespace(dict(inputs)), Namespace(params))
+        spec.cls().compute(NodeContext(device), Namespace(dict(inputs)), Namespace(params))
         total.append(time.perf_counter() - t0)
         if prof is not None:
             prof.disable()
