@@ -80,3 +80,36 @@ def test_shipped_rule_refitted_on_unseen_kinds_only_in_its_rates():
     # what the node reads (the numpy weights' config) is the provenance's rule
     from pixgraph_nodes.ops.learned_height import LearnedHeightPredictor
     assert LearnedHeightPredictor().confidence_rule == cfg
+
+
+def test_folder_rows_cache_is_per_folder_path_and_weights(tmp_path, monkeypatch):
+    """Two folders of one name, or other weights, are predicted again, not read from
+    another's cache; the same folder and weights are read back."""
+    from pixgraph_lab.height import evaluate, recalibrate
+
+    calls = []
+    mask = np.ones((4, 4), bool)
+    monkeypatch.setattr(evaluate, "height_files", lambda folder: [folder + "/0.npz"])
+    monkeypatch.setattr(evaluate, "read_height_sample",
+                        lambda f: ({"index": 0, "object": f}, None, np.full((4, 4), 2.0), mask))
+
+    class Pred:
+        def __init__(self, path, h):
+            self.path, self.h = path, h
+
+        def predict_full(self, rgba):
+            calls.append(self.path)
+            return {"signal": -1.0, "height": np.full((4, 4), self.h), "heuristic": np.zeros((4, 4)),
+                    "use_learned": True}
+    w1, w2 = tmp_path / "a.pt", tmp_path / "b.pt"
+    w1.write_bytes(b"one")
+    w2.write_bytes(b"two")
+    out = str(tmp_path / "out")
+    d1, d2 = str(tmp_path / "x" / "val"), str(tmp_path / "y" / "val")
+    r = recalibrate.folder_rows(d1, Pred(w1, 3.0), out)
+    assert r[0]["mae_learned"] == pytest.approx(1.0) and len(calls) == 1
+    assert recalibrate.folder_rows(d1, Pred(w1, 9.0), out)[0]["mae_learned"] == pytest.approx(1.0)
+    assert len(calls) == 1                                            # read back
+    assert recalibrate.folder_rows(d2, Pred(w1, 5.0), out)[0]["mae_learned"] == pytest.approx(3.0)
+    assert recalibrate.folder_rows(d1, Pred(w2, 6.0), out)[0]["mae_learned"] == pytest.approx(4.0)
+    assert len(calls) == 3

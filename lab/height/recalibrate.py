@@ -15,8 +15,8 @@ the shipped rates and the refitted ones on named sets of folders (``--judge``):
 A bin holding fewer than ``--min-bin`` fitting cutouts takes the pooled win share.
 The per-cutout rows (signal, bin, both MAEs) are cached in ``--out`` per folder, so
 a second run reads them instead of predicting again. ``--write`` stores the refitted
-``win_rate`` and what it was fitted on (``win_rate_chosen_on``) in the checkpoint (then ``python -m
-pixgraph_lab.height.export --npz`` writes the numpy weights again). The rule it was
+``win_rate`` and what it was fitted on (``win_rate_chosen_on``) in the checkpoint and
+writes its numpy weights again (``export --npz``'s ``write_numpy_weights``). The rule it was
 run under: docs/height-record.md, "Rules fixed before measuring: the confidence on
 unseen kinds".
 
@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import csv
 import os
+import pathlib
 
 import numpy as np
 
@@ -58,9 +59,18 @@ def calibration(conf: np.ndarray, win: np.ndarray, bins: np.ndarray, n_bins: int
 
 
 def folder_rows(folder: str, pred, out: str) -> list[dict]:
-    """Per-cutout rows of one folder of height samples (cached as ``out/<name>.csv``)."""
+    """Per-cutout rows of one folder of height samples, cached in ``out`` under the
+    folder's name, a digest of its full path and the first 12 hex digits of the
+    weights' sha256 (other weights, or another folder of the same name, are
+    predicted again)."""
+    import hashlib
+
+    from pixgraph_nodes.ops.height_net import pt_digest
+
     from .evaluate import height_files, read_height_sample
-    cache = os.path.join(out, os.path.basename(os.path.normpath(folder)) + ".csv")
+    where = hashlib.sha256(os.path.abspath(folder).encode()).hexdigest()[:8]
+    cache = os.path.join(out, f"{os.path.basename(os.path.normpath(folder))}-{where}-"
+                              f"{pt_digest(pred.path)[:12]}.csv")
     if os.path.exists(cache):
         with open(cache) as fh:
             return [{k: float(v) if k != "object" else v for k, v in r.items()} for r in csv.DictReader(fh)]
@@ -139,6 +149,8 @@ def main(argv=None) -> int:
             rule, win_rate=refit, win_rate_chosen_on=f"{', '.join(a.fit)} ({len(fit_rows)} samples, "
                                                      "python -m pixgraph_lab.height.recalibrate)"))
         print(f"wrote the refitted win_rate into {weights}")
+        from .export import write_numpy_weights
+        write_numpy_weights(pathlib.Path(weights))      # the numpy weights carry the config too
     return 0
 
 
