@@ -234,7 +234,9 @@ def composite_layers_cl(device, background, darkness=None, opacity: float = 1.0,
     ``composite.cl``): the background outside the union of the shadow's and the
     layers' boxes is copied on the host (a band of ``band`` rows at a time, ops/bands.py);
     that union box of it, and each input's own box, go to the device, and the
-    union box comes back. Same arguments and result (float32 (H, W, C))."""
+    union box comes back. Same arguments and result (float32 (H, W, C)) for finite
+    inputs (the nodes check them first): the kernels clip with fmin/fmax, which
+    turn a NaN coverage into 0 where numpy's clip keeps the NaN."""
     import pyopencl as cl
     from pixgraph.device import load_kernel_source
 

@@ -136,7 +136,7 @@ function drawLight(light, line) {
   let off = [0, 0];                           // handle - tip [image px]
   if (under) {
     const d = top ? [tip[0] - top[0], tip[1] - top[1]] : [0, 0], n = Math.hypot(...d);
-    const dir = n > 1e-9 ? [d[0] / n, d[1] / n] : [0, -1];
+    const dir = n > 0.5 ? [d[0] / n, d[1] / n] : [0, -1];   // under half an image px: no direction
     off = [dir[0] * LIGHT_ASIDE / view.k, dir[1] * LIGHT_ASIDE / view.k];
   }
   const guide = top ? line("light", top, tip) : null;
