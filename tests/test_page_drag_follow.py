@@ -165,6 +165,16 @@ def test_saved_stays_shown_when_an_earlier_final_comes_after_the_save(browser, t
         page.close()
 
 
+def status_while_final(page, seq):
+    """The status line once it says a final is on its way, or 'final came first: LINE'
+    when a final newer than ``seq`` was shown before it did."""
+    return page.wait_for_function(f"""() => {{
+        const line = document.getElementById('status').textContent;
+        const done = window.pixgraphShown.some((s) => s.mode === 'final' && s.seq > {seq});
+        return done ? 'final came first: ' + line : line.startsWith('rendering the final') && line; }}""",
+                                  timeout=60000).json_value()
+
+
 def test_the_status_line_says_a_final_is_on_its_way(browser, tmp_path):
     """On a 20 MP photo the final takes seconds after a drag: the status line went on
     showing the last preview's line, as if that were all. While a final is on its way it
@@ -181,22 +191,14 @@ def test_the_status_line_says_a_final_is_on_its_way(browser, tmp_path):
                                timeout=60000)
         page.mouse.up()
         # what the line says while that final runs (no final newer than the drag shown yet)
-        said = page.wait_for_function(f"""() => {{
-            const line = document.getElementById('status').textContent;
-            const done = window.pixgraphShown.some((s) => s.mode === 'final' && s.seq > {seq});
-            return done ? 'final came first: ' + line : line.startsWith('rendering the final') && line; }}""",
-                                      timeout=60000).json_value()
+        said = status_while_final(page, seq)
         assert said.startswith("rendering the final\u2026 (shown: preview "), said
         wait_final(page, seq)
         assert page.inner_text("#status").startswith("final "), page.inner_text("#status")
         # an edit with no previews (a toggle): the same while its final runs
         seq = last_seq(page)
         page.click("#flip")
-        said = page.wait_for_function(f"""() => {{
-            const line = document.getElementById('status').textContent;
-            const done = window.pixgraphShown.some((s) => s.mode === 'final' && s.seq > {seq});
-            return done ? 'final came first: ' + line : line.startsWith('rendering the final') && line; }}""",
-                                      timeout=60000).json_value()
+        said = status_while_final(page, seq)
         assert said.startswith("rendering the final\u2026 (shown: final "), said
         wait_final(page, seq)
         assert page.inner_text("#status").startswith("final "), page.inner_text("#status")
