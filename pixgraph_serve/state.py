@@ -33,7 +33,7 @@ from typing import Any, Mapping
 from pixgraph import fileio
 from pixgraph.events import Cancelled, CancelToken
 from pixgraph.graph import Graph, GraphError, NodeInstance, split_param, validate
-from pixgraph.paths import PathError
+from pixgraph.paths import PathError, WritePath
 from pixgraph.session import Session
 
 from .errors import RunTimeout, ServeError, serve_error
@@ -404,29 +404,31 @@ class ServeState:
     def yaml(self) -> str:
         return fileio.dumps(self.graph)
 
-    def save_target(self, path: str | None = None) -> str:
+    def save_target(self, path: str | None = None) -> WritePath:
         """The file ``save(path)`` writes (relative to the served graph's folder; default
-        the served file), checked: a YAML name the path policy lets this graph write."""
+        the served file), checked: a YAML name the path policy lets this graph write.
+        A ``WritePath``: writers keep to the folder that was checked."""
         target = self.graph_path if not path else os.path.normpath(os.path.join(self.root, path))
         if not target.endswith((".yaml", ".yml")):
             raise ServeError(400, f"save: {path!r} must end in .yaml or .yml", field="path")
         try:
-            self.session.policy_for(self.graph).check_write(target)
+            real = self.session.policy_for(self.graph).check_write(target)
         except PathError as e:
             raise ServeError(403, str(e), field="path") from None
-        return target
+        return WritePath(target, real)
 
     def save(self, path: str | None = None) -> str:
-        """Write the edited graph as canonical YAML (default: over the served file)."""
+        """Write the edited graph as canonical YAML (default: over the served file),
+        through a temporary renamed into place (a reader, or a killed server, never sees
+        half a file), never through a symlink planted in the folder (``fileio.dump``)."""
         target = self.save_target(path)
-        tmp = os.path.join(os.path.dirname(target), f".{os.path.basename(target)}.tmp-{os.getpid()}")
         try:
-            fileio.dump(self.graph, tmp, self.registry)
-            os.replace(tmp, target)      # a reader (or a killed server) never sees half a file
+            fileio.dump(self.graph, target, self.registry)
+        except PathError as e:
+            raise ServeError(403, f"save: {e.message}", field="path") from None
         except OSError as e:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
             raise ServeError(400, f"save: cannot write {path or target}: {e.strerror or e}", field="path") from None
+        target = str(target)
         inside = os.path.commonpath([target, self.root]) == self.root
         self.save_name = os.path.relpath(target, self.root) if inside else target
         return target

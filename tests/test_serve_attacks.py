@@ -1,0 +1,95 @@
+"""Attacks on ``pixgraph serve`` beyond the probe of test_serve_security.py, against a
+real server process (``--no-token``: the token is tested there): symlinks planted in
+the graph's folder where a save or a save with files writes, uploads racing on one
+name, and images that dodge ``--max-pixels`` by their file name. Each must leave
+every file outside the allowed folders as it was."""
+import io
+import os
+
+import httpx
+import numpy as np
+import pytest
+from PIL import Image
+
+from pixgraph import fileio
+from pixgraph.registry import Registry
+from serve_helpers import copy_scene, running_server
+
+MAX_PIXELS = 300_000      # 512^2 = 262,144 fits; 600^2 does not
+JSON = {"Content-Type": "application/json"}
+YAML = {"Content-Type": "application/yaml"}
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    top = tmp_path_factory.mktemp("attacks")
+    graph = copy_scene(str(top / "scene"))
+    os.makedirs(top / "outside")
+    with running_server(graph, "--max-pixels", str(MAX_PIXELS)) as (url, proc):
+        yield {"url": url, "graph": graph, "folder": os.path.dirname(graph), "top": top,
+               "outside": top / "outside", "text": open(graph).read(), "proc": proc}
+
+
+@pytest.fixture
+def api(server):
+    with httpx.Client(base_url=server["url"], timeout=120) as c:
+        r = c.post("/api/graph", content=server["text"], headers=YAML)
+        assert r.status_code == 200, r.text
+        yield c
+
+
+def _png(w, h, fmt="PNG"):
+    buf = io.BytesIO()
+    Image.new("RGBA" if fmt == "PNG" else "RGB", (w, h), (200, 100, 50)).save(buf, format=fmt)
+    return buf.getvalue()
+
+
+def _victim(outside, name):
+    path = outside / name
+    path.write_text("the user's own file\n")
+    return path
+
+
+def test_a_save_never_writes_through_a_symlink_planted_at_its_temporary(api, server):
+    """Someone who can write in the graph's folder plants symlinks, pointing outside,
+    at every name a save's temporary file had (``.NAME.tmp-PID``, the engine's
+    ``NAME.tmp-PID`` after it, both for the served file and another name): the save
+    must write the graph file itself and nothing outside. Before: the YAML went into
+    the victim file outside and the graph file became a symlink to it."""
+    folder, pid = server["folder"], server["proc"].pid
+    victims, links = [], []
+    for target in (os.path.basename(server["graph"]), "other.yaml"):
+        for name in (f".{target}.tmp-{pid}", f".{target}.tmp-{pid}.tmp-{pid}", f"{target}.tmp-{pid}"):
+            victim = _victim(server["outside"], f"victim-{len(victims)}.txt")
+            os.symlink(victim, os.path.join(folder, name))
+            victims.append(victim)
+            links.append(os.path.join(folder, name))
+    try:
+        for path in (None, "other.yaml"):
+            r = api.post("/api/save", json={} if path is None else {"path": path})
+            assert r.status_code == 200, r.text
+            saved = r.json()["path"]
+            assert not os.path.islink(saved) and os.path.isfile(saved)
+            assert open(saved).read() == r.json()["yaml"]
+        for v in victims:
+            assert v.read_text() == "the user's own file\n", v
+    finally:
+        for link in links:
+            if os.path.lexists(link):
+                os.unlink(link)
+        with open(server["graph"], "w") as f:
+            f.write(server["text"])
+
+
+def test_fileio_dump_never_writes_through_a_planted_symlink(tmp_path):
+    """The engine's own ``fileio.dump`` (the server's save): a symlink at the name its
+    temporary used to have is neither written through nor renamed into place."""
+    reg = Registry.discover()
+    graph = fileio.load(copy_scene(str(tmp_path / "scene")), reg)
+    victim = _victim(tmp_path, "victim.txt")
+    target = tmp_path / "scene" / "copy.yaml"
+    os.symlink(victim, f"{target}.tmp-{os.getpid()}")
+    fileio.dump(graph, target, reg)
+    assert victim.read_text() == "the user's own file\n"
+    assert not target.is_symlink() and fileio.load(target, reg).nodes.keys() == graph.nodes.keys()
+    assert [n for n in os.listdir(target.parent) if ".tmp-" in n] == [f"copy.yaml.tmp-{os.getpid()}"]
