@@ -93,3 +93,30 @@ def test_fileio_dump_never_writes_through_a_planted_symlink(tmp_path):
     assert victim.read_text() == "the user's own file\n"
     assert not target.is_symlink() and fileio.load(target, reg).nodes.keys() == graph.nodes.keys()
     assert [n for n in os.listdir(target.parent) if ".tmp-" in n] == [f"copy.yaml.tmp-{os.getpid()}"]
+
+
+def test_save_with_files_never_copies_through_a_planted_symlink(api, server):
+    """A save with the uploaded photo copied beside the graph: symlinks planted at the
+    copy's names (one dangling, one to an outside file with the same bytes) are
+    skipped, never written through or reused; the copy is a new regular file. Before:
+    the upload was copied into the dangling link's target outside."""
+    folder, outside = server["folder"], server["outside"]
+    data = _png(40, 30)
+    path = api.put("/api/uploads/mine.png", content=data).json()["path"]
+    (outside / "same.png").write_bytes(data)
+    links = {"mine.png": outside / "created.png", "mine_2.png": outside / "same.png"}
+    for name, target in links.items():
+        os.symlink(target, os.path.join(folder, name))
+    before = sorted(os.listdir(outside))
+    try:
+        assert api.post("/api/params", json={"params": {"cutout.path": path}}).status_code == 200
+        r = api.post("/api/save_files", json={"path": "mine.yaml"})
+        assert r.status_code == 200, r.text
+        assert r.json()["copied"] == ["mine_3.png"]
+        copy = os.path.join(folder, "mine_3.png")
+        assert not os.path.islink(copy) and open(copy, "rb").read() == data
+        assert sorted(os.listdir(outside)) == before and not (outside / "created.png").exists()
+    finally:
+        for name in (*links, "mine_3.png", "mine.yaml"):
+            if os.path.lexists(os.path.join(folder, name)):
+                os.unlink(os.path.join(folder, name))
