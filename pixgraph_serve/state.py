@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import secrets
 import tempfile
 import threading
 import time
@@ -205,33 +206,37 @@ class ServeState:
         except OSError:
             return 0
         if key not in self._pixels:
-            import OpenImageIO as oiio
-
-            inp = oiio.ImageInput.open(path)
-            if inp is None:
-                raise ServeError(400, f"cannot read image {os.path.basename(path)}: {oiio.geterror()}")
-            spec = inp.spec()
-            inp.close()
-            self._pixels[key] = int(spec.width) * int(spec.height)
+            self._pixels[key] = header_pixels(path)
         return self._pixels[key]
 
     def store_upload(self, name: str, raw: bytes) -> tuple[str, int]:
         """Write an uploaded image (``name`` already checked) into the upload folder,
-        after checking its header against the pixel limit; returns (path, pixels)."""
-        path = os.path.join(self.upload_dir, name)
-        tmp = path + ".part"
-        with open(tmp, "wb") as f:
-            f.write(raw)
-        try:
-            n = self.image_pixels(tmp)
-            if n > self.limits.max_pixels:
-                raise ServeError(413, f"uploaded image of {n} pixels is over the server's limit of "
-                                      f"{self.limits.max_pixels} (pixgraph serve --max-pixels N raises it)")
-        except BaseException:
-            os.unlink(tmp)
-            raise
-        os.replace(tmp, path)
-        return path, n
+        after checking its header against the pixel limit; returns (path, pixels).
+        The bytes go to a temporary of their own (a random name with the image's
+        extension, created with ``O_EXCL | O_NOFOLLOW``), checked, and renamed to
+        ``name``: two uploads of one name at once never share a file, and a symlink in
+        the folder is never written through."""
+        from pixgraph.paths import Folder
+
+        stem, ext = os.path.splitext(name)
+        tmp = f".{stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{ext}"
+        with Folder.at(self.upload_dir) as folder:
+            fd = folder.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+            try:
+                with os.fdopen(fd, "wb") as f:
+                    f.write(raw)
+                n = header_pixels(os.path.join(folder.path, tmp), shown=name)
+                if n > self.limits.max_pixels:
+                    raise ServeError(413, f"uploaded image of {n} pixels is over the server's limit of "
+                                          f"{self.limits.max_pixels} (pixgraph serve --max-pixels N raises it)")
+                folder.replace(tmp, name)
+            except BaseException:
+                try:
+                    folder.unlink(tmp)
+                except OSError:
+                    pass
+                raise
+        return os.path.join(self.upload_dir, name), n
 
     def remove_uploads(self) -> None:
         """Delete the upload folder with the files in it, when this state made it (the
@@ -532,6 +537,21 @@ class ServeState:
         for t in tokens:
             t.cancel()
         return len(tokens)
+
+
+def header_pixels(path: str, shown: str | None = None) -> int:
+    """Width x height of an image file from its header (no pixel decoded); a
+    ServeError 400 naming ``shown`` (default the file's name) when it cannot be read."""
+    import OpenImageIO as oiio
+
+    shown = shown or os.path.basename(path)
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        why = oiio.geterror().replace(path, shown).replace(os.path.basename(path), shown)
+        raise ServeError(400, f"cannot read image {shown}: {why}")
+    spec = inp.spec()
+    inp.close()
+    return int(spec.width) * int(spec.height)
 
 
 def check_depth(value: Any, limit: int = MAX_DEPTH) -> None:

@@ -120,3 +120,53 @@ def test_save_with_files_never_copies_through_a_planted_symlink(api, server):
         for name in (*links, "mine_3.png", "mine.yaml"):
             if os.path.lexists(os.path.join(folder, name)):
                 os.unlink(os.path.join(folder, name))
+
+
+def test_two_uploads_of_one_name_do_not_share_a_temporary(tmp_path, monkeypatch):
+    """Two uploads of the same name at once (the page's client and another): each is
+    checked and stored as the bytes it sent. Before, both wrote ``NAME.part``: the
+    second's over-limit image overwrote the first's bytes, its 413 removed the shared
+    temporary, and the first then failed on a file that no longer existed (a 400 here;
+    a 500 when the removal fell between the first's check and its rename)."""
+    from pixgraph_serve.errors import ServeError
+    from pixgraph_serve.state import Limits, ServeState
+
+    graph = copy_scene(str(tmp_path / "scene"))
+    os.makedirs(tmp_path / "up")
+    state = ServeState(graph, upload_dir=str(tmp_path / "up"), limits=Limits(max_pixels=MAX_PIXELS))
+    small, big = _png(64, 48), _png(600, 600)
+    import OpenImageIO as oiio
+
+    real = oiio.ImageInput.open
+    second = []
+
+    def racing(path, *args):
+        if not second:      # while the first upload's header is being read, a second one arrives
+            second.append(True)
+            with pytest.raises(ServeError) as e:
+                state.store_upload("a.png", big)
+            assert e.value.status == 413
+        return real(path, *args)
+
+    monkeypatch.setattr(oiio.ImageInput, "open", racing)
+    path, n = state.store_upload("a.png", small)
+    assert second and n == 64 * 48 and open(path, "rb").read() == small
+    assert os.listdir(tmp_path / "up") == ["a.png"]
+
+
+def test_an_upload_refused_by_its_header_names_the_upload(api):
+    """A PNG whose header claims 20000 x 20000 pixels from 100 bytes: a 400 naming the
+    uploaded name and the reader's reason, not a temporary file in the upload folder
+    (before: 'could not find a format reader for ".../h.png.part"')."""
+    import struct
+    import zlib
+
+    def chunk(t, d):
+        return struct.pack(">I", len(d)) + t + d + struct.pack(">I", zlib.crc32(t + d))
+
+    data = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 20000, 20000, 8, 6, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"\0" * 100)) + chunk(b"IEND", b""))
+    r = api.put("/api/uploads/h.png", content=data)
+    assert r.status_code in (400, 413), r.text
+    err = r.json()["error"]
+    assert "h.png" in err and ".part" not in err and ".tmp" not in err and "pixgraph-uploads" not in err, err
