@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import secrets
 import tempfile
 import threading
 import time
@@ -38,6 +37,7 @@ from pixgraph.paths import PathError, WritePath
 from pixgraph.session import Session
 
 from .errors import RunTimeout, ServeError, serve_error
+from .images import header_pixels, store_upload
 from .history import History, Step
 
 #: image file extensions whose header is checked against the pixel limit
@@ -166,9 +166,10 @@ class ServeState:
             spec = self.registry.get(inst.type)
             for p in spec.params:
                 if p.kind == "path" and not p.writes and p.name in inst.params:
+                    # every file's header, whatever its name: a .bmp, .gif or a PNG named
+                    # x.data is read by content as well
                     path = graph.resolve_path(inst.params[p.name])
-                    if path.lower().endswith(IMAGE_EXTENSIONS):
-                        self._check_pixels(self.image_pixels(path), nid, p.name)
+                    self._check_pixels(self.image_pixels(path), nid, p.name)
             values = spec.coerce_params(inst.params)
             if isinstance(values.get("width"), int) and isinstance(values.get("height"), int):
                 self._check_pixels(values["width"] * values["height"], nid, "width")
@@ -199,44 +200,24 @@ class ServeState:
                                   f"server's limit of {self.limits.max_pixels} (pixgraph serve --max-pixels N raises it)", node=nid, field=f"params.{pname}")
 
     def image_pixels(self, path: str) -> int:
-        """Pixel count from the file's header (not decoded), cached by path and mtime;
-        0 for a missing file (the graph's own validation reports it)."""
+        """Pixel count from the file's header (not decoded), cached by path and mtime:
+        an image in any format the image reader knows, whatever its name, or a ``.npy``
+        array (its first two dimensions); 0 for a missing file (the graph's own
+        validation reports it) and for a file that is neither (the node reports it),
+        unless it is named as an image (``IMAGE_EXTENSIONS``): then a 400."""
         try:
             key = (path, os.stat(path).st_mtime_ns)
         except OSError:
             return 0
         if key not in self._pixels:
-            self._pixels[key] = header_pixels(path)
+            self._pixels[key] = header_pixels(path, strict=path.lower().endswith(IMAGE_EXTENSIONS))
         return self._pixels[key]
 
     def store_upload(self, name: str, raw: bytes) -> tuple[str, int]:
         """Write an uploaded image (``name`` already checked) into the upload folder,
-        after checking its header against the pixel limit; returns (path, pixels).
-        The bytes go to a temporary of their own (a random name with the image's
-        extension, created with ``O_EXCL | O_NOFOLLOW``), checked, and renamed to
-        ``name``: two uploads of one name at once never share a file, and a symlink in
-        the folder is never written through."""
-        from pixgraph.paths import Folder
-
-        stem, ext = os.path.splitext(name)
-        tmp = f".{stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{ext}"
-        with Folder.at(self.upload_dir) as folder:
-            fd = folder.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-            try:
-                with os.fdopen(fd, "wb") as f:
-                    f.write(raw)
-                n = header_pixels(os.path.join(folder.path, tmp), shown=name)
-                if n > self.limits.max_pixels:
-                    raise ServeError(413, f"uploaded image of {n} pixels is over the server's limit of "
-                                          f"{self.limits.max_pixels} (pixgraph serve --max-pixels N raises it)")
-                folder.replace(tmp, name)
-            except BaseException:
-                try:
-                    folder.unlink(tmp)
-                except OSError:
-                    pass
-                raise
-        return os.path.join(self.upload_dir, name), n
+        after checking its header against the pixel limit; returns (path, pixels)
+        (``images.store_upload``)."""
+        return store_upload(self.upload_dir, name, raw, self.limits.max_pixels)
 
     def remove_uploads(self) -> None:
         """Delete the upload folder with the files in it, when this state made it (the
@@ -537,21 +518,6 @@ class ServeState:
         for t in tokens:
             t.cancel()
         return len(tokens)
-
-
-def header_pixels(path: str, shown: str | None = None) -> int:
-    """Width x height of an image file from its header (no pixel decoded); a
-    ServeError 400 naming ``shown`` (default the file's name) when it cannot be read."""
-    import OpenImageIO as oiio
-
-    shown = shown or os.path.basename(path)
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        why = oiio.geterror().replace(path, shown).replace(os.path.basename(path), shown)
-        raise ServeError(400, f"cannot read image {shown}: {why}")
-    spec = inp.spec()
-    inp.close()
-    return int(spec.width) * int(spec.height)
 
 
 def check_depth(value: Any, limit: int = MAX_DEPTH) -> None:

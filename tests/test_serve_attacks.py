@@ -170,3 +170,35 @@ def test_an_upload_refused_by_its_header_names_the_upload(api):
     assert r.status_code in (400, 413), r.text
     err = r.json()["error"]
     assert "h.png" in err and ".part" not in err and ".tmp" not in err and "pixgraph-uploads" not in err, err
+
+
+@pytest.mark.parametrize("name", ["big.bmp", "big.tga", "big.gif", "big", "big.data"])
+def test_max_pixels_holds_whatever_the_file_is_named(api, server, name):
+    """``--max-pixels`` is checked from the header of every file a graph reads, not
+    only of names ending in .png/.jpg/.tif/.exr/.hdr: a 600 x 600 BMP, TGA or GIF,
+    or a PNG named without an image extension, was read (the engine's own limit is
+    64 Mi pixels). The same file at 500 x 500 is accepted."""
+    fmt = {"big.bmp": "BMP", "big.tga": "TGA", "big.gif": "GIF"}.get(name, "PNG")
+    path = os.path.join(server["folder"], "assets", name)
+    for size, status in ((600, 413), (500, 200)):
+        with open(path, "wb") as f:
+            f.write(_png(size, size, fmt))
+        r = api.post("/api/params", json={"params": {"cutout.path": f"assets/{name}"}})
+        assert r.status_code == status, (size, r.text)
+        if status == 413:
+            assert "360000 pixels" in r.json()["error"] and "--max-pixels" in r.json()["error"]
+            r = api.post("/api/graph", content=server["text"].replace("assets/figure.png", f"assets/{name}"),
+                         headers=YAML)
+            assert r.status_code == 413, r.text
+
+
+def test_max_pixels_holds_for_a_pixel_height_array(api, server):
+    """A ``.npy`` pixel-height map is checked from its header the same way."""
+    path = os.path.join(server["folder"], "assets", "h.npy")
+    np.save(path, np.zeros((600, 600), np.float32))
+    text = server["text"].replace("outputs:", "  hh: {type: pixgraph.LoadPixelHeight, params: {path: assets/h.npy}}"
+                                  "\noutputs:", 1)
+    r = api.post("/api/graph", content=text, headers=YAML)
+    assert r.status_code == 413 and "--max-pixels" in r.json()["error"], r.text
+    np.save(path, np.zeros((500, 500), np.float32))
+    assert api.post("/api/graph", content=text, headers=YAML).status_code == 200
