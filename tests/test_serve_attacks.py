@@ -202,3 +202,43 @@ def test_max_pixels_holds_for_a_pixel_height_array(api, server):
     assert r.status_code == 413 and "--max-pixels" in r.json()["error"], r.text
     np.save(path, np.zeros((500, 500), np.float32))
     assert api.post("/api/graph", content=text, headers=YAML).status_code == 200
+
+
+def test_half_sent_requests_do_not_lock_the_page_out(server):
+    """Any local program, without the token, opens 80 connections and sends half a
+    request on some, nothing on others (a slow-loris): the page's next request is
+    still answered, and the server closes those connections when their headers have
+    not come in ``HEADER_SECONDS`` (also on a connection kept alive after a whole
+    request). Before: every request got ``503 Service Unavailable`` for as
+    long as the 64 connections of uvicorn's ``limit_concurrency`` stayed open (65 s
+    and more: there was no time limit on a request's headers)."""
+    import socket
+    import time
+
+    from pixgraph_serve import server as serve_module
+
+    header_seconds = getattr(serve_module, "HEADER_SECONDS", 10.0)
+    host, port = server["url"].rsplit("/", 1)[1].rsplit(":", 1)
+    socks = []
+    try:
+        request = f"GET /api/status HTTP/1.1\r\nHost: {host}:{port}\r\n"
+        for i in range(80):
+            s = socket.create_connection((host, int(port)), timeout=5)
+            if i == 0:       # a whole request answered first, then half of the next one
+                s.sendall((request + "\r\n").encode())
+                seen = b""
+                while not seen.endswith(b"}"):
+                    seen += s.recv(4096)
+            if i % 2 == 0:   # half a request; the odd ones send nothing at all
+                s.sendall(request.encode())
+            socks.append(s)
+        r = httpx.get(server["url"] + "/api/status", timeout=30)
+        assert r.status_code == 200, r.text
+        deadline = time.monotonic() + header_seconds + 30
+        for s in socks:
+            s.settimeout(max(0.1, deadline - time.monotonic()))
+            assert s.recv(100) == b""          # closed by the server, nothing answered
+    finally:
+        for s in socks:
+            s.close()
+    assert httpx.get(server["url"] + "/api/status", timeout=30).status_code == 200
