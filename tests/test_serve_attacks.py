@@ -242,3 +242,25 @@ def test_half_sent_requests_do_not_lock_the_page_out(server):
         for s in socks:
             s.close()
     assert httpx.get(server["url"] + "/api/status", timeout=30).status_code == 200
+
+
+def test_max_pixels_holds_for_a_file_swapped_after_its_check(api, server):
+    """The header is checked when a graph names a file; someone who can write in the
+    graph's folder then swaps a larger image in (keeping its mtime, so the checked
+    size stays cached). The pixel limit still holds when the node reads it:
+    ``pixgraph serve`` gives the engine its ``--max-pixels`` (``PIXGRAPH_MAX_PIXELS``),
+    checked from the header the node itself opens. Before, the run read the 600 x 600
+    image under ``--max-pixels 300000`` (the engine's own limit is 64 Mi pixels)."""
+    path = os.path.join(server["folder"], "assets", "swap.png")
+    with open(path, "wb") as f:
+        f.write(_png(500, 500))
+    text = server["text"].replace("assets/figure.png", "assets/swap.png").replace(
+        "outputs: {final: comp.image}", "outputs: {final: comp.image, cut: cutout.image}")
+    assert api.post("/api/graph", content=text, headers=YAML).status_code == 200
+    st = os.stat(path)
+    with open(path, "wb") as f:
+        f.write(_png(600, 600))
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns))
+    r = api.post("/api/run", json={"outputs": ["cut"]})
+    assert r.status_code in (400, 413), r.text
+    assert "300000" in r.json()["error"] and r.json()["node"] == "cutout", r.text
