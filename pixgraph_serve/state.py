@@ -539,17 +539,26 @@ def check_depth(value: Any, limit: int = MAX_DEPTH) -> None:
 def _precheck_yaml(text: str) -> None:
     """Refuse, in linear time and before the (pure-Python, line-recording) graph loader
     sees it, posted YAML that uses anchors or aliases (a few hundred bytes of nested
-    aliases expand to gigabytes, the "billion laughs"; graphs never need them) or
-    nests deeper than ``MAX_DEPTH`` (``[`` x 100000 would take that loader minutes).
+    aliases expand to gigabytes, the "billion laughs"; graphs never need them), nests
+    deeper than ``MAX_DEPTH`` (``[`` x 100000 would take that loader minutes) or holds
+    more values than the format allows (``fileio.MAX_YAML_NODES``: that loader took
+    30 s to build 20,000 nodes before refusing them).
     Uses libyaml when PyYAML has it; a YAML syntax error is left to the loader."""
     import yaml
 
     fast = getattr(yaml, "CSafeLoader", None)
     loader = fast(text) if fast is not None else yaml.SafeLoader(text)
-    depth = 0
+    depth = values = 0
+    starts = (yaml.ScalarToken, yaml.FlowSequenceStartToken, yaml.FlowMappingStartToken,
+              yaml.BlockSequenceStartToken, yaml.BlockMappingStartToken)
     try:
         while loader.check_token():
             token = loader.get_token()
+            if isinstance(token, starts):
+                values += 1
+                if values > fileio.MAX_YAML_NODES:   # the graph format's own limit, found before any loader builds it
+                    line = token.start_mark.line + 1
+                    raise ServeError(400, f"<posted graph>:{line}: more than {fileio.MAX_YAML_NODES} values", line=line)
             if isinstance(token, (yaml.AliasToken, yaml.AnchorToken)):
                 line = token.start_mark.line + 1
                 raise ServeError(400, f"<posted graph>:{line}: YAML anchors and aliases are not accepted "

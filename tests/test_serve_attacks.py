@@ -264,3 +264,30 @@ def test_max_pixels_holds_for_a_file_swapped_after_its_check(api, server):
     r = api.post("/api/run", json={"outputs": ["cut"]})
     assert r.status_code in (400, 413), r.text
     assert "300000" in r.json()["error"] and r.json()["node"] == "cutout", r.text
+
+
+def test_a_posted_graph_over_the_value_limit_is_refused_by_the_fast_scan(tmp_path, monkeypatch):
+    """A posted graph of 20,000 nodes (1.9 MB, 220,000 values) is over the graph
+    format's limit of values (``fileio.MAX_YAML_NODES``): it is refused by the
+    linear libyaml scan that already refuses anchors and deep nesting, before any
+    loader builds it. Before, the pure-Python loader built it first and refused it
+    only then (30 s of the server's time on 2 loaded cores, holding the lock that
+    the page's renders wait for)."""
+    from pixgraph import fileio as engine_fileio
+    from pixgraph_serve.errors import ServeError
+    from pixgraph_serve.state import ServeState
+
+    state = ServeState(copy_scene(str(tmp_path / "scene")), upload_dir=str(tmp_path / "up"))
+    nodes = "".join(f"  c{i}: {{type: pixgraph.Constant, params: {{width: 8, height: 8, color: [0.1, 0.2, 0.3, 1]}}}}\n"
+                    for i in range(20_000))
+    text = open(state.graph_path).read().replace("outputs:", nodes + "outputs:", 1)
+
+    def never(*args, **kwargs):
+        raise AssertionError("the graph was built before it was refused")
+
+    monkeypatch.setattr(engine_fileio, "loads", never)
+    import yaml
+    monkeypatch.setattr(yaml, "load", never)
+    with pytest.raises(ServeError) as e:
+        state.load_text(text)
+    assert e.value.status == 400 and f"more than {engine_fileio.MAX_YAML_NODES} values" in e.value.message
