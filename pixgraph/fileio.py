@@ -25,13 +25,16 @@ key order), so load -> dump -> load gives the same graph and the same text.
 from __future__ import annotations
 
 import dataclasses
+import errno
 import json
 import os
+import secrets
 from typing import Any, Callable
 
 import yaml
 
 from .graph import Graph, GraphError, NodeInstance, Ref, validate
+from .paths import open_write_folder
 from .registry import Registry
 
 FORMAT_VERSION = 1
@@ -328,18 +331,41 @@ def dumps(graph: Graph) -> str:
 
 
 def dump(graph: Graph, path: str | os.PathLike, registry: Registry | None = None) -> None:
-    """Write ``graph`` to ``path`` atomically.
+    """Write ``graph`` to ``path`` atomically, never through a symlink.
 
     With ``registry``, relative file params (kind ``path``) are rewritten
     relative to the new file's folder, so the saved graph finds the same files
     wherever it is written; without it they are written as given.
+
+    The folder is opened by ``paths.open_write_folder`` (for a ``WritePath``, the
+    folder the path policy checked; no symlink followed on the way), the text goes
+    to a temporary created there with ``O_EXCL | O_NOFOLLOW`` under a random name,
+    which is renamed into place in that folder: a symlink planted in the folder (at
+    a temporary's name, or at ``path`` itself, which is replaced) is never written
+    through. Raises ``PathError`` when a folder on the way became a symlink.
     """
     if registry is not None:
         graph = rebase_paths(graph, registry, os.path.dirname(os.path.abspath(path)))
-    tmp = f"{os.fspath(path)}.tmp-{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(dumps(graph))
-    os.replace(tmp, path)
+    text = dumps(graph)
+    real = getattr(path, "real", None) or os.path.abspath(path)
+    if not os.path.isdir(os.path.dirname(real)):     # as open() would: no folders made
+        raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), os.fspath(path))
+    folder, name = open_write_folder(path)
+    try:
+        tmp = f".{name}.tmp-{os.getpid()}-{secrets.token_hex(4)}"
+        fd = folder.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as f:
+                f.write(text)
+            folder.replace(tmp, name)
+        except BaseException:
+            try:
+                folder.unlink(tmp)
+            except OSError:
+                pass
+            raise
+    finally:
+        folder.close()
 
 
 def rebase_paths(graph: Graph, registry: Registry, new_base: str) -> Graph:

@@ -26,6 +26,7 @@ import time
 from typing import Any, Callable, Iterable
 
 from pixgraph.hashing import canonical_json
+from pixgraph.paths import WritePath
 
 from .rows import BatchError
 
@@ -100,7 +101,9 @@ def write_atomic(path: str, write: Callable[[str], Any], folder=None) -> str:
     """Write through ``write(tmp)`` to a temporary next to ``path``, hash what was
     written, rename it over ``path``; returns the sha256 of the bytes written. The
     hash is read from, and the rename made in, ``folder`` (from ``open_folder``,
-    opened before the write: no symlink swapped in meanwhile can redirect either).
+    opened before the write: no symlink swapped in meanwhile can redirect either);
+    ``tmp`` is a ``pixgraph.paths.WritePath`` of that folder's real path, which the
+    image writers open without following symlinks (a swapped folder gets nothing).
     The temporary is removed when anything fails (an error, Ctrl-C)."""
     own = folder is None
     if own:
@@ -109,7 +112,11 @@ def write_atomic(path: str, write: Callable[[str], Any], folder=None) -> str:
     try:
         tmp_name = os.path.basename(temporary_name(path))
         try:
-            write(os.path.join(folder.path, tmp_name))
+            # a WritePath of the folder held open: the image writers open that very path
+            # from / without following symlinks, so a folder swapped for a symlink since
+            # receives nothing (the write fails instead)
+            tmp = os.path.join(folder.path, tmp_name)
+            write(WritePath(tmp, tmp))
             fd = folder.open(tmp_name, os.O_RDONLY)
             h = hashlib.sha256()
             with os.fdopen(fd, "rb") as f:

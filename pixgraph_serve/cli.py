@@ -60,10 +60,21 @@ def cli_serve(args, registry, usage_error) -> int:
     def ready(url):
         print(f"pixgraph: serving {args.graph} at {url}", flush=True)
 
+    # the engine checks every image it decodes against PIXGRAPH_MAX_PIXELS, from the header
+    # the node opens: with the server's limit there, a file swapped for a larger one after
+    # the server's own check (state.py) is refused too (a lower limit already set is kept)
+    engine_limit = os.environ.get("PIXGRAPH_MAX_PIXELS")
+    if not ((engine_limit or "").strip().isdigit() and int(engine_limit) < limits.max_pixels):
+        os.environ["PIXGRAPH_MAX_PIXELS"] = str(limits.max_pixels)
+
     try:
         serve(state, args.host, args.port, on_ready=ready, token=None if args.no_token else new_token())
     except OSError as e:
         raise usage_error(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
     finally:
         state.remove_uploads()
+        if engine_limit is None:   # as it was (a server run in process, e.g. by tests)
+            os.environ.pop("PIXGRAPH_MAX_PIXELS", None)
+        else:
+            os.environ["PIXGRAPH_MAX_PIXELS"] = engine_limit
     return 0

@@ -16,17 +16,17 @@ the same path rules as any graph's paths.
 from __future__ import annotations
 
 import ast
-import filecmp
 import importlib.metadata
 import os
 import re
 import shutil
+import stat
 from importlib import resources
 from typing import Any
 
 import yaml
 
-from pixgraph.paths import PathError
+from pixgraph.paths import PathError, open_write_folder
 
 from .errors import ServeError, serve_error
 from .state import ServeState
@@ -186,19 +186,46 @@ def notes(state: ServeState) -> list[str]:
     return [n.replace(state.root + os.sep, "") for n in found]
 
 
-def _beside(src: str, folder: str) -> str:
-    """Copy ``src`` into ``folder`` under its own name (or name_2, name_3, ... when
-    another file of that name is there); a file with the same bytes is reused."""
+def _beside(src: str, folder, shown: str) -> str:
+    """Copy ``src`` into ``folder`` (a ``pixgraph.paths.Folder``, held open; ``shown``:
+    its path as the graph names it) under its own name (or name_2, name_3, ... when
+    another file of that name is there); a regular file with the same bytes is reused.
+    Each copy is created with ``O_EXCL | O_NOFOLLOW``: a symlink planted at a name (even
+    a dangling one) is skipped, never written through nor reused."""
     base, ext = os.path.splitext(os.path.basename(src))
     for k in range(1, 1000):
         name = f"{base}{'' if k == 1 else f'_{k}'}{ext}"
-        dest = os.path.join(folder, name)
-        if not os.path.exists(dest):
-            shutil.copyfile(src, dest)
-            return dest
-        if filecmp.cmp(src, dest, shallow=False):
-            return dest
-    raise ServeError(409, f"save: too many files named {base}*{ext} in {folder}")
+        try:
+            fd = folder.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        except FileExistsError:
+            if _same_regular_file(src, folder, name):
+                return os.path.join(shown, name)
+            continue
+        try:
+            with open(src, "rb") as fin, os.fdopen(fd, "wb") as fout:
+                shutil.copyfileobj(fin, fout, 1 << 20)
+        except BaseException:
+            folder.unlink(name)
+            raise
+        return os.path.join(shown, name)
+    raise ServeError(409, f"save: too many files named {base}*{ext} in {shown}")
+
+
+def _same_regular_file(src: str, folder, name: str) -> bool:
+    """Whether ``name`` in ``folder`` is a regular file (not a symlink) with the bytes of ``src``."""
+    try:
+        fd = folder.open(name, os.O_RDONLY)
+    except OSError:             # a symlink (ELOOP), a folder...
+        return False
+    with os.fdopen(fd, "rb") as a, open(src, "rb") as b:
+        if not stat.S_ISREG(os.fstat(a.fileno()).st_mode) or os.fstat(a.fileno()).st_size != os.fstat(b.fileno()).st_size:
+            return False
+        while True:
+            x, y = a.read(1 << 20), b.read(1 << 20)
+            if x != y:
+                return False
+            if not x:
+                return True
 
 
 def save_with_files(state: ServeState, path: str | None) -> dict:
@@ -207,23 +234,29 @@ def save_with_files(state: ServeState, path: str | None) -> dict:
     them relative to itself, and the served graph then reads the copies.
     Returns ``{"path", "copied": [names], "yaml"}``."""
     target = state.save_target(path)   # checked before anything is copied
-    folder = os.path.dirname(target)
-    os.makedirs(folder, exist_ok=True)
+    shown = os.path.dirname(target)
+    try:            # the checked folder, made if missing, no symlink followed on the way
+        folder, _ = open_write_folder(target)
+    except PathError as e:
+        raise ServeError(403, f"save: {e.message}", field="path") from None
     uploads = os.path.realpath(state.upload_dir)
     live: dict[str, Any] = {}
     copied = []
-    for nid, inst in state.graph.nodes.items():
-        spec = state.registry.get(inst.type)
-        for p in spec.params:
-            if p.kind != "path" or p.writes or not inst.params.get(p.name):
-                continue
-            src = os.path.realpath(state.graph.resolve_path(os.fspath(inst.params[p.name])))
-            if os.path.commonpath([src, uploads]) != uploads:
-                continue
-            dest = _beside(src, folder)
-            copied.append(os.path.basename(dest))
-            inside = os.path.commonpath([dest, state.root]) == state.root
-            live[f"{nid}.{p.name}"] = os.path.relpath(dest, state.root) if inside else dest
+    try:
+        for nid, inst in state.graph.nodes.items():
+            spec = state.registry.get(inst.type)
+            for p in spec.params:
+                if p.kind != "path" or p.writes or not inst.params.get(p.name):
+                    continue
+                src = os.path.realpath(state.graph.resolve_path(os.fspath(inst.params[p.name])))
+                if os.path.commonpath([src, uploads]) != uploads:
+                    continue
+                dest = _beside(src, folder, shown)
+                copied.append(os.path.basename(dest))
+                inside = os.path.commonpath([dest, state.root]) == state.root
+                live[f"{nid}.{p.name}"] = os.path.relpath(dest, state.root) if inside else dest
+    finally:
+        folder.close()
     if live:
         state.set_params(live)   # the served graph reads the copies from now on
     target = state.save(path)    # relative paths rebased; written atomically

@@ -33,10 +33,11 @@ from typing import Any, Mapping
 from pixgraph import fileio
 from pixgraph.events import Cancelled, CancelToken
 from pixgraph.graph import Graph, GraphError, NodeInstance, split_param, validate
-from pixgraph.paths import PathError
+from pixgraph.paths import PathError, WritePath
 from pixgraph.session import Session
 
 from .errors import RunTimeout, ServeError, serve_error
+from .images import header_pixels, store_upload
 from .history import History, Step
 
 #: image file extensions whose header is checked against the pixel limit
@@ -165,9 +166,10 @@ class ServeState:
             spec = self.registry.get(inst.type)
             for p in spec.params:
                 if p.kind == "path" and not p.writes and p.name in inst.params:
+                    # every file's header, whatever its name: a .bmp, .gif or a PNG named
+                    # x.data is read by content as well
                     path = graph.resolve_path(inst.params[p.name])
-                    if path.lower().endswith(IMAGE_EXTENSIONS):
-                        self._check_pixels(self.image_pixels(path), nid, p.name)
+                    self._check_pixels(self.image_pixels(path), nid, p.name)
             values = spec.coerce_params(inst.params)
             if isinstance(values.get("width"), int) and isinstance(values.get("height"), int):
                 self._check_pixels(values["width"] * values["height"], nid, "width")
@@ -198,40 +200,24 @@ class ServeState:
                                   f"server's limit of {self.limits.max_pixels} (pixgraph serve --max-pixels N raises it)", node=nid, field=f"params.{pname}")
 
     def image_pixels(self, path: str) -> int:
-        """Pixel count from the file's header (not decoded), cached by path and mtime;
-        0 for a missing file (the graph's own validation reports it)."""
+        """Pixel count from the file's header (not decoded), cached by path and mtime:
+        an image in any format the image reader knows, whatever its name, or a ``.npy``
+        array (its first two dimensions); 0 for a missing file (the graph's own
+        validation reports it) and for a file that is neither (the node reports it),
+        unless it is named as an image (``IMAGE_EXTENSIONS``): then a 400."""
         try:
             key = (path, os.stat(path).st_mtime_ns)
         except OSError:
             return 0
         if key not in self._pixels:
-            import OpenImageIO as oiio
-
-            inp = oiio.ImageInput.open(path)
-            if inp is None:
-                raise ServeError(400, f"cannot read image {os.path.basename(path)}: {oiio.geterror()}")
-            spec = inp.spec()
-            inp.close()
-            self._pixels[key] = int(spec.width) * int(spec.height)
+            self._pixels[key] = header_pixels(path, strict=path.lower().endswith(IMAGE_EXTENSIONS))
         return self._pixels[key]
 
     def store_upload(self, name: str, raw: bytes) -> tuple[str, int]:
         """Write an uploaded image (``name`` already checked) into the upload folder,
-        after checking its header against the pixel limit; returns (path, pixels)."""
-        path = os.path.join(self.upload_dir, name)
-        tmp = path + ".part"
-        with open(tmp, "wb") as f:
-            f.write(raw)
-        try:
-            n = self.image_pixels(tmp)
-            if n > self.limits.max_pixels:
-                raise ServeError(413, f"uploaded image of {n} pixels is over the server's limit of "
-                                      f"{self.limits.max_pixels} (pixgraph serve --max-pixels N raises it)")
-        except BaseException:
-            os.unlink(tmp)
-            raise
-        os.replace(tmp, path)
-        return path, n
+        after checking its header against the pixel limit; returns (path, pixels)
+        (``images.store_upload``)."""
+        return store_upload(self.upload_dir, name, raw, self.limits.max_pixels)
 
     def remove_uploads(self) -> None:
         """Delete the upload folder with the files in it, when this state made it (the
@@ -404,29 +390,31 @@ class ServeState:
     def yaml(self) -> str:
         return fileio.dumps(self.graph)
 
-    def save_target(self, path: str | None = None) -> str:
+    def save_target(self, path: str | None = None) -> WritePath:
         """The file ``save(path)`` writes (relative to the served graph's folder; default
-        the served file), checked: a YAML name the path policy lets this graph write."""
+        the served file), checked: a YAML name the path policy lets this graph write.
+        A ``WritePath``: writers keep to the folder that was checked."""
         target = self.graph_path if not path else os.path.normpath(os.path.join(self.root, path))
         if not target.endswith((".yaml", ".yml")):
             raise ServeError(400, f"save: {path!r} must end in .yaml or .yml", field="path")
         try:
-            self.session.policy_for(self.graph).check_write(target)
+            real = self.session.policy_for(self.graph).check_write(target)
         except PathError as e:
             raise ServeError(403, str(e), field="path") from None
-        return target
+        return WritePath(target, real)
 
     def save(self, path: str | None = None) -> str:
-        """Write the edited graph as canonical YAML (default: over the served file)."""
+        """Write the edited graph as canonical YAML (default: over the served file),
+        through a temporary renamed into place (a reader, or a killed server, never sees
+        half a file), never through a symlink planted in the folder (``fileio.dump``)."""
         target = self.save_target(path)
-        tmp = os.path.join(os.path.dirname(target), f".{os.path.basename(target)}.tmp-{os.getpid()}")
         try:
-            fileio.dump(self.graph, tmp, self.registry)
-            os.replace(tmp, target)      # a reader (or a killed server) never sees half a file
+            fileio.dump(self.graph, target, self.registry)
+        except PathError as e:
+            raise ServeError(403, f"save: {e.message}", field="path") from None
         except OSError as e:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
             raise ServeError(400, f"save: cannot write {path or target}: {e.strerror or e}", field="path") from None
+        target = str(target)
         inside = os.path.commonpath([target, self.root]) == self.root
         self.save_name = os.path.relpath(target, self.root) if inside else target
         return target
@@ -551,17 +539,26 @@ def check_depth(value: Any, limit: int = MAX_DEPTH) -> None:
 def _precheck_yaml(text: str) -> None:
     """Refuse, in linear time and before the (pure-Python, line-recording) graph loader
     sees it, posted YAML that uses anchors or aliases (a few hundred bytes of nested
-    aliases expand to gigabytes, the "billion laughs"; graphs never need them) or
-    nests deeper than ``MAX_DEPTH`` (``[`` x 100000 would take that loader minutes).
+    aliases expand to gigabytes, the "billion laughs"; graphs never need them), nests
+    deeper than ``MAX_DEPTH`` (``[`` x 100000 would take that loader minutes) or holds
+    more values than the format allows (``fileio.MAX_YAML_NODES``: that loader took
+    30 s to build 20,000 nodes before refusing them).
     Uses libyaml when PyYAML has it; a YAML syntax error is left to the loader."""
     import yaml
 
     fast = getattr(yaml, "CSafeLoader", None)
     loader = fast(text) if fast is not None else yaml.SafeLoader(text)
-    depth = 0
+    depth = values = 0
+    starts = (yaml.ScalarToken, yaml.FlowSequenceStartToken, yaml.FlowMappingStartToken,
+              yaml.BlockSequenceStartToken, yaml.BlockMappingStartToken)
     try:
         while loader.check_token():
             token = loader.get_token()
+            if isinstance(token, starts):
+                values += 1
+                if values > fileio.MAX_YAML_NODES:   # the graph format's own limit, found before any loader builds it
+                    line = token.start_mark.line + 1
+                    raise ServeError(400, f"<posted graph>:{line}: more than {fileio.MAX_YAML_NODES} values", line=line)
             if isinstance(token, (yaml.AliasToken, yaml.AnchorToken)):
                 line = token.start_mark.line + 1
                 raise ServeError(400, f"<posted graph>:{line}: YAML anchors and aliases are not accepted "

@@ -161,6 +161,28 @@ def test_a_folder_swapped_for_a_symlink_mid_write_redirects_nothing(scene, tmp_p
     assert "a.png" in os.listdir(moved)  # renamed where it was being written
 
 
+def test_a_folder_swapped_for_a_symlink_before_the_write_receives_nothing(scene, tmp_path, monkeypatch):
+    """The output folder is replaced by a symlink to another folder after the batch
+    opened it and before the row's image is written: the image's temporary goes
+    nowhere (the row fails, saying so), never in the other folder. Before, the
+    temporary was written by its path, through the symlink: a ``.a.tmp-PID-XXXX.png``
+    was left in the other folder (and the row failed)."""
+    out, moved, elsewhere = tmp_path / "out", tmp_path / "moved", tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    real = Session.write_output
+
+    def swap(self, graph, name, value, path):
+        if not moved.exists():
+            os.rename(out, moved)
+            os.symlink(elsewhere, out)
+        return real(self, graph, name, value, path)
+
+    monkeypatch.setattr(Session, "write_output", swap)
+    res = batch(Session(), scene / "g.yaml", sweeps=[("light.azimuth", [10])], outputs={"final": str(out / "a.png")})
+    assert os.listdir(elsewhere) == []
+    assert res.count("failed") == 1 and "nothing was written" in res.results[0].error
+
+
 # -- one batch per output folder ----------------------------------------------------------------
 
 
