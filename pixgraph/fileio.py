@@ -352,18 +352,7 @@ def dump(graph: Graph, path: str | os.PathLike, registry: Registry | None = None
         raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), os.fspath(path))
     folder, name = open_write_folder(path)
     try:
-        tmp = f".{name}.tmp-{os.getpid()}-{secrets.token_hex(4)}"
-        fd = folder.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                f.write(text)
-            folder.replace(tmp, name)
-        except BaseException:
-            try:
-                folder.unlink(tmp)
-            except OSError:
-                pass
-            raise
+        folder.write_replace(name, text.encode("utf-8"), f".{name}.tmp-{os.getpid()}-{secrets.token_hex(4)}", 0o666)
     finally:
         folder.close()
 

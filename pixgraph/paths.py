@@ -226,6 +226,24 @@ class Folder:
         else:
             os.replace(self._name(src), self._name(dst))
 
+    def write_replace(self, name: str, data: bytes, tmp: str, mode: int = 0o644, check=None) -> None:
+        """Write ``data`` into a new file ``tmp`` of this folder (``O_EXCL``, never through
+        a symlink), call ``check(tmp)`` when given (it raises to refuse the file), then
+        rename it over ``name``; the temporary is removed when anything fails."""
+        fd = self.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, mode)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                f.write(data)
+            if check is not None:
+                check(tmp)
+            self.replace(tmp, name)
+        except BaseException:
+            try:
+                self.unlink(tmp)
+            except OSError:
+                pass
+            raise
+
     def listdir(self) -> list[str]:
         if self.fd is None:
             return os.listdir(self.path)

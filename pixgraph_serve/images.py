@@ -50,20 +50,14 @@ def store_upload(folder_path: str, name: str, raw: bytes, max_pixels: int) -> tu
 
     stem, ext = os.path.splitext(name)
     tmp = f".{stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{ext}"
+    pixels = []
+
+    def check(written):
+        n = header_pixels(os.path.join(folder.path, written), shown=name)
+        if n > max_pixels:
+            raise ServeError(413, f"uploaded image of {n} pixels is over the server's limit of "
+                                  f"{max_pixels} (pixgraph serve --max-pixels N raises it)")
+        pixels.append(n)
     with Folder.at(folder_path) as folder:
-        fd = folder.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-        try:
-            with os.fdopen(fd, "wb") as f:
-                f.write(raw)
-            n = header_pixels(os.path.join(folder.path, tmp), shown=name)
-            if n > max_pixels:
-                raise ServeError(413, f"uploaded image of {n} pixels is over the server's limit of "
-                                      f"{max_pixels} (pixgraph serve --max-pixels N raises it)")
-            folder.replace(tmp, name)
-        except BaseException:
-            try:
-                folder.unlink(tmp)
-            except OSError:
-                pass
-            raise
-    return os.path.join(folder_path, name), n
+        folder.write_replace(name, raw, tmp, 0o600, check)
+    return os.path.join(folder_path, name), pixels[0]

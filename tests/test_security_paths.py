@@ -320,3 +320,25 @@ def test_a_folder_that_may_be_entered_but_not_listed_is_written_through():
     finally:
         os.chmod(os.path.join(top, "outer"), 0o755)
         shutil.rmtree(top)
+
+
+def test_folder_write_replace_checks_then_renames_and_leaves_nothing_on_failure(tmp_path):
+    from pixgraph.paths import Folder
+    (tmp_path / "out").mkdir()
+    (tmp_path / "victim").write_text("ORIGINAL")
+    with Folder.at(str(tmp_path / "out")) as folder:
+        folder.write_replace("a.txt", b"one", ".a.tmp")
+        assert (tmp_path / "out" / "a.txt").read_bytes() == b"one"
+
+        def refuse(tmp):
+            assert (tmp_path / "out" / tmp).read_bytes() == b"two"      # written before the check
+            raise ValueError("no")
+        with pytest.raises(ValueError):
+            folder.write_replace("a.txt", b"two", ".a.tmp", check=refuse)
+        assert (tmp_path / "out" / "a.txt").read_bytes() == b"one"
+        # a symlink planted at the temporary's name is neither written through nor removed as if ours
+        os.symlink(tmp_path / "victim", tmp_path / "out" / ".b.tmp")
+        with pytest.raises(FileExistsError):
+            folder.write_replace("b.txt", b"three", ".b.tmp")
+    assert (tmp_path / "victim").read_text() == "ORIGINAL"
+    assert sorted(os.listdir(tmp_path / "out")) == [".b.tmp", "a.txt"]
