@@ -29,6 +29,8 @@ import os
 
 import numpy as np
 
+from .confidence_study import bin_of
+
 GRID = np.round(np.linspace(0.0, 1.0, 21), 2)
 
 
@@ -101,7 +103,7 @@ def main(argv=None) -> int:
     sig = np.array([r["signal"] for r in rows])
     edges = np.asarray(rule["bins"], float)
     cands = {"G": (np.zeros(len(rows), int), 1, []),
-             "B": (np.searchsorted(edges, sig, side="right"), len(edges) + 1, edges.tolist())}
+             "B": (bin_of(sig, edges), len(edges) + 1, edges.tolist())}
     auto = np.where([r["use_learned"] for r in rows], mae[:, -1], mae[:, 0])
     oof = {k: out_of_fold(mae, b, n) for k, (b, n, _) in cands.items()}
     best = min(oof, key=lambda k: oof[k].mean())

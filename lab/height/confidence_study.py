@@ -61,6 +61,19 @@ def best_threshold(s, mae_l, mae_h):
     return best
 
 
+def bin_of(signal: np.ndarray, edges) -> np.ndarray:
+    """The rule's bin index (0 .. len(edges)) of each signal value (``calibrated_confidence``'s)."""
+    return np.searchsorted(np.asarray(edges, float), np.asarray(signal, float), side="right")
+
+
+def fit_win_rates(bins: np.ndarray, win: np.ndarray, n_bins: int, min_bin: int = 20) -> list[float]:
+    """The share of ``win`` (bool per cutout) in each bin; a bin with fewer than
+    ``min_bin`` cutouts gets the pooled share."""
+    pooled = float(np.mean(win))
+    return [float(np.mean(win[bins == b])) if np.sum(bins == b) >= min_bin else pooled
+            for b in range(n_bins)]
+
+
 def main(argv=None) -> int:
     from pixgraph_nodes.ops.learned_height import SIGNALS, LearnedHeightPredictor
 
@@ -102,8 +115,7 @@ def main(argv=None) -> int:
     mae_h = np.array([r["mae_heuristic"] for r in rows])
     thr, auto_mae = best_threshold(s, mae_l, mae_h)
     edges = np.quantile(s, [0.2, 0.4, 0.6, 0.8])
-    k = np.searchsorted(edges, s, side="right")
-    win = [float(np.mean((mae_l < mae_h)[k == b])) if np.any(k == b) else 0.5 for b in range(5)]
+    win = fit_win_rates(bin_of(s, edges), mae_l < mae_h, 5, min_bin=1)     # quintiles: none empty
     rule.update(threshold=thr if np.isfinite(thr) else 1e30, bins=edges.tolist(), win_rate=win,
                 spearman=rho[best], chosen_on=f"{a.heights} ({len(rows)} samples)")
     use = s <= rule["threshold"]

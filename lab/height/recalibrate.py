@@ -33,18 +33,7 @@ import pathlib
 
 import numpy as np
 
-
-def bin_of(signal: np.ndarray, edges) -> np.ndarray:
-    """The rule's bin index (0 .. len(edges)) of each signal value (``calibrated_confidence``'s)."""
-    return np.searchsorted(np.asarray(edges, float), np.asarray(signal, float), side="right")
-
-
-def fit_win_rates(bins: np.ndarray, win: np.ndarray, n_bins: int, min_bin: int = 20) -> list[float]:
-    """The share of ``win`` (bool per cutout) in each bin; a bin with fewer than
-    ``min_bin`` cutouts gets the pooled share."""
-    pooled = float(np.mean(win))
-    return [float(np.mean(win[bins == b])) if np.sum(bins == b) >= min_bin else pooled
-            for b in range(n_bins)]
+from .confidence_study import bin_of, fit_win_rates
 
 
 def calibration(conf: np.ndarray, win: np.ndarray, bins: np.ndarray, n_bins: int) -> dict:
