@@ -420,20 +420,14 @@ class DiskCache:
             return
         tmp = f"{TMP_PREFIX}{name}-{uuid.uuid4().hex}.json"
         d = None
-        pending = False
         try:
             text = json.dumps(data, sort_keys=True).encode("utf-8")
             d = self._subdir(RECORDS, create=True)
-            fd = d.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL)
-            pending = True
-            with os.fdopen(fd, "wb") as f:
-                f.write(text)
-            d.replace(tmp, name + ".json")
-            pending = False
+            d.write_replace(name + ".json", text, tmp)
         except (OSError, ValueError, TypeError):
             pass  # records only serve explanations: never fail a run for one
         finally:
-            _release(d, tmp if pending else None)
+            _release(d, None)
 
     def load_record(self, name: str) -> dict | None:
         if not _RECORD_NAME.match(name) or not self.owned:

@@ -139,15 +139,8 @@ def write_json_atomic(path: str, data: dict, folder=None) -> None:
         folder, _ = open_folder(path)
     name = os.path.basename(path)
     try:
-        tmp_name = os.path.basename(temporary_name(path, suffix=".tmp"))
-        try:
-            fd = folder.open(tmp_name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                json.dump(data, f, indent=1, sort_keys=True, default=str)
-            folder.replace(tmp_name, name)
-        except BaseException:
-            _unlink_in(folder, tmp_name)
-            raise
+        text = json.dumps(data, indent=1, sort_keys=True, default=str)
+        folder.write_replace(name, text.encode("utf-8"), os.path.basename(temporary_name(path, suffix=".tmp")))
     finally:
         if own:
             folder.close()
