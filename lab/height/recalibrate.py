@@ -105,7 +105,7 @@ def main(argv=None) -> int:
     edges, shipped = rule["bins"], list(rule["win_rate"])
     nb = len(shipped)
     fit_rows = [r for f in a.fit for r in folder_rows(f, pred, a.out)]
-    fb, fwin, _ = arrays(fit_rows, edges)
+    fb, fwin, fuse = arrays(fit_rows, edges)
     refit = fit_win_rates(fb, fwin, nb, a.min_bin)
     lines = [f"weights {weights}; rule signal {rule['signal']}, bin edges {np.round(edges, 3).tolist()}", "",
              f"fitted on {len(fit_rows)} cutouts ({', '.join(a.fit)}), min {a.min_bin} a bin", "",
@@ -127,7 +127,6 @@ def main(argv=None) -> int:
             if np.any(b == k):
                 per_bin.append(f"| {name} | {k} | {int(np.sum(b == k))} | {np.mean(win[b == k]):.3f} | "
                                f"{shipped[k]:.2f} | {refit[k]:.3f} |")
-    _, _, fuse = arrays(fit_rows, edges)
     low = [k for k in range(nb) if refit[k] < 0.5 and np.any(fuse[fb == k])]
     lines += per_bin + ["", "refitted bins below 0.5 where auto keeps the learned map: "
                         + (", ".join(map(str, low)) or "none")]
