@@ -455,3 +455,51 @@ def test_the_residual_benchmark_splits_a_known_residual_into_columns_rows_and_bu
     s = res.residual_stats(np.where(m, t - bump, 0.0), t, m)
     assert s["bulge"] == pytest.approx(1.0, abs=1e-9) and s["beta"] == pytest.approx(0.2, abs=1e-9)
     assert s["across"][0] > s["across"][1] > s["across"][2]
+
+
+def test_the_user_who_watches_the_shadow_chooses_among_the_rules_handle_heights():
+    """User B (docs/height-record.md, "Rules fixed before measuring: a user who watches the
+    shadow"): each drag is offered user A's height and the rule's fixed set (the top at h0
+    x 0.4..1.6, the ring at h0 + bh x -0.3..0.3, the lying thickness at bh x 0.05..1.0),
+    the watcher's choice is applied, and ``targets`` records the height it ended at."""
+    from pixgraph_lab.height import edit_plans as ep
+    H, W = 100, 60
+    _, v = grid(H, W)
+    seen = np.zeros((H, W), bool)
+    seen[20:90, 10:50] = True
+    true_h = np.where(seen, 1.25 * (90.0 - v), 0.0)   # 1.25: off the rule's grid
+    pred = np.where(seen, 90.0 - v, 0.0)
+
+    def edited(p):
+        return ep.edit_with(pred, seen, p)
+    assert ep.box_height(seen) == 70.0
+    offered = []
+
+    def first(cands):                                 # keeps user A's height: the same params as A
+        offered.append(cands)
+        return 0
+    for plan in (["top"], ["depth"], ["lying", "thickness"], ["depth", "top"]):
+        assert ep.plan_params(plan, true_h, seen, edited, watch=first) == ep.plan_params(plan, true_h, seen, edited)
+    top0 = he.top_point(seen, edited({}))
+    assert len(offered[0]) == 1 + len(ep.WATCH_TOP)   # A's tilt first, then the grid's 13
+    assert len(offered[2]) == 1 + len(ep.WATCH_THICKNESS)
+    body0 = he.body_point(seen, edited({}))
+    want = 0.8 * top0[2]                              # a watcher who likes the top at 0.8 of its height
+
+    def likes(key, target, point):
+        def pick(cands):
+            hs = [point(edited(c))[2] for c in cands]
+            return int(np.argmin([abs(h - target) for h in hs]))
+        return pick
+    targets = {}
+    p = ep.plan_params(["top"], true_h, seen, edited, watch=likes("tilt", want, lambda e: he.top_point(seen, e)),
+                       targets=targets)
+    assert targets["tilt"] == pytest.approx(want)
+    assert he.top_point(seen, edited(p))[2] == pytest.approx(want, abs=0.05)
+    want = body0[2] - 0.25 * 70.0                     # the ring a quarter box height lower
+    targets = {}
+    p = ep.plan_params(["depth"], true_h, seen, edited, watch=likes("foot_depth", want,
+                                                                    lambda e: he.body_point(seen, e)),
+                       targets=targets)
+    assert targets["foot_depth"] == pytest.approx(want)
+    assert he.body_point(seen, edited(p))[2] == pytest.approx(max(want, body0[2] / 2), abs=0.05)

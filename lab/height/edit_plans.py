@@ -97,16 +97,58 @@ def plan_method(plan: list, method: str) -> str:
     return OTHER[method] if "switch" in plan else method
 
 
-def plan_params(plan: list, known_h: np.ndarray, mask: np.ndarray, edited) -> dict:
+#: user B's handle heights (docs/height-record.md, "Rules fixed before measuring: a user who
+#: watches the shadow"): the top's square at ``h0`` times these, the body's ring at ``h0 + bh``
+#: times these, the lying thickness at ``bh`` times these (``h0`` the handle point's height
+#: before the drag, ``bh`` the cutout's box height) [px]
+WATCH_TOP = tuple(round(0.4 + 0.1 * i, 2) for i in range(13))
+WATCH_DEPTH = tuple(round(-0.3 + 0.05 * i, 2) for i in range(13))
+WATCH_THICKNESS = tuple(round(0.05 * i, 2) for i in range(1, 21))
+
+
+def box_height(mask: np.ndarray) -> float:
+    """The cutout's box height [px]: rows from its highest to its lowest covered pixel."""
+    rows = np.nonzero(np.asarray(mask).any(axis=1))[0]
+    return float(rows.max() - rows.min() + 1) if len(rows) else 0.0
+
+
+def plan_params(plan: list, known_h: np.ndarray, mask: np.ndarray, edited, watch=None,
+                targets: dict | None = None) -> dict:
     """The edit's params after the plan's actions, in order (``known_h``: the heights the
     user knows [px], ``edited(params)``: the edited map with those params, params named as
     the node's: ``contact_points``, ``contact_mode``, ``tilt`` [deg], ``lying``,
     ``thickness`` [px], ``foot_depth`` [px]). ``top`` drags the tilt handle until the top's
     height is its true one, ``thickness`` (lying) the same square, ``depth`` the body's
-    ring until the body point's height is its true one (the node's elevation: 20 deg)."""
+    ring until the body point's height is its true one (the node's elevation: 20 deg).
+
+    ``watch`` (user B, who watches the shadow): ``watch(candidates)`` gets the params each
+    of the drag's handle heights would give (``WATCH_*`` and user A's own) and returns the
+    index of the one whose shadow it keeps. ``targets`` (a dict, filled in): the handle
+    height [px] each drag ended at, by action name, for the page's drags."""
     from pixgraph_nodes.ops.height_edit import (body_point, depth_for_height, thickness_for_height, tilt_for_height,
                                                 tilt_gain, top_point)
     p = {}
+    bh = box_height(mask)
+
+    def drag(key, heights, to_param):
+        """``p[key]`` for user A's height (``heights[0]``, None when it has none) or, with
+        ``watch``, for the watched one; records the height in ``targets``."""
+        cands = [h for h in heights if h is not None and h >= 0]
+        if watch is None:
+            cands = cands[:1] if heights[0] is not None else []
+        seen, options = set(), []
+        for h in cands:
+            v = round(to_param(h), 2)
+            if v not in seen:
+                seen.add(v)
+                options.append((h, v))
+        if not options:
+            return
+        k = watch([{**p, key: v} for _, v in options]) if watch is not None and len(options) > 1 else 0
+        p[key] = options[k][1]
+        if targets is not None:
+            targets[key] = options[k][0]
+
     for act in plan:
         if act.startswith("contact:"):
             p["contact_points"] = [c for pt in true_contacts(known_h, mask, int(act[8:])) for c in pt]
@@ -117,18 +159,22 @@ def plan_params(plan: list, known_h: np.ndarray, mask: np.ndarray, edited) -> di
         elif act == "top":
             top = top_point(mask, edited({k: v for k, v in p.items() if k != "tilt"}))
             true_top = top_point(mask, known_h)
-            if top is not None and true_top is not None:
-                p["tilt"] = round(tilt_for_height(top[3], true_top[2], 0.0, 20.0), 2)
+            if top is not None:
+                drag("tilt", [true_top[2] if true_top is not None else None, *(top[2] * f for f in WATCH_TOP)],
+                     lambda h, h0=top[3]: tilt_for_height(h0, h, 0.0, 20.0))
         elif act == "thickness":
             true_top = top_point(mask, known_h)
-            if true_top is not None:
-                p["thickness"] = round(thickness_for_height(true_top[2], tilt_gain(p.get("tilt", 0.0), 20.0)), 2)
+            g = tilt_gain(p.get("tilt", 0.0), 20.0)
+            drag("thickness", [true_top[2] if true_top is not None else None, *(bh * f for f in WATCH_THICKNESS)],
+                 lambda h: thickness_for_height(h, g))
         elif act == "depth":
             g = tilt_gain(p.get("tilt", 0.0), 20.0)
             body = body_point(mask, edited({k: v for k, v in p.items() if k != "foot_depth"}), p.get("tilt", 0.0))
             true_body = body_point(mask, known_h)
-            if body is not None and true_body is not None:
-                p["foot_depth"] = round(depth_for_height(body[3], true_body[2], g), 2)
+            if body is not None:
+                drag("foot_depth", [true_body[2] if true_body is not None else None,
+                                    *(body[2] + bh * f for f in WATCH_DEPTH)],
+                     lambda h, h0=body[3]: depth_for_height(h0, h, g))
     return p
 
 
