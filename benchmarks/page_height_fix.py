@@ -38,6 +38,11 @@ outside the cutout, before (the height as predicted) and after.
 Writes ``page_height_fix.png`` (before and after in the page, handles included,
 and the true heights' composite) for the first sample into --shots, and prints a
 markdown table. ``--explore 23,21`` prints every plan's numbers instead (no page).
+
+``--users A,B`` (with ``--explore``) and ``--user B`` (the page): user B does the same
+actions but drags the top's square and the body's ring to the height, of a fixed set
+and user A's, whose shadow comes closest (``edit_plans``; docs/height-record.md, "Rules
+fixed before measuring: a user who watches the shadow").
 """
 from __future__ import annotations
 

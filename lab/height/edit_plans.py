@@ -13,6 +13,12 @@ until the body point's height is its true one; the upright and lying toggles; th
 height method (``switch``: the CutoutHeight node's ``method``, ``OTHER``) -- and keeps the
 plan whose shadow is closest to the true heights' shadow (the user sees the shadow). Heights
 and points are in pixels of the map the edit is applied to.
+
+That is user A. User B (``plan_params``' ``watch``; docs/height-record.md, "Rules fixed
+before measuring: a user who watches the shadow") does the same actions but ends each drag
+of the top's square or the body's ring where, of a fixed set of handle heights
+(``WATCH_*``) and user A's, the shadow comes closest: a compositor drags until the shadow
+looks right, not until a height they cannot see is right.
 """
 from __future__ import annotations
 
