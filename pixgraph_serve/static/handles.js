@@ -6,7 +6,8 @@
 //   wall (blue): the ends of the wall-floor line (BackgroundHeight's
 //     junction_points), or the corner and the two slopes of the corner templates;
 //   light (yellow): the shadow tip, where the shadow of the object's top falls (set
-//     aside, a dotted line on to it, when the tip lies under another handle);
+//     aside, a dotted line on to it, when the tip lies under another handle); it goes
+//     where each render (a preview of a cutout drag too) says the tip is;
 //   and whatever the modules in `extraHandles` draw (heightedit.js: the cutout's
 //   contact points and tilt).
 "use strict";
@@ -156,6 +157,19 @@ function drawLight(light, line) {
     return {edits: {light_tip: at.map((v) => round(v))}, at: p};
   });
   if (under) el.classList.add("aside");
+  // a render's tip and top (render.js, from the server: e.g. each preview of a cutout drag)
+  // move the handle and its lines there; not while the handle itself is held
+  ui.followTip = ([tu, tv, ou, ov]) => {
+    if (!el.isConnected || (ui.drag && ui.drag.el === el)) return;
+    const [tx, ty] = toScreen(tu, tv), [hx, hy] = toScreen(tu + off[0], tv + off[1]);
+    el.setAttribute("cx", hx);
+    el.setAttribute("cy", hy);
+    if (guide) {
+      const [ox, oy] = toScreen(ou, ov);
+      for (const [k, v] of Object.entries({x1: ox, y1: oy, x2: tx, y2: ty})) guide.setAttribute(k, v);
+    }
+    if (aside) for (const [k, v] of Object.entries({x1: tx, y1: ty, x2: hx, y2: hy})) aside.setAttribute(k, v);
+  };
 }
 
 function drawWall(bg, id, line) {
