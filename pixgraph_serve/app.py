@@ -333,7 +333,7 @@ async def render(request: Request):
             scene.note(state, graph, extra, res)
             if mode == "final":
                 state.final_said = res.said
-            return res, encode(res[name], name, scale), scene.shown_tip(state, tips, res, float(working))
+            return res, encode(res[name], name, scale), scene.shown_tip(state, graph, tips, res, float(working))
 
         try:
             (res, png, tip), runs = await anyio.to_thread.run_sync(run_counted, state, lambda: edited_run(state, work))

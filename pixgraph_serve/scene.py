@@ -169,17 +169,23 @@ def tip_refs(state: ServeState, graph: Graph, outputs: list[str]) -> list[str]:
     return [*refs, f"{lid}.{state.registry.get(graph.nodes[lid].type).outputs[0].name}"]
 
 
-def shown_tip(state: ServeState, refs: list[str], values, scale: float) -> list[float] | None:
-    """[tip u, v, top u, v] [full-size px]: where the light of a run at working resolution
-    ``scale`` casts the shadow of the object's top, and that top (``describe``'s
-    ``tip_uv`` and ``top_uvh``, from that run's camera, object and light: a preview's
-    handle follows a drag of the cutout without a run of its own); None without one.
-    At ``scale`` < 1 the top is found on the scaled mask, to about 1 / ``scale`` px."""
+def shown_tip(state: ServeState, graph: Graph, refs: list[str], values, scale: float) -> list[float] | None:
+    """[tip u, v, top u, v] [full-size px]: where the light of a run of ``graph`` at working
+    resolution ``scale`` casts the shadow of the object's top, and that top
+    (``describe``'s ``tip_uv`` and ``top_uvh``, from that run's camera and light: a
+    preview's handle follows a drag without a run of its own); None without one. The top
+    is the anchors' (full-size, scaled) while the mask and pixel height they came from
+    are unchanged (a light, camera or horizon edit); else, in a drag of the object, it is
+    found on the run's scaled mask, to about 1 / ``scale`` px."""
     if not refs or not all(x in values for x in refs):
         return None
     light_cls = state.registry.get(state.graph.nodes[roles(state)["light"]].type).cls
     cam, mask, height, light = (values[x] for x in refs)
-    top = state.anchors.top if scale == 1 and state.anchors is not None else light_cls.object_top(mask, height)
+    a, up = state.anchors, _upstream(graph, [_node_of(x) for x in refs[1:3]])
+    if a is not None and a.top is not None and all(a.upstream.get(k) == v for k, v in up.items()):
+        top = tuple(x * scale for x in a.top)
+    else:
+        top = light_cls.object_top(mask, height)
     tip = light_cls.shadow_tip(cam, light, top)
     if tip is None:
         return None

@@ -74,3 +74,43 @@ def test_the_lights_handle_follows_a_cutout_drag_before_its_final(browser, tmp_p
         assert centre(page, "#light-handle") == pytest.approx((tx2, ty2), abs=1.0)
         assert not errors, errors
         page.close()
+
+
+def test_the_lights_handle_follows_the_elevation_slider_and_stays_in_a_horizon_drag(browser, tmp_path):
+    """The light's handle sits where each preview's light puts the tip: with the object
+    unchanged the top is the full-size one (not found again on the preview's smaller
+    mask), so the handle is where the final will put it, within a fraction of a pixel;
+    a horizon drag in the tip placement does not move the tip, and the handle stays."""
+    with running_server(edit_graph(str(tmp_path))) as (url, _):
+        page, errors = open_page(browser, url)
+        x, y = centre(page, "#light-handle")
+        seq = last_seq(page)
+        held(page, (x, y), (x - 30, y + 10))
+        page.mouse.up()
+        wait_final(page, seq)
+        (tx, ty), _ = tip_on_screen(url, page)
+        finals = HeldFinals(page)
+        box = page.locator("#elevation").bounding_box()
+        y_mid = box["y"] + box["height"] / 2
+        seq = last_seq(page)
+        held(page, (box["x"] + box["width"] * 0.4, y_mid), (box["x"] + box["width"] * 0.7, y_mid))
+        settled(page, seq)
+        during = centre(page, "#light-handle")
+        page.mouse.up()
+        finals.release()
+        wait_final(page, seq)
+        (tx2, ty2), _ = tip_on_screen(url, page)
+        assert abs(tx2 - tx) + abs(ty2 - ty) > 5, ((tx, ty), (tx2, ty2))     # the slider moved the tip
+        assert during == pytest.approx((tx2, ty2), abs=0.5), (during, (tx2, ty2))
+        # the horizon held 30 px down: the tip is a param in the tip placement, it stays
+        hx, hy = centre(page, "#horizon-handle")
+        seq = last_seq(page)
+        held(page, (hx, hy), (hx, hy + 30))
+        settled(page, seq)
+        assert centre(page, "#light-handle") == pytest.approx((tx2, ty2), abs=0.5)
+        page.mouse.up()
+        finals.release()
+        wait_final(page, seq)
+        assert tip_on_screen(url, page)[0] == pytest.approx((tx2, ty2), abs=0.5)
+        assert not errors, errors
+        page.close()
