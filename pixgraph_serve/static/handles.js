@@ -263,7 +263,8 @@ function scaledBy(pl, factor) {
   return round(Math.min(100, Math.max(0.01, pl.scale * factor)), 4);
 }
 
-// Shift + wheel over the cutout scales it: previews while the wheel turns, then the final.
+// Shift + wheel over the cutout scales it: previews while the wheel turns (the handles on
+// the cutout following at once), then the final.
 let wheelTimer = null, wheelScale = null;
 export function cutoutWheel(ev, [u, v]) {
   const pl = ui.scene && ui.scene.place, id = ui.scene && ui.scene.roles.place;
@@ -272,6 +273,7 @@ export function cutoutWheel(ev, [u, v]) {
   if (u < u0 || u > u1 || v < v0 || v > v1) return false;
   wheelScale = scaledBy({scale: wheelScale ?? pl.scale}, Math.exp(-(ev.deltaY || ev.deltaX) * 0.001));
   ui.drag = ui.drag || {el: "wheel"};
+  followCutout(pl.foot, wheelScale / pl.scale, 0, 0);   // its handles scale with it, as in a drag
   preview(param(id, "scale", wheelScale));
   clearTimeout(wheelTimer);
   wheelTimer = setTimeout(() => {
