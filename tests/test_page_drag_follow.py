@@ -252,3 +252,31 @@ def test_the_cutouts_handles_follow_a_shift_wheel_scale(browser, tmp_path):
         finals.release()
         assert not errors, errors
         page.close()
+
+
+def test_the_cutouts_handles_mirror_at_once_on_flip(browser, tmp_path):
+    """"flip cutout" mirrors the cutout about its foot: the preview (on a photo over 4 MP)
+    and the final showed it flipped while its scale handle, contact points and top stayed
+    where the unflipped cutout had them until the final's scene came (seconds on 20 MP),
+    then jumped. They are mirrored at the click, where the final puts them."""
+    with running_server(edit_graph(str(tmp_path))) as (url, _):
+        page, errors = open_page(browser, url)
+        fu, fv = httpx.get(url + "/api/scene", timeout=60).json()["place"]["foot"]
+        seq = last_seq(page)
+        held(page, centre(page, "#contact-new"), screen(page, fu - 20, fv - 4))
+        let_go(page, seq)
+        sels = ("#foot-handle", "#scale-handle", "#contact-0", "#tilt-handle")
+        before = {sel: centre(page, sel) for sel in sels}
+        finals = HeldFinals(page)
+        seq = last_seq(page)
+        page.click("#flip")
+        page.wait_for_timeout(100)
+        during = {sel: centre(page, sel) for sel in sels}
+        finals.release()
+        wait_final(page, seq)
+        after = {sel: centre(page, sel) for sel in sels}
+        assert abs(after["#contact-0"][0] - before["#contact-0"][0]) > 10      # the flip moves them
+        for sel in sels:
+            assert during[sel] == pytest.approx(after[sel], abs=1.5), (sel, before[sel], during[sel], after[sel])
+        assert not errors, errors
+        page.close()

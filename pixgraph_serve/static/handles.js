@@ -287,5 +287,27 @@ export function cutoutWheel(ev, [u, v]) {
 
 export function flipCutout() {
   const pl = ui.scene && ui.scene.place;
-  if (pl) finalize(param(ui.scene.roles.place, "flip", !pl.flip));
+  if (!pl) return;
+  mirrorCutout(pl);
+  finalize(param(ui.scene.roles.place, "flip", !pl.flip));
+}
+
+// "flip" mirrors the cutout about its foot's vertical: the handles and guides on it go
+// there at once (the scale handle to the mirrored box's top right corner), before the
+// final's scene draws them anew.
+function mirrorCutout(pl) {
+  if (!pl.bbox) return;
+  const [fx] = toScreen(...pl.foot), [x0] = toScreen(pl.bbox[0], 0), [x1] = toScreen(pl.bbox[2], 0);
+  for (const el of $("handles").querySelectorAll(".on-cutout")) {
+    const old = el.getAttribute("transform") || "";
+    if (el.classList.contains("handle")) {
+      const t = el.transform.baseVal.consolidate();      // a drag's follow, its final not come yet
+      const b = el.getBBox(), cx = b.x + b.width / 2 + (t ? t.matrix.e : 0);
+      // the scale handle sits on the top right corner: the mirrored box's is the old top left's mirror
+      const to = el.id === "scale-handle" ? 2 * fx - x0 - (x1 - cx) : 2 * fx - cx;
+      el.setAttribute("transform", `translate(${to - cx} 0) ${old}`);
+    } else {
+      el.setAttribute("transform", `translate(${2 * fx} 0) scale(-1 1) ${old}`);
+    }
+  }
 }
