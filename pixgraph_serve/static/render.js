@@ -158,8 +158,11 @@ export function finalize(edits) {
 
 async function settle(edits) {
   ui.pending = null;
-  // a large photo's final takes seconds: first a sharper, screen-sized preview of the same edits
-  if (view.W * view.H > RELEASE_PIXELS && await render(edits, "preview", "release") === "stale") return false;
+  // a large photo's final takes seconds: first a sharper, screen-sized preview of the same
+  // edits; not for a render that edits nothing (a zoom's finer image: the final is cached,
+  // and a preview at a new working resolution would run the whole graph first)
+  const edited = Object.keys(edits).some((k) => k !== "action");
+  if (edited && view.W * view.H > RELEASE_PIXELS && await render(edits, "preview", "release") === "stale") return false;
   const ok = await render(edits, "final");
   // refused edits too: the handles go back where the graph has them
   if (ok !== "stale") await refresh().catch((err) => showError(err.message));
