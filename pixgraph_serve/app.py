@@ -321,8 +321,9 @@ async def render(request: Request):
             apply_edits(state, data)
             graph = state.graph_for(mode)
             extra = scene.piggyback(state, graph, [name]) if working == 1 else []   # anchors are full-size px
+            tips = scene.tip_refs(state, graph, [name])    # the light's handle, at any working resolution
             try:
-                res = state.run([name, *extra], mode, cancel=token, scale=float(working))
+                res = state.run(list(dict.fromkeys([name, *extra, *tips])), mode, cancel=token, scale=float(working))
             except ServeError as e:
                 if working == 1:
                     raise
@@ -332,10 +333,10 @@ async def render(request: Request):
             scene.note(state, graph, extra, res)
             if mode == "final":
                 state.final_said = res.said
-            return res, encode(res[name], name, scale)
+            return res, encode(res[name], name, scale), scene.shown_tip(state, graph, tips, res, float(working))
 
         try:
-            (res, png), runs = await anyio.to_thread.run_sync(run_counted, state, lambda: edited_run(state, work))
+            (res, png, tip), runs = await anyio.to_thread.run_sync(run_counted, state, lambda: edited_run(state, work))
         except Cancelled:
             if tracked and not renders.current(client, seq):
                 return _stale(renders, seq)
@@ -346,7 +347,9 @@ async def render(request: Request):
     return streamed(png, f"image/{fmt}", {
         "X-Pixgraph-Seq": str(seq if tracked else ""), "X-Pixgraph-Mode": mode,
         "X-Pixgraph-Ran": ",".join(res.ran), "X-Pixgraph-Cached": ",".join(res.cached),
-        "X-Pixgraph-Runs": str(runs), "X-Pixgraph-Seconds": f"{time.perf_counter() - t0:.4f}"})
+        "X-Pixgraph-Runs": str(runs), "X-Pixgraph-Seconds": f"{time.perf_counter() - t0:.4f}",
+        # the light's handle as this render puts it: tip u, v, top u, v [full-size px]
+        **({"X-Pixgraph-Tip": ",".join(map(str, tip))} if tip else {})})
 
 
 def _check_client(client, seq) -> None:

@@ -158,6 +158,40 @@ def note(state: ServeState, graph: Graph, refs: list[str], values) -> None:
                                 (_weak(mask), _weak(height)))
 
 
+def tip_refs(state: ServeState, graph: Graph, outputs: list[str]) -> list[str]:
+    """The refs ``shown_tip`` reads (the anchors' and the light's output) when a run of
+    ``outputs`` of ``graph`` computes them anyway, at any working resolution (a preview's
+    too); else none: nothing more runs for them."""
+    refs = piggyback(state, graph, outputs)
+    lid = roles(state)["light"]
+    if not refs or lid not in _upstream(graph, [_node_of(str(graph.outputs.get(o, o))) for o in outputs]):
+        return []
+    return [*refs, f"{lid}.{state.registry.get(graph.nodes[lid].type).outputs[0].name}"]
+
+
+def shown_tip(state: ServeState, graph: Graph, refs: list[str], values, scale: float) -> list[float] | None:
+    """[tip u, v, top u, v] [full-size px]: where the light of a run of ``graph`` at working
+    resolution ``scale`` casts the shadow of the object's top, and that top
+    (``describe``'s ``tip_uv`` and ``top_uvh``, from that run's camera and light: a
+    preview's handle follows a drag without a run of its own); None without one. The top
+    is the anchors' (full-size, scaled) while the mask and pixel height they came from
+    are unchanged (a light, camera or horizon edit); else, in a drag of the object, it is
+    found on the run's scaled mask, to about 1 / ``scale`` px."""
+    if not refs or not all(x in values for x in refs):
+        return None
+    light_cls = state.registry.get(state.graph.nodes[roles(state)["light"]].type).cls
+    cam, mask, height, light = (values[x] for x in refs)
+    a, up = state.anchors, _upstream(graph, [_node_of(x) for x in refs[1:3]])
+    if a is not None and a.top is not None and all(a.upstream.get(k) == v for k, v in up.items()):
+        top = tuple(x * scale for x in a.top)
+    else:
+        top = light_cls.object_top(mask, height)
+    tip = light_cls.shadow_tip(cam, light, top)
+    if tip is None:
+        return None
+    return [round(x / scale, 2) for x in (*tip, *top[:2])]
+
+
 def anchors(state: ServeState, r: dict) -> Anchors:
     """The camera and object top for the current graph: kept from an earlier run when the
     nodes they depend on are unchanged, else from a run of those nodes only."""

@@ -221,3 +221,62 @@ def test_the_status_line_says_a_final_is_on_its_way(browser, tmp_path):
         assert page.inner_text("#status").startswith("final "), page.inner_text("#status")
         assert not errors, errors
         page.close()
+
+
+def test_the_cutouts_handles_follow_a_shift_wheel_scale(browser, tmp_path):
+    """Shift + wheel over the cutout scales it: the previews showed it growing while its
+    box, foot, scale and height handles stayed at the old size until the final came
+    (seconds on a 20 MP photo). They now follow the wheel as they follow the scale
+    handle's drag (the finals held here, so "before the final" holds on any machine)."""
+    from test_page_photo import graph_params
+    with running_server(edit_graph(str(tmp_path))) as (url, _):
+        page, errors = open_page(browser, url)
+        s0 = graph_params(url)["place"]["scale"]
+        before = {sel: centre(page, sel) for sel in ("#foot-handle", "#scale-handle", "#tilt-handle")}
+        finals = HeldFinals(page)
+        bx, by = centre(page, "#cutout-box")
+        page.mouse.move(bx, by)
+        page.keyboard.down("Shift")
+        for _ in range(3):
+            page.mouse.wheel(0, -100)
+        page.keyboard.up("Shift")
+        deadline = time.monotonic() + 60
+        while not finals.held:           # the wheel's final asked (and held): the previews are done
+            assert time.monotonic() < deadline, "no final asked"
+            page.wait_for_timeout(20)
+        f = graph_params(url)["place"]["scale"] / s0
+        assert f > 1.2, f
+        fx, fy = before["#foot-handle"]
+        for sel, (x, y) in before.items():
+            assert centre(page, sel) == pytest.approx((fx + (x - fx) * f, fy + (y - fy) * f), abs=1.5), sel
+        finals.release()
+        assert not errors, errors
+        page.close()
+
+
+def test_the_cutouts_handles_mirror_at_once_on_flip(browser, tmp_path):
+    """"flip cutout" mirrors the cutout about its foot: the preview (on a photo over 4 MP)
+    and the final showed it flipped while its scale handle, contact points and top stayed
+    where the unflipped cutout had them until the final's scene came (seconds on 20 MP),
+    then jumped. They are mirrored at the click, where the final puts them."""
+    with running_server(edit_graph(str(tmp_path))) as (url, _):
+        page, errors = open_page(browser, url)
+        fu, fv = httpx.get(url + "/api/scene", timeout=60).json()["place"]["foot"]
+        seq = last_seq(page)
+        held(page, centre(page, "#contact-new"), screen(page, fu - 20, fv - 4))
+        let_go(page, seq)
+        sels = ("#foot-handle", "#scale-handle", "#contact-0", "#tilt-handle")
+        before = {sel: centre(page, sel) for sel in sels}
+        finals = HeldFinals(page)
+        seq = last_seq(page)
+        page.click("#flip")
+        page.wait_for_timeout(100)
+        during = {sel: centre(page, sel) for sel in sels}
+        finals.release()
+        wait_final(page, seq)
+        after = {sel: centre(page, sel) for sel in sels}
+        assert abs(after["#contact-0"][0] - before["#contact-0"][0]) > 10      # the flip moves them
+        for sel in sels:
+            assert during[sel] == pytest.approx(after[sel], abs=1.5), (sel, before[sel], during[sel], after[sel])
+        assert not errors, errors
+        page.close()

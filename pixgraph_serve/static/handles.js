@@ -6,7 +6,8 @@
 //   wall (blue): the ends of the wall-floor line (BackgroundHeight's
 //     junction_points), or the corner and the two slopes of the corner templates;
 //   light (yellow): the shadow tip, where the shadow of the object's top falls (set
-//     aside, a dotted line on to it, when the tip lies under another handle);
+//     aside, a dotted line on to it, when the tip lies under another handle); it goes
+//     where each render (a preview of a cutout drag too) says the tip is;
 //   and whatever the modules in `extraHandles` draw (heightedit.js: the cutout's
 //   contact points and tilt).
 "use strict";
@@ -156,6 +157,19 @@ function drawLight(light, line) {
     return {edits: {light_tip: at.map((v) => round(v))}, at: p};
   });
   if (under) el.classList.add("aside");
+  // a render's tip and top (render.js, from the server: e.g. each preview of a cutout drag)
+  // move the handle and its lines there; not while the handle itself is held
+  ui.followTip = ([tu, tv, ou, ov]) => {
+    if (!el.isConnected || (ui.drag && ui.drag.el === el)) return;
+    const [tx, ty] = toScreen(tu, tv), [hx, hy] = toScreen(tu + off[0], tv + off[1]);
+    el.setAttribute("cx", hx);
+    el.setAttribute("cy", hy);
+    if (guide) {
+      const [ox, oy] = toScreen(ou, ov);
+      for (const [k, v] of Object.entries({x1: ox, y1: oy, x2: tx, y2: ty})) guide.setAttribute(k, v);
+    }
+    if (aside) for (const [k, v] of Object.entries({x1: tx, y1: ty, x2: hx, y2: hy})) aside.setAttribute(k, v);
+  };
 }
 
 function drawWall(bg, id, line) {
@@ -249,7 +263,8 @@ function scaledBy(pl, factor) {
   return round(Math.min(100, Math.max(0.01, pl.scale * factor)), 4);
 }
 
-// Shift + wheel over the cutout scales it: previews while the wheel turns, then the final.
+// Shift + wheel over the cutout scales it: previews while the wheel turns (the handles on
+// the cutout following at once), then the final.
 let wheelTimer = null, wheelScale = null;
 export function cutoutWheel(ev, [u, v]) {
   const pl = ui.scene && ui.scene.place, id = ui.scene && ui.scene.roles.place;
@@ -258,6 +273,7 @@ export function cutoutWheel(ev, [u, v]) {
   if (u < u0 || u > u1 || v < v0 || v > v1) return false;
   wheelScale = scaledBy({scale: wheelScale ?? pl.scale}, Math.exp(-(ev.deltaY || ev.deltaX) * 0.001));
   ui.drag = ui.drag || {el: "wheel"};
+  followCutout(pl.foot, wheelScale / pl.scale, 0, 0);   // its handles scale with it, as in a drag
   preview(param(id, "scale", wheelScale));
   clearTimeout(wheelTimer);
   wheelTimer = setTimeout(() => {
@@ -271,5 +287,27 @@ export function cutoutWheel(ev, [u, v]) {
 
 export function flipCutout() {
   const pl = ui.scene && ui.scene.place;
-  if (pl) finalize(param(ui.scene.roles.place, "flip", !pl.flip));
+  if (!pl) return;
+  mirrorCutout(pl);
+  finalize(param(ui.scene.roles.place, "flip", !pl.flip));
+}
+
+// "flip" mirrors the cutout about its foot's vertical: the handles and guides on it go
+// there at once (the scale handle to the mirrored box's top right corner), before the
+// final's scene draws them anew.
+function mirrorCutout(pl) {
+  if (!pl.bbox) return;
+  const [fx] = toScreen(...pl.foot), [x0] = toScreen(pl.bbox[0], 0), [x1] = toScreen(pl.bbox[2], 0);
+  for (const el of $("handles").querySelectorAll(".on-cutout")) {
+    const old = el.getAttribute("transform") || "";
+    if (el.classList.contains("handle")) {
+      const t = el.transform.baseVal.consolidate();      // a drag's follow, its final not come yet
+      const b = el.getBBox(), cx = b.x + b.width / 2 + (t ? t.matrix.e : 0);
+      // the scale handle sits on the top right corner: the mirrored box's is the old top left's mirror
+      const to = el.id === "scale-handle" ? 2 * fx - x0 - (x1 - cx) : 2 * fx - cx;
+      el.setAttribute("transform", `translate(${to - cx} 0) ${old}`);
+    } else {
+      el.setAttribute("transform", `translate(${2 * fx} 0) scale(-1 1) ${old}`);
+    }
+  }
 }

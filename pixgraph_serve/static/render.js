@@ -7,7 +7,8 @@
 // the photo and every param in pixels) of at most PREVIEW_PIXELS while the pointer
 // moves (a drag on a 20 MP photo computes ~0.5 MP) and come back as JPEG; on
 // release a photo over RELEASE_PIXELS first gets one screen-sized (~1 MP) preview,
-// then the final. The server drops or cancels renders superseded by a newer seq
+// then the final. Every render says where its light puts the shadow tip (the header
+// X-Pixgraph-Tip), and the light's handle goes there. The server drops or cancels renders superseded by a newer seq
 // (409), and the page never shows an image older than the one shown.
 // Each render carries the id of the user action it belongs to (`action`): a drag's
 // previews and its final share one, so the server's undo history (history.js) takes
@@ -27,6 +28,7 @@ export const ui = {
   inflight: false, pending: null, info: null, scene: null, savedSeq: 0,
   finalSeq: 0, statusLine: "",  // the final on its way (0: none), the last shown render's line
   drag: null, renders: 0, onScene: [],
+  followTip: null,            // (tip u, v, top u, v) => moves the light's handle (handles.js)
   action: null, actions: 0,   // the user action in progress (previews sent, final to come), how many so far
   editing: Promise.resolve(), // the last finalize that carried edits (undo waits for it)
   restoring: 0,               // an undo whose graph's handles are still to come (history.js)
@@ -103,6 +105,10 @@ async function ask(seq, edits, mode, kind) {
   const bmp = await createImageBitmap(blob);
   show(bmp, scale);
   ui.renders++;
+  // where this render's light casts the top's shadow (X-Pixgraph-Tip, full-size px): the
+  // light's handle follows a drag of the cutout with the previews, not only with the final
+  const tip = (r.headers.get("X-Pixgraph-Tip") || "").split(",").map(Number);
+  if (tip.length === 4 && tip.every(Number.isFinite) && ui.followTip) ui.followTip(tip);
   const ms = Math.round(performance.now() - t0);
   if (ui.finalSeq === seq) ui.finalSeq = 0;
   ui.statusLine = `${mode} ${bmp.width}x${bmp.height} (1/${round2(scale)}) in ${ms} ms; ` +
@@ -152,8 +158,11 @@ export function finalize(edits) {
 
 async function settle(edits) {
   ui.pending = null;
-  // a large photo's final takes seconds: first a sharper, screen-sized preview of the same edits
-  if (view.W * view.H > RELEASE_PIXELS && await render(edits, "preview", "release") === "stale") return false;
+  // a large photo's final takes seconds: first a sharper, screen-sized preview of the same
+  // edits; not for a render that edits nothing (a zoom's finer image: the final is cached,
+  // and a preview at a new working resolution would run the whole graph first)
+  const edited = Object.keys(edits).some((k) => k !== "action");
+  if (edited && view.W * view.H > RELEASE_PIXELS && await render(edits, "preview", "release") === "stale") return false;
   const ok = await render(edits, "final");
   // refused edits too: the handles go back where the graph has them
   if (ok !== "stale") await refresh().catch((err) => showError(err.message));
