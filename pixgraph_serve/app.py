@@ -320,8 +320,9 @@ async def render(request: Request):
         def work():
             apply_edits(state, data)
             graph = state.graph_for(mode)
-            extra = scene.piggyback(state, graph, [name]) if working == 1 else []   # anchors are full-size px
-            tips = scene.tip_refs(state, graph, [name])    # the light's handle, at any working resolution
+            anchor_refs = scene.piggyback(state, graph, [name])
+            extra = anchor_refs if working == 1 else []   # anchors are full-size px
+            tips = scene.tip_refs(state, graph, [name], anchor_refs)   # the light's handle, at any working resolution
             try:
                 res = state.run(list(dict.fromkeys([name, *extra, *tips])), mode, cancel=token, scale=float(working))
             except ServeError as e:

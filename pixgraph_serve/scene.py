@@ -158,11 +158,10 @@ def note(state: ServeState, graph: Graph, refs: list[str], values) -> None:
                                 (_weak(mask), _weak(height)))
 
 
-def tip_refs(state: ServeState, graph: Graph, outputs: list[str]) -> list[str]:
+def tip_refs(state: ServeState, graph: Graph, outputs: list[str], refs: list[str]) -> list[str]:
     """The refs ``shown_tip`` reads (the anchors' and the light's output) when a run of
     ``outputs`` of ``graph`` computes them anyway, at any working resolution (a preview's
-    too); else none: nothing more runs for them."""
-    refs = piggyback(state, graph, outputs)
+    too); else none: nothing more runs for them. ``refs``: ``piggyback``'s for that run."""
     lid = roles(state)["light"]
     if not refs or lid not in _upstream(graph, [_node_of(str(graph.outputs.get(o, o))) for o in outputs]):
         return []
