@@ -146,12 +146,17 @@ class HeldFinals:
         else:
             route.continue_()
 
-    def release(self):
-        """Let the held finals go on (waiting, up to 60 s, for the one the page asked)."""
+    def wait_asked(self):
+        """Wait (up to 60 s) until the page has asked a final: the action's previews are
+        sent and its release handled."""
         deadline = time.monotonic() + 60
         while not self.held:
             assert time.monotonic() < deadline, "the page asked no final"
             self.page.wait_for_timeout(20)
+
+    def release(self):
+        """Let the held finals go on (waiting, up to 60 s, for the one the page asked)."""
+        self.wait_asked()
         for route in self.held:
             route.continue_()
         self.held.clear()
@@ -240,10 +245,7 @@ def test_the_cutouts_handles_follow_a_shift_wheel_scale(browser, tmp_path):
         for _ in range(3):
             page.mouse.wheel(0, -100)
         page.keyboard.up("Shift")
-        deadline = time.monotonic() + 60
-        while not finals.held:           # the wheel's final asked (and held): the previews are done
-            assert time.monotonic() < deadline, "no final asked"
-            page.wait_for_timeout(20)
+        finals.wait_asked()              # the wheel's final asked (and held): the previews are done
         f = graph_params(url)["place"]["scale"] / s0
         assert f > 1.2, f
         fx, fy = before["#foot-handle"]
@@ -270,7 +272,7 @@ def test_the_cutouts_handles_mirror_at_once_on_flip(browser, tmp_path):
         finals = HeldFinals(page)
         seq = last_seq(page)
         page.click("#flip")
-        page.wait_for_timeout(100)
+        finals.wait_asked()              # the flip's final asked (and held): its click handled
         during = {sel: centre(page, sel) for sel in sels}
         finals.release()
         wait_final(page, seq)

@@ -97,16 +97,17 @@ def drag(page, start, end, steps=8, hold_for_preview=False):
     wait_final(page, seq)
 
 
-def open_in_page(page, files):
-    """"open photo" with ``files["photo"]`` and ``files["cutout"]``, as a user does, until
-    the new photo's final is shown (the page's second ready)."""
+def open_in_page(page, files, timeout=180000):
+    """"open photo" with ``files["photo"]``, ``files["cutout"]`` and ``files["mask"]`` when
+    given, as a user does, until the new photo's final is shown (the page's second ready)."""
     page.click("#open")
-    page.set_input_files("#open-photo", files["photo"])
-    page.set_input_files("#open-cutout", files["cutout"])
+    for role in ("photo", "cutout", "mask"):
+        if files.get(role):
+            page.set_input_files(f"#open-{role}", files[role])
     seq = last_seq(page)
     page.click("#open-go")
-    page.wait_for_selector("body[data-ready='2']", state="attached", timeout=180000)
-    wait_final(page, seq)
+    page.wait_for_selector("body[data-ready='2']", state="attached", timeout=timeout)
+    wait_final(page, seq, timeout=timeout)
 
 
 def graph_params(url) -> dict:
@@ -205,14 +206,7 @@ def run_photo(browser, tmp_path, width, height, *server_args):
     graph = own_photo_copy(str(tmp_path / "served"))
     with running_server(graph, *server_args) as (url, _):
         page, errors = open_page(browser, url)
-        page.click("#open")
-        page.set_input_files("#open-photo", files["photo"])
-        page.set_input_files("#open-cutout", files["cutout"])
-        page.set_input_files("#open-mask", files["mask"])
-        seq = last_seq(page)
-        page.click("#open-go")
-        page.wait_for_selector("body[data-ready='2']", state="attached", timeout=300000)
-        wait_final(page, seq, timeout=300000)
+        open_in_page(page, files, timeout=300000)
         r = httpx.get(url + "/api/scene", timeout=120)
         # (once, under a load of 6+ on 2 cores, this answer had no "camera": say what it was)
         assert r.status_code == 200 and "camera" in r.json(), (r.status_code, r.text[:2000])

@@ -33,17 +33,22 @@ def tip_on_screen(url, page):
     return screen(page, *light["tip_uv"]), screen(page, *light["top_uvh"][:2])
 
 
+def light_by_its_tip(url, page):
+    """The light put in its tip placement (a drag of its handle, as a user has it); the
+    tip's screen position after that drag's final."""
+    x, y = centre(page, "#light-handle")
+    seq = last_seq(page)
+    held(page, (x, y), (x - 30, y + 10))
+    page.mouse.up()
+    wait_final(page, seq)
+    return tip_on_screen(url, page)[0]
+
+
 @pytest.mark.parametrize("what", ["box", "scale"])
 def test_the_lights_handle_follows_a_cutout_drag_before_its_final(browser, tmp_path, what):
     with running_server(edit_graph(str(tmp_path))) as (url, _):
         page, errors = open_page(browser, url)
-        # the light in its tip placement first (a drag of its handle), as a user has it
-        x, y = centre(page, "#light-handle")
-        seq = last_seq(page)
-        held(page, (x, y), (x - 30, y + 10))
-        page.mouse.up()
-        wait_final(page, seq)
-        (tx, ty), _ = tip_on_screen(url, page)
+        tx, ty = light_by_its_tip(url, page)
         assert centre(page, "#light-handle") == pytest.approx((tx, ty), abs=1.0)
         finals = HeldFinals(page)
         seq = last_seq(page)
@@ -56,8 +61,8 @@ def test_the_lights_handle_follows_a_cutout_drag_before_its_final(browser, tmp_p
         settled(page, seq)               # the drag's last preview shown; its final not asked yet
         during = centre(page, "#light-handle")
         guide = line_end(page, "line.guide.light")
-        page.mouse.up()                  # the final asked, and held
-        page.wait_for_timeout(200)
+        page.mouse.up()
+        finals.wait_asked()              # the final asked, and held: the release handled
         assert centre(page, "#light-handle") == pytest.approx(during, abs=0.01)   # no jump back
         finals.release()
         wait_final(page, seq)
@@ -83,12 +88,7 @@ def test_the_lights_handle_follows_the_elevation_slider_and_stays_in_a_horizon_d
     a horizon drag in the tip placement does not move the tip, and the handle stays."""
     with running_server(edit_graph(str(tmp_path))) as (url, _):
         page, errors = open_page(browser, url)
-        x, y = centre(page, "#light-handle")
-        seq = last_seq(page)
-        held(page, (x, y), (x - 30, y + 10))
-        page.mouse.up()
-        wait_final(page, seq)
-        (tx, ty), _ = tip_on_screen(url, page)
+        tx, ty = light_by_its_tip(url, page)
         finals = HeldFinals(page)
         box = page.locator("#elevation").bounding_box()
         y_mid = box["y"] + box["height"] / 2

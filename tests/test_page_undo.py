@@ -12,8 +12,8 @@ import pytest
 
 from serve_helpers import chromium_browser, running_server
 from test_page_height_edit import edit_graph
-from test_page_photo import centre, drag, graph_params, keep, last_seq, open_page, own_photo_copy, photo_files, \
-    shown, wait_final
+from test_page_photo import centre, drag, graph_params, keep, last_seq, open_in_page, open_page, own_photo_copy, \
+    photo_files, shown, wait_final
 
 
 @pytest.fixture(scope="module")
@@ -119,13 +119,7 @@ def test_undo_a_drag_on_a_20mp_photo(browser, tmp_path):
     graph = own_photo_copy(str(tmp_path / "served"))
     with running_server(graph) as (url, _):
         page, errors = open_page(browser, url)
-        page.click("#open")
-        for role in ("photo", "cutout", "mask"):
-            page.set_input_files(f"#open-{role}", files[role])
-        seq = last_seq(page)
-        page.click("#open-go")
-        page.wait_for_selector("body[data-ready='2']", state="attached", timeout=300000)
-        wait_final(page, seq, timeout=300000)
+        open_in_page(page, files, timeout=300000)
         assert history(url)["undo"] == 1                      # the opening
         before, tilt0 = shown(page), graph_params(url)["edit"]["tilt"]
         handle0 = centre(page, "#tilt-handle")

@@ -9,7 +9,7 @@ import json
 import pytest
 
 from serve_helpers import chromium_browser, running_server
-from test_page_photo import last_seq, open_page, own_photo_copy, photo_files, wait_final
+from test_page_photo import last_seq, open_in_page, open_page, own_photo_copy, photo_files, wait_final
 
 
 @pytest.fixture(scope="module")
@@ -22,13 +22,7 @@ def test_a_zoom_on_a_large_photo_asks_no_preview(browser, tmp_path):
     files = photo_files(str(tmp_path / "mine"), 2400, 1800, mask=True)     # 4.3 MP: over RELEASE_PIXELS
     with running_server(own_photo_copy(str(tmp_path / "served"))) as (url, _):
         page, errors = open_page(browser, url)
-        page.click("#open")
-        for key in ("photo", "cutout", "mask"):
-            page.set_input_files(f"#open-{key}", files[key])
-        seq = last_seq(page)
-        page.click("#open-go")
-        page.wait_for_selector("body[data-ready='2']", state="attached", timeout=300000)
-        wait_final(page, seq, timeout=300000)
+        open_in_page(page, files, timeout=300000)
         asked = []
         page.on("request", lambda r: asked.append(json.loads(r.post_data or "{}").get("mode"))
                 if r.url.endswith("/api/render") else None)
