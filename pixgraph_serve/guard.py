@@ -22,6 +22,11 @@ read the answers. The guard refuses, before any route runs:
    ``application/json`` (``app.py``). (A PUT, like any method but GET, HEAD and
    POST, is never sent cross-site without the server's consent, which it never gives.)
 
+Before these, a request that carries ``Host``, ``Origin``, ``Sec-Fetch-Site``,
+``Content-Type``, ``Cookie`` or the token header more than once is refused (400,
+naming the header): each check reads one value, and a repeated header read by its
+last value let ``Sec-Fetch-Site: cross-site`` be followed by ``same-origin``.
+
 ``/static/*`` (the page's own JS and CSS, no data) needs no token. Every answer
 says ``X-Frame-Options: DENY`` and ``Referrer-Policy: no-referrer``.
 """
@@ -38,6 +43,8 @@ COOKIE = "pixgraph_token"
 #: request content types a cross-site page can send without a CORS preflight
 SIMPLE_TYPES = ("", "text/plain", "application/x-www-form-urlencoded", "multipart/form-data")
 SAFE_SITES = ("same-origin", "none")
+#: headers the checks read one value of: a request carrying one of them twice is refused
+SINGLE = ("host", "origin", "sec-fetch-site", "content-type", "cookie", TOKEN_HEADER)
 
 
 def media_type(value: str) -> str:
@@ -84,7 +91,12 @@ class Guard:
         return name in self.names or _is_ip(name)
 
     def why_refused(self, scope) -> tuple[int, str] | None:
-        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
+        headers = {}
+        for k, v in scope["headers"]:
+            name = k.decode("latin-1").lower()
+            if name in headers and name in SINGLE:
+                return 400, f"refused: the header {name!r} is sent more than once (the checks read one value)"
+            headers[name] = v.decode("latin-1")
         host = headers.get("host", "")
         if self.port is not None and not self.host_ok(host):
             return 403, f"refused: Host {host!r} is not this server (DNS rebinding?)"
