@@ -40,7 +40,7 @@ from pixgraph.events import Cancelled, CancelToken
 from . import files, scene
 from .encode import encode_exr, encode_jpeg, encode_png
 from .errors import STATUS, RunTimeout, ServeError, serve_error
-from .guard import COOKIE, Guard, media_type
+from .guard import Guard, media_type
 from .history import History
 from .runs import Encoded, Renders, Runs
 from .state import ServeState, check_depth
@@ -172,7 +172,7 @@ async def index(request: Request):
         page = page.replace("<head>", f'<head>\n<meta name="pixgraph-token" content="{html.escape(token)}">', 1)
     response = HTMLResponse(page, headers=NO_STORE)
     if token is not None:
-        response.set_cookie(COOKIE, token, httponly=True, samesite="strict", path="/")
+        response.set_cookie(request.app.state.guard.cookie, token, httponly=True, samesite="strict", path="/")
     return response
 
 

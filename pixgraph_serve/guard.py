@@ -14,9 +14,11 @@ read the answers. The guard refuses, before any route runs:
 4. unless started with ``--no-token``: a request without the per-launch token. The
    page ``/`` takes it as ``?token=`` (the URL ``pixgraph serve`` prints) and then
    carries it in the ``X-Pixgraph-Token`` header of every request (the token is
-   written into the page it serves) and in a cookie (``HttpOnly``,
-   ``SameSite=Strict``) that counts for GET requests only (the page's download
-   links); scripts send the header or ``?token=``: 403;
+   written into the page it serves; the page takes ``?token=`` out of the address
+   bar at load) and in a cookie (``HttpOnly``, ``SameSite=Strict``, named
+   ``pixgraph_token_PORT``) that counts for GET requests only (the page's download
+   links, and a reload of the page, whose address has no token any more); scripts
+   send the header or ``?token=``: 403;
 5. a POST whose ``Content-Type`` is missing or one a page may send without asking
    the server first (``text/plain``, a form): 415. JSON routes need
    ``application/json`` (``app.py``). (A PUT, like any method but GET, HEAD and
@@ -73,6 +75,10 @@ class Guard:
         self.port = port
         self.names = {"localhost", *(n.lower() for n in names if n and not _is_ip(n))}
         self.token = token
+        #: the page's cookie, named by the port: cookies ignore ports, so another
+        #: server on this machine would overwrite one shared name (a reload of the
+        #: first server's page was refused)
+        self.cookie = COOKIE if port is None else f"{COOKIE}_{port}"
         self.refused = 0
 
     def host_ok(self, host: str) -> bool:
@@ -122,7 +128,7 @@ class Guard:
         if given is None:
             given = (parse_qs(scope.get("query_string", b"").decode("latin-1")).get("token") or [None])[0]
         if given is None and allow_cookie and "cookie" in headers:
-            morsel = SimpleCookie(headers["cookie"]).get(COOKIE)
+            morsel = SimpleCookie(headers["cookie"]).get(self.cookie)
             given = morsel.value if morsel else None
         return given is not None and secrets.compare_digest(given.encode(), self.token.encode())
 

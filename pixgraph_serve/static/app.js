@@ -18,6 +18,17 @@ export const $ = (id) => document.getElementById(id);
 // The server's per-launch token, when it wrote one into the page, goes with every request.
 const TOKEN = document.querySelector("meta[name=pixgraph-token]")?.content;
 
+// The token leaves the address bar at once (browser history, screenshots, a Referer):
+// the page keeps it here, and a reload is let in by the cookie the page's first
+// answer set (docs/server.md, "Safety").
+{
+  const url = new URL(location.href);
+  if (url.searchParams.has("token")) {
+    url.searchParams.delete("token");
+    history.replaceState(history.state, "", url.pathname + url.search + url.hash);
+  }
+}
+
 // The one fetch of the page.
 export function request(path, init = {}) {
   return fetch(path, TOKEN ? {...init, headers: {...(init.headers || {}), "X-Pixgraph-Token": TOKEN}} : init);
