@@ -65,6 +65,9 @@ class Limits:
     scaled_cache_bytes: int = 512 << 20
     #: graph states kept to undo (each a reference to an immutable graph: params, no pixels)
     undo_steps: int = 100
+    #: bytes the undo history may hold, estimated by ``history.graph_bytes`` (a step of an
+    #: 8,000-node graph is ~13 MB: fewer steps of such graphs), the newest step kept [bytes]
+    undo_bytes: int = 64 << 20
 
 
 class Deadlines:
@@ -150,7 +153,7 @@ class ServeState:
         #: the name the page proposes to save under (``info()["save_as"]``): the last file
         #: saved, or after ``/api/open`` the photo's name; None: the served file
         self.save_name: str | None = None
-        self.steps = History(self.limits.undo_steps)
+        self.steps = History(self.limits.undo_steps, self.limits.undo_bytes)
         try:
             self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
         except BaseException:
