@@ -34,7 +34,7 @@ from typing import Any, Callable
 import yaml
 
 from .graph import Graph, GraphError, NodeInstance, Ref, validate
-from .paths import open_write_folder
+from .paths import open_write_folder, temp_stem
 from .registry import Registry
 
 FORMAT_VERSION = 1
@@ -352,7 +352,8 @@ def dump(graph: Graph, path: str | os.PathLike, registry: Registry | None = None
         raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), os.fspath(path))
     folder, name = open_write_folder(path)
     try:
-        folder.write_replace(name, text.encode("utf-8"), f".{name}.tmp-{os.getpid()}-{secrets.token_hex(4)}", 0o666)
+        folder.write_replace(name, text.encode("utf-8"), f".{temp_stem(name)}.tmp-{os.getpid()}-{secrets.token_hex(4)}",
+                            0o666)
     finally:
         folder.close()
 
