@@ -182,7 +182,7 @@ def _tmp_owner(name: str, bases: set[str]) -> str | None:
         return None
     digits = ""
     for ch in rest:
-        if not ch.isdigit():
+        if not ("0" <= ch <= "9"):      # not isdigit: '²' is one, and int() refuses it
             break
         digits += ch
     return digits or None

@@ -72,7 +72,7 @@ async def read_body(request: Request, limit: int | None = None) -> bytes:
     hint = "(pixgraph serve --max-body BYTES raises it)" if limit is None else "(a JSON body's limit)"
     limit = _serve(request).limits.max_body_bytes if limit is None else limit
     declared = request.headers.get("content-length")
-    if declared is not None and declared.isdigit() and int(declared) > limit:
+    if declared is not None and declared.isascii() and declared.isdigit() and int(declared) > limit:
         raise ServeError(413, f"request body of {declared} bytes is over the limit of {limit} {hint}")
     chunks, size = [], 0
     async for chunk in request.stream():
@@ -259,7 +259,7 @@ async def get_output(request: Request):
     if fmt not in ("png", "exr") or not name:
         raise ServeError(404, "outputs are fetched as NAME.png or NAME.exr")
     scale = request.query_params.get("scale", "1")
-    if not scale.isdigit() or not 1 <= int(scale) <= 16:
+    if not (scale.isascii() and scale.isdigit()) or not 1 <= int(scale) <= 16:     # '²' isdigit, int() refuses it
         raise ServeError(400, f"scale must be an integer 1..16, got {scale!r}", field="scale")
     app, state = request.app.state, _serve(request)
     run_id = request.query_params.get("run")

@@ -91,7 +91,7 @@ class Guard:
             name, sep, port = host.rpartition(":")
             if not sep or ":" in name:
                 return False
-        if not port.isdigit() or int(port) != self.port:
+        if not (port.isascii() and port.isdigit()) or int(port) != self.port:
             return False
         name = name.lower()
         return name in self.names or _is_ip(name)

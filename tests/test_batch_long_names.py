@@ -89,3 +89,12 @@ def test_a_graph_saved_under_a_long_name(tmp_path):
     path = tmp_path / ("g" * 250 + ".yaml")
     fileio.dump(graph, str(path))
     assert os.listdir(tmp_path) == [path.name]
+
+
+def test_a_planted_temporary_with_a_unicode_digit_pid_is_left_alone(tmp_path):
+    """'²' is a digit to str.isdigit and not to int(): a file ``.r03.tmp-²-0.png``
+    planted in the output folder made every batch on it stop with a ValueError."""
+    planted = tmp_path / ".r03.tmp-\u00b2-0a1b2c3d.png"
+    planted.write_bytes(b"x")
+    assert F.remove_temporaries([str(tmp_path / "r03.png")]) == []
+    assert planted.exists()

@@ -4,7 +4,8 @@ nesting by the depth check; a large body (a JSON edit is a few kilobytes) is ref
 over ``Limits.max_json_bytes`` (1 MiB) before it is parsed, and every body is parsed
 on a worker thread, not on the event loop that answers every other client. Before,
 24 MB of a 2-million-point list was parsed and walked on the event loop: the page's
-requests waited 6 s (256 MB, the body limit: a minute and gigabytes)."""
+requests waited 6 s (256 MB, the body limit: a minute and gigabytes). And numbers in
+a query or header: '²' is a digit to ``str.isdigit`` but not to ``int()`` (500 before)."""
 import json
 import threading
 
@@ -79,3 +80,17 @@ def test_json_is_parsed_off_the_event_loop(tmp_path, monkeypatch):
         r = client.post("/api/params", json={"params": {"light.azimuth": 13}})
         assert r.status_code == 200, r.text
     assert threads and all(t is not loop_thread for t in threads), threads
+
+
+@pytest.mark.parametrize("scale", ["\u00b2", "\u00b9", "\u2460"])       # '²', '¹', '①': isdigit, int() refuses
+def test_a_unicode_digit_scale_is_400_not_500(url, scale):
+    r = httpx.get(url + "/api/outputs/final.png", params={"scale": scale}, timeout=120)
+    assert r.status_code == 400 and r.json()["field"] == "scale", r.text
+
+
+def test_a_unicode_digit_port_in_host_is_refused():
+    from pixgraph_serve.guard import Guard
+
+    guard = Guard(None, port=8765, token=None)
+    assert not guard.host_ok("127.0.0.1:\u00b2")
+    assert guard.host_ok("127.0.0.1:8765")
