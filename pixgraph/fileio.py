@@ -80,6 +80,15 @@ class LineLoader(yaml.SafeLoader):
         _check_expanded(node, {}, 0)
         return node
 
+    def construct_yaml_int(self, node):
+        """An integer; one over Python's limit of digits (4300: ``int()`` refuses it) is
+        bad YAML at its line, not a ValueError (a 500 from the server, a traceback)."""
+        try:
+            return super().construct_yaml_int(node)
+        except ValueError as e:
+            raise yaml.constructor.ConstructorError(None, None, f"integer not read: {e}".split(";")[0],
+                                                    node.start_mark) from None
+
     def construct_mapping(self, node, deep=False):
         if not isinstance(node, yaml.MappingNode):
             raise yaml.constructor.ConstructorError(None, None, "expected a mapping", node.start_mark)
@@ -103,6 +112,7 @@ class LineLoader(yaml.SafeLoader):
 
 
 LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, LineLoader.construct_mapping)
+LineLoader.add_constructor("tag:yaml.org,2002:int", LineLoader.construct_yaml_int)
 
 
 _IN_PROGRESS = (-1, -1)

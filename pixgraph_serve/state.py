@@ -384,7 +384,7 @@ class ServeState:
         _precheck_yaml(text)
         try:
             doc = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
-        except yaml.YAMLError:
+        except (yaml.YAMLError, ValueError):     # ValueError: an int over Python's 4300 digits
             doc = None  # the loader below reports it with its line
         if isinstance(doc, dict) and isinstance(doc.get("nodes"), dict):
             self._paths_first(self.root, [(nid, n.get("type"), n.get("params")) for nid, n in doc["nodes"].items()

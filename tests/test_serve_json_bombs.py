@@ -94,3 +94,36 @@ def test_a_unicode_digit_port_in_host_is_refused():
     guard = Guard(None, port=8765, token=None)
     assert not guard.host_ok("127.0.0.1:\u00b2")
     assert guard.host_ok("127.0.0.1:8765")
+
+
+BIG = "9" * 5000          # over Python's limit of 4300 digits for int(): a ValueError, not a YAMLError
+
+
+def test_a_posted_graph_with_a_5000_digit_integer_is_400(url):
+    graph = httpx.get(url + "/api/graph.yaml", timeout=60).text
+    text = graph.replace("azimuth:", f"azimuth: {BIG}\n      _was:", 1)
+    assert text != graph
+    r = httpx.post(url + "/api/graph", content=text, headers={"Content-Type": "application/yaml"}, timeout=60)
+    assert r.status_code == 400 and "4300 digits" in r.json()["error"] and r.json().get("line"), r.text
+
+
+def test_5000_digit_integers_are_bad_input_in_files_manifests_and_sets(tmp_path, capsys):
+    from pixgraph import fileio
+    from pixgraph.cli import main
+    from pixgraph.errors import GraphError
+    from pixgraph.registry import Registry
+
+    text = f"pixgraph: 1\nnodes:\n  c: {{type: pixgraph.Constant, params: {{width: {BIG}}}}}\noutputs: {{}}\n"
+    with pytest.raises(GraphError) as e:
+        fileio.loads(text, Registry.discover())
+    assert e.value.line == 3 and "4300 digits" in e.value.message
+    graph = tmp_path / "g.yaml"
+    graph.write_text("pixgraph: 1\nnodes:\n  c: {type: pixgraph.Constant, params: {width: 8, height: 8}}\n"
+                     "outputs: {final: c.image}\n")
+    (tmp_path / "rows.csv").write_text(f"id,c.width\nr1,{BIG}\n")
+    for args in (["batch", str(graph), str(tmp_path / "rows.csv"), "--no-disk-cache", "-o", f"final={tmp_path}/o/{{row}}.png"],
+                 ["run", str(graph), "--set", f"c.width={BIG}", "-o", f"final={tmp_path}/x.png"]):
+        capsys.readouterr()
+        assert main(args) == 2, args[0]
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "4300 digits" in err, err
