@@ -45,11 +45,12 @@ export async function api(method, path, body) {
 // The name an upload is stored under: the server takes letters, digits and '._-', up
 // to 100 characters and an image extension. A name that loses characters on the way
 // (a photo named in another script: "写真.png" became "png", refused, and two such
-// names became one file) is "upload-HASH" of the whole name, with its extension.
+// names became one file) is "NAME-HASH", HASH of the whole name; spaces become "_".
 export function uploadName(name) {
   const ext = (name.match(/\.(png|jpe?g|tiff?|exr)$/i) || [".png"])[0].toLowerCase();
   const stem = name.slice(0, name.length - (/\.(png|jpe?g|tiff?|exr)$/i.test(name) ? ext.length : 0));
-  if (/^[A-Za-z0-9][A-Za-z0-9_.-]{0,99}$/.test(stem)) return stem + ext;
+  const plain = stem.replace(/ /g, "_");     // "my photo.png": my_photo.png, as before
+  if (/^[A-Za-z0-9][A-Za-z0-9_.-]{0,99}$/.test(plain)) return plain + ext;
   let h = 0x811c9dc5;                        // FNV-1a of the name's UTF-16 code units
   for (let i = 0; i < name.length; i++) h = Math.imul(h ^ name.charCodeAt(i), 16777619) >>> 0;
   const kept = stem.replace(/[^A-Za-z0-9_.-]/g, "_").replace(/^[^A-Za-z0-9]+/, "").slice(0, 80);
