@@ -75,6 +75,12 @@ def pixgraph_owns(folder: str, name: str) -> bool:
     return bool(_ENTRY_TMP.match(name)) and name[5:7] == folder
 
 
+def _mine(st: os.stat_result) -> bool:
+    """True when this user owns the file (always where the platform has no uids): an
+    entry another user wrote is never read, whatever its key and checksum say."""
+    return not hasattr(os, "geteuid") or st.st_uid == os.geteuid()
+
+
 def _is_temporary(folder: str, name: str) -> bool:
     return (folder == RECORDS and bool(_RECORD_TMP.match(name))) or \
         (_HH.match(folder) is not None and bool(_ENTRY_TMP.match(name)) and name[5:7] == folder)
@@ -332,6 +338,11 @@ class DiskCache:
                 return MISS
             with os.fdopen(fd, "rb") as f:
                 st = os.fstat(f.fileno())
+                if not _mine(st):
+                    # another user wrote it (a shared or planted cache folder): its key and
+                    # checksum are computable by anyone, so it is never read; not ours to delete
+                    self._note(key, f"written by another user (uid {st.st_uid}): not read")
+                    return MISS
                 if st.st_size > max(self.limit_bytes, 1 << 20):
                     raise ValueError(f"entry of {st.st_size} bytes exceeds the cache limit")
                 data = f.read()
@@ -439,7 +450,8 @@ class DiskCache:
         try:
             fd = d.open(name + ".json", os.O_RDONLY)
             with os.fdopen(fd, "rb") as f:
-                if os.fstat(f.fileno()).st_size > 64 << 20:
+                st = os.fstat(f.fileno())
+                if st.st_size > 64 << 20 or not _mine(st):
                     return None
                 data = json.loads(f.read().decode("utf-8"))
         except (OSError, ValueError, RecursionError):

@@ -187,6 +187,12 @@ def unpack_entry(key: str, data: bytes) -> Any:
         if min(shape, default=0) < 0 or math.prod(shape) * dtype.itemsize != n or off < 0 or off + n > len(payload):
             raise ValueError(f"array {name!r} does not fit the entry")
         a = np.frombuffer(payload[off:off + n], dtype=dtype).reshape(shape) if n else np.zeros(shape, dtype)
+        if not a.flags.aligned:
+            # the entry's bytes put it at an offset its dtype does not divide: OpenImageIO
+            # refuses such a buffer ("buffer is wrong size": a cached float image could
+            # not be written as EXR); an aligned copy, read-only like the rest
+            a = a.copy()
+            a.flags.writeable = False
         arrays[name] = a
     return decode(header.get("value"), arrays)
 

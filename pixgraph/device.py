@@ -157,7 +157,7 @@ def choose(spec: str | None = None) -> DeviceInfo:
             problems.append(f"{d.describe()}: {problem}")
         raise DeviceError("no OpenCL device can build kernels (on Debian/Ubuntu: apt-get install "
                           "pocl-opencl-icd): " + "; ".join(problems))
-    if ":" in spec and all(part.isdigit() for part in spec.split(":", 1)):
+    if ":" in spec and all(part.isascii() and part.isdigit() for part in spec.split(":", 1)):
         pi, di = (int(x) for x in spec.split(":", 1))
         for d in devices:
             if (d.platform_index, d.device_index) == (pi, di):

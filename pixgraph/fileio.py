@@ -34,7 +34,7 @@ from typing import Any, Callable
 import yaml
 
 from .graph import Graph, GraphError, NodeInstance, Ref, validate
-from .paths import open_write_folder
+from .paths import open_write_folder, temp_stem
 from .registry import Registry
 
 FORMAT_VERSION = 1
@@ -80,6 +80,15 @@ class LineLoader(yaml.SafeLoader):
         _check_expanded(node, {}, 0)
         return node
 
+    def construct_yaml_int(self, node):
+        """An integer; one over Python's limit of digits (4300: ``int()`` refuses it) is
+        bad YAML at its line, not a ValueError (a 500 from the server, a traceback)."""
+        try:
+            return super().construct_yaml_int(node)
+        except ValueError as e:
+            raise yaml.constructor.ConstructorError(None, None, f"integer not read: {e}".split(";")[0],
+                                                    node.start_mark) from None
+
     def construct_mapping(self, node, deep=False):
         if not isinstance(node, yaml.MappingNode):
             raise yaml.constructor.ConstructorError(None, None, "expected a mapping", node.start_mark)
@@ -103,6 +112,7 @@ class LineLoader(yaml.SafeLoader):
 
 
 LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, LineLoader.construct_mapping)
+LineLoader.add_constructor("tag:yaml.org,2002:int", LineLoader.construct_yaml_int)
 
 
 _IN_PROGRESS = (-1, -1)
@@ -352,7 +362,8 @@ def dump(graph: Graph, path: str | os.PathLike, registry: Registry | None = None
         raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), os.fspath(path))
     folder, name = open_write_folder(path)
     try:
-        folder.write_replace(name, text.encode("utf-8"), f".{name}.tmp-{os.getpid()}-{secrets.token_hex(4)}", 0o666)
+        folder.write_replace(name, text.encode("utf-8"), f".{temp_stem(name)}.tmp-{os.getpid()}-{secrets.token_hex(4)}",
+                            0o666)
     finally:
         folder.close()
 

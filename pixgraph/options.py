@@ -18,8 +18,9 @@ def parse_sets(items: list[str]) -> dict[str, Any]:
             raise UsageError(f"--set {item}: expected NODE.PARAM=VALUE")
         try:
             out[name.strip()] = yaml.safe_load(raw) if raw.strip() else ""
-        except yaml.YAMLError as e:
-            raise UsageError(f"--set {item}: value is not valid YAML: {str(e).splitlines()[0]}") from None
+        except (yaml.YAMLError, ValueError) as e:     # ValueError: an int over Python's 4300 digits
+            shown = item if len(item) <= 120 else item[:100] + "..."
+            raise UsageError(f"--set {shown}: value is not valid YAML: {str(e).splitlines()[0].split(';')[0]}") from None
     return out
 
 

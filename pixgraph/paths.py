@@ -22,6 +22,7 @@ does and does not guard is in ``docs/security.md``.
 from __future__ import annotations
 
 import errno
+import hashlib
 import os
 import pathlib
 import stat
@@ -31,6 +32,10 @@ from .errors import GraphError, PathError  # noqa: F401 (PathError is re-exporte
 
 PathLike = str | os.PathLike
 ENV_ALLOW = "PIXGRAPH_ALLOW_PATHS"
+#: the most bytes of one file name (Linux's NAME_MAX, and that of most file systems)
+NAME_MAX = 255
+#: bytes a temporary's tail may take: ``.tmp-`` PID (up to 10 digits) ``-`` 8 hex digits
+TMP_TAIL = 24
 #: longest path text quoted in an error, in characters
 _QUOTE = 100
 
@@ -318,3 +323,18 @@ def _swapped(named: str, walked: str, e: OSError) -> PathError:
     else:
         why = f"cannot be opened ({e.strerror})"
     return PathError(f"cannot write {quote(named)}: {quote(walked)} {why}; nothing was written")
+
+
+def temp_stem(stem: str, extra: int = 0) -> str:
+    """``stem`` as the start of a temporary's name ``.STEM.tmp-PID-RANDOM`` followed by
+    ``extra`` more bytes (an extension, or room a writer's own temporary on top of
+    this one needs): unchanged when that fits in ``NAME_MAX`` bytes, else its start
+    and ``~`` and 8 hex digits of its sha256 (the same stem always gives the same
+    name, so leftover temporaries can be recognised). Before, a long output name made
+    a temporary name over NAME_MAX, and its write failed (ENAMETOOLONG)."""
+    raw = stem.encode("utf-8", "surrogateescape")
+    room = NAME_MAX - 1 - TMP_TAIL - extra
+    if len(raw) <= room:
+        return stem
+    start = raw[:max(0, room - 9)].decode("utf-8", "ignore")     # a character cut in two is dropped
+    return f"{start}~{hashlib.sha256(raw).hexdigest()[:8]}"

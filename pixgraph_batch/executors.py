@@ -4,7 +4,11 @@
 - ``processes``: a pool of spawned local processes, one ``Session`` and OpenCL
   context each; the parent hands each idle worker the next group;
 - ``dask``: ``distributed`` (a scheduler address, a ``Client``, a cluster object or a
-  ``LocalCluster``); a worker plugin opens one ``Session`` per worker process.
+  ``LocalCluster``); a worker plugin opens one ``Session`` per worker process. The
+  ``LocalCluster`` speaks TLS with certificates made for it alone
+  (``Security.temporary``): its scheduler listens on a port of 127.0.0.1, and over
+  plain TCP any process of any user of the machine could connect and run code in
+  the batch's workers.
 
 Local workers die with their parent: on Linux the kernel kills them when the
 batch process dies (``PR_SET_PDEATHSIG``, kill -9 included), and everywhere a
@@ -243,6 +247,19 @@ def run_pool(config: WorkerConfig, gfile: str, groups: Sequence[Sequence[Item]],
 # -- Dask --------------------------------------------------------------------------------
 
 
+def _temporary_security():
+    """TLS certificates for one LocalCluster (a new CA, clients must present its
+    certificate): no other process can connect to its scheduler or workers."""
+    try:
+        from distributed.security import Security
+
+        return Security.temporary()
+    except ImportError:
+        raise BatchError("the dask executor's local cluster needs the 'cryptography' package for TLS "
+                         "(without it any local user could run code in its workers): "
+                         "pip install 'pixgraph[batch]'") from None
+
+
 def run_dask(config: WorkerConfig, gfile: str, groups: Sequence[Sequence[Item]], workers: int, scheduler,
              force: bool, record: Callable[[ItemResult], None]) -> int:
     """Run groups as Dask tasks (one task per group)."""
@@ -258,9 +275,10 @@ def run_dask(config: WorkerConfig, gfile: str, groups: Sequence[Sequence[Item]],
     else:
         # one thread per worker process: a worker runs one composite at a time on
         # its own device; spawn-started processes (the nanny's default)
+        security = _temporary_security()
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
-        client = Client(cluster)
+                               dashboard_address=None, protocol="tls", security=security)
+        client = Client(cluster, security=security)
         config = dataclasses.replace(config, parent_pid=os.getpid())
     try:
         client.register_plugin(PixgraphWorkerPlugin(config), name=PixgraphWorkerPlugin.name)

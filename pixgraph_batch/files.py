@@ -26,7 +26,7 @@ import time
 from typing import Any, Callable, Iterable
 
 from pixgraph.hashing import canonical_json
-from pixgraph.paths import WritePath
+from pixgraph.paths import TMP_TAIL, WritePath, temp_stem
 
 from .rows import BatchError
 
@@ -76,13 +76,22 @@ def is_done(path: str, key: str) -> bool:
         return False
 
 
-def temporary_name(path: str, suffix: str = "") -> str:
-    """``DIR/.STEM.tmp-PID-RANDOM.EXT`` next to ``path`` (same file system: the rename is atomic)."""
-    folder, name = os.path.split(os.path.abspath(path))
+def _temp_stem(name: str, suffix: str = "") -> str:
+    """The STEM of ``name``'s temporaries (``paths.temp_stem``): an image's leaves room
+    for the image writer's own temporary on top of it (``..STEM.tmp-PID-R.tmp-PID-R.EXT``),
+    so both fit in NAME_MAX bytes whatever the length of ``name``."""
     stem, ext = os.path.splitext(name)
     if suffix:
-        stem, ext = name, suffix
-    return os.path.join(folder, f".{stem}.tmp-{os.getpid()}-{secrets.token_hex(4)}{ext}")
+        return temp_stem(name, len(suffix.encode("utf-8", "surrogateescape")))
+    return temp_stem(stem, len(ext.encode("utf-8", "surrogateescape")) + 1 + TMP_TAIL)
+
+
+def temporary_name(path: str, suffix: str = "") -> str:
+    """``DIR/.STEM.tmp-PID-RANDOM.EXT`` next to ``path`` (same file system: the rename is
+    atomic), within NAME_MAX bytes (a long STEM is shortened: ``_temp_stem``)."""
+    folder, name = os.path.split(os.path.abspath(path))
+    ext = suffix or os.path.splitext(name)[1]
+    return os.path.join(folder, f".{_temp_stem(name, suffix)}.tmp-{os.getpid()}-{secrets.token_hex(4)}{ext}")
 
 
 def open_folder(path: str):
@@ -173,7 +182,7 @@ def _tmp_owner(name: str, bases: set[str]) -> str | None:
         return None
     digits = ""
     for ch in rest:
-        if not ch.isdigit():
+        if not ("0" <= ch <= "9"):      # not isdigit: '²' is one, and int() refuses it
             break
         digits += ch
     return digits or None
@@ -199,7 +208,8 @@ def remove_temporaries(paths: Iterable[str]) -> list[str]:
     for p in paths:
         folder, name = os.path.split(os.path.abspath(p))
         stem = os.path.splitext(name)[0]
-        by_folder.setdefault(folder, set()).update({stem, name, name + SIDECAR_SUFFIX})
+        by_folder.setdefault(folder, set()).update({stem, name, name + SIDECAR_SUFFIX, _temp_stem(name),
+                                                   _temp_stem(name + SIDECAR_SUFFIX, ".tmp")})
     removed = []
     now = time.time()
     for folder, bases in by_folder.items():

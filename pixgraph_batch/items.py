@@ -15,7 +15,7 @@ import string
 from typing import Any, Mapping, Sequence
 
 from pixgraph.graph import Graph, GraphError, split_param
-from pixgraph.paths import bad_characters, quote
+from pixgraph.paths import NAME_MAX, bad_characters, quote
 
 from .rows import BatchError, Row, short
 
@@ -112,6 +112,11 @@ def make_items(graph: Graph, rows: Sequence[Row], registry, outputs: Mapping[str
             if why:
                 raise BatchError(f"{row.source or 'row ' + rid}: output {name}: path {quote(path)} {why}")
             path = os.path.abspath(path)
+            size = len(os.path.basename(path).encode("utf-8", "surrogateescape")) + len(".json")
+            if size > NAME_MAX:
+                raise BatchError(f"{row.source or 'row ' + rid}: output {name}: the file name of {quote(path)} "
+                                 f"with its sidecar's '.json' is {size} bytes, over the {NAME_MAX} a file "
+                                 f"name may have")
             real = os.path.realpath(path)
             if not _inside(real, folders[name]):
                 raise BatchError(f"{row.source or 'row ' + rid}: output {name}: {quote(path)} is outside the "

@@ -166,6 +166,8 @@ def safe_load(text: str, where: str) -> Any:
         raise BatchError(f"{where}{line}: not valid YAML: {str(e).splitlines()[0]}") from None
     except RecursionError:
         raise BatchError(f"{where}: YAML nested too deeply") from None
+    except ValueError as e:     # an integer over Python's limit of 4300 digits
+        raise BatchError(f"{where}: not valid YAML: {str(e).split(';')[0]}") from None
 
 
 def _yaml_value(text: str, where: str) -> Any:

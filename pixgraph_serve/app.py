@@ -40,7 +40,7 @@ from pixgraph.events import Cancelled, CancelToken
 from . import files, scene
 from .encode import encode_exr, encode_jpeg, encode_png
 from .errors import STATUS, RunTimeout, ServeError, serve_error
-from .guard import COOKIE, Guard, media_type
+from .guard import Guard, media_type
 from .history import History
 from .runs import Encoded, Renders, Runs
 from .state import ServeState, check_depth
@@ -67,18 +67,18 @@ async def locked(request: Request, fn, *args):
         return await anyio.to_thread.run_sync(lambda: fn(*args))
 
 
-async def read_body(request: Request) -> bytes:
-    limit = _serve(request).limits.max_body_bytes
+async def read_body(request: Request, limit: int | None = None) -> bytes:
+    """The body, at most ``limit`` bytes (default ``Limits.max_body_bytes``): 413 over it."""
+    hint = "(pixgraph serve --max-body BYTES raises it)" if limit is None else "(a JSON body's limit)"
+    limit = _serve(request).limits.max_body_bytes if limit is None else limit
     declared = request.headers.get("content-length")
-    if declared is not None and declared.isdigit() and int(declared) > limit:
-        raise ServeError(413, f"request body of {declared} bytes is over the limit of {limit} "
-                              "(pixgraph serve --max-body BYTES raises it)")
+    if declared is not None and declared.isascii() and declared.isdigit() and int(declared) > limit:
+        raise ServeError(413, f"request body of {declared} bytes is over the limit of {limit} {hint}")
     chunks, size = [], 0
     async for chunk in request.stream():
         size += len(chunk)
         if size > limit:
-            raise ServeError(413, f"request body is over the limit of {limit} bytes "
-                                  "(pixgraph serve --max-body BYTES raises it)")
+            raise ServeError(413, f"request body is over the limit of {limit} bytes {hint}")
         chunks.append(chunk)
     return b"".join(chunks)
 
@@ -87,9 +87,15 @@ async def json_body(request: Request) -> dict:
     """The request's JSON object ({} for an empty body); 415 unless sent as application/json."""
     if media_type(request.headers.get("content-type", "")) != "application/json":
         raise ServeError(415, "the request body must be JSON sent as Content-Type: application/json")
-    raw = await read_body(request)
+    raw = await read_body(request, min(_serve(request).limits.max_json_bytes, _serve(request).limits.max_body_bytes))
     if not raw.strip():
         return {}
+    # parsed and checked on a worker thread: a large body (a million values take
+    # seconds) must not stop the event loop, which answers every other client
+    return await anyio.to_thread.run_sync(parse_json, raw)
+
+
+def parse_json(raw: bytes) -> dict:
     try:
         data = json.loads(raw)
     except (ValueError, UnicodeDecodeError) as e:
@@ -172,7 +178,7 @@ async def index(request: Request):
         page = page.replace("<head>", f'<head>\n<meta name="pixgraph-token" content="{html.escape(token)}">', 1)
     response = HTMLResponse(page, headers=NO_STORE)
     if token is not None:
-        response.set_cookie(COOKIE, token, httponly=True, samesite="strict", path="/")
+        response.set_cookie(request.app.state.guard.cookie, token, httponly=True, samesite="strict", path="/")
     return response
 
 
@@ -253,7 +259,7 @@ async def get_output(request: Request):
     if fmt not in ("png", "exr") or not name:
         raise ServeError(404, "outputs are fetched as NAME.png or NAME.exr")
     scale = request.query_params.get("scale", "1")
-    if not scale.isdigit() or not 1 <= int(scale) <= 16:
+    if not (scale.isascii() and scale.isdigit()) or not 1 <= int(scale) <= 16:     # '²' isdigit, int() refuses it
         raise ServeError(400, f"scale must be an integer 1..16, got {scale!r}", field="scale")
     app, state = request.app.state, _serve(request)
     run_id = request.query_params.get("run")

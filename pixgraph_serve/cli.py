@@ -63,8 +63,8 @@ def cli_serve(args, registry, usage_error) -> int:
     # the engine checks every image it decodes against PIXGRAPH_MAX_PIXELS, from the header
     # the node opens: with the server's limit there, a file swapped for a larger one after
     # the server's own check (state.py) is refused too (a lower limit already set is kept)
-    engine_limit = os.environ.get("PIXGRAPH_MAX_PIXELS")
-    if not ((engine_limit or "").strip().isdigit() and int(engine_limit) < limits.max_pixels):
+    engine_limit = (os.environ.get("PIXGRAPH_MAX_PIXELS") or "").strip()
+    if not (engine_limit.isascii() and engine_limit.isdigit() and int(engine_limit) < limits.max_pixels):
         os.environ["PIXGRAPH_MAX_PIXELS"] = str(limits.max_pixels)
 
     try:

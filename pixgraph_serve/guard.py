@@ -14,13 +14,20 @@ read the answers. The guard refuses, before any route runs:
 4. unless started with ``--no-token``: a request without the per-launch token. The
    page ``/`` takes it as ``?token=`` (the URL ``pixgraph serve`` prints) and then
    carries it in the ``X-Pixgraph-Token`` header of every request (the token is
-   written into the page it serves) and in a cookie (``HttpOnly``,
-   ``SameSite=Strict``) that counts for GET requests only (the page's download
-   links); scripts send the header or ``?token=``: 403;
+   written into the page it serves; the page takes ``?token=`` out of the address
+   bar at load) and in a cookie (``HttpOnly``, ``SameSite=Strict``, named
+   ``pixgraph_token_PORT``) that counts for GET requests only (the page's download
+   links, and a reload of the page, whose address has no token any more); scripts
+   send the header or ``?token=``: 403;
 5. a POST whose ``Content-Type`` is missing or one a page may send without asking
    the server first (``text/plain``, a form): 415. JSON routes need
    ``application/json`` (``app.py``). (A PUT, like any method but GET, HEAD and
    POST, is never sent cross-site without the server's consent, which it never gives.)
+
+Before these, a request that carries ``Host``, ``Origin``, ``Sec-Fetch-Site``,
+``Content-Type``, ``Cookie`` or the token header more than once is refused (400,
+naming the header): each check reads one value, and a repeated header read by its
+last value let ``Sec-Fetch-Site: cross-site`` be followed by ``same-origin``.
 
 ``/static/*`` (the page's own JS and CSS, no data) needs no token. Every answer
 says ``X-Frame-Options: DENY`` and ``Referrer-Policy: no-referrer``.
@@ -38,6 +45,8 @@ COOKIE = "pixgraph_token"
 #: request content types a cross-site page can send without a CORS preflight
 SIMPLE_TYPES = ("", "text/plain", "application/x-www-form-urlencoded", "multipart/form-data")
 SAFE_SITES = ("same-origin", "none")
+#: headers the checks read one value of: a request carrying one of them twice is refused
+SINGLE = ("host", "origin", "sec-fetch-site", "content-type", "cookie", TOKEN_HEADER)
 
 
 def media_type(value: str) -> str:
@@ -66,6 +75,10 @@ class Guard:
         self.port = port
         self.names = {"localhost", *(n.lower() for n in names if n and not _is_ip(n))}
         self.token = token
+        #: the page's cookie, named by the port: cookies ignore ports, so another
+        #: server on this machine would overwrite one shared name (a reload of the
+        #: first server's page was refused)
+        self.cookie = COOKIE if port is None else f"{COOKIE}_{port}"
         self.refused = 0
 
     def host_ok(self, host: str) -> bool:
@@ -78,13 +91,18 @@ class Guard:
             name, sep, port = host.rpartition(":")
             if not sep or ":" in name:
                 return False
-        if not port.isdigit() or int(port) != self.port:
+        if not (port.isascii() and port.isdigit()) or int(port) != self.port:
             return False
         name = name.lower()
         return name in self.names or _is_ip(name)
 
     def why_refused(self, scope) -> tuple[int, str] | None:
-        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
+        headers = {}
+        for k, v in scope["headers"]:
+            name = k.decode("latin-1").lower()
+            if name in headers and name in SINGLE:
+                return 400, f"refused: the header {name!r} is sent more than once (the checks read one value)"
+            headers[name] = v.decode("latin-1")
         host = headers.get("host", "")
         if self.port is not None and not self.host_ok(host):
             return 403, f"refused: Host {host!r} is not this server (DNS rebinding?)"
@@ -110,7 +128,7 @@ class Guard:
         if given is None:
             given = (parse_qs(scope.get("query_string", b"").decode("latin-1")).get("token") or [None])[0]
         if given is None and allow_cookie and "cookie" in headers:
-            morsel = SimpleCookie(headers["cookie"]).get(COOKIE)
+            morsel = SimpleCookie(headers["cookie"]).get(self.cookie)
             given = morsel.value if morsel else None
         return given is not None and secrets.compare_digest(given.encode(), self.token.encode())
 

@@ -5,7 +5,9 @@ output names) under a new run id; ``GET /api/outputs/NAME.png?run=ID`` asks the
 session for that graph's output again (the memory cache answers, or it is
 recomputed: the engine is deterministic) and so returns that run's image even
 when another client has edited the graph since. A record holds no pixels; the
-newest ``max_runs`` are kept.
+newest ``max_runs`` are kept, and at most ``max_bytes`` of graphs (each graph counted
+once however many runs share it, by ``history.graph_bytes``: a graph of 8,000 nodes is
+~13 MB, so 256 runs of edits of it were gigabytes); the newest is kept whatever its size.
 
 Encoded files are kept in a small cache bounded in bytes, keyed by run id, output,
 format and scale, and made once: requests for the same file wait for the first one
@@ -22,6 +24,7 @@ from pixgraph.events import CancelToken
 from pixgraph.graph import Graph
 
 from .errors import ServeError
+from .history import graph_bytes
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,19 +36,34 @@ class Run:
 
 
 class Runs:
-    """The newest ``max_runs`` run records, by id."""
+    """The newest ``max_runs`` run records, by id, holding at most ``max_bytes`` of
+    distinct graphs (the newest kept whatever its size)."""
 
-    def __init__(self, max_runs: int = 256):
+    def __init__(self, max_runs: int = 256, max_bytes: int = 64 << 20):
         self.max_runs = max_runs
+        self.max_bytes = max_bytes
         self._runs: collections.OrderedDict[str, Run] = collections.OrderedDict()
+        #: id(graph) -> [runs holding it, its estimated bytes]
+        self._graphs: dict[int, list] = {}
+        self.bytes = 0          # estimated bytes of the distinct graphs held [bytes]
         self._lock = threading.Lock()
 
     def add(self, graph: Graph, mode: str, outputs) -> Run:
         run = Run(secrets.token_hex(8), graph, mode, tuple(outputs))
         with self._lock:
             self._runs[run.id] = run
-            while len(self._runs) > self.max_runs:
-                self._runs.popitem(last=False)
+            held = self._graphs.get(id(graph))      # the key lives while a run holds the graph
+            if held is None:
+                held = self._graphs[id(graph)] = [0, graph_bytes(graph)]     # ~70 ms at 8,000 nodes
+                self.bytes += held[1]
+            held[0] += 1
+            while len(self._runs) > 1 and (len(self._runs) > self.max_runs or self.bytes > self.max_bytes):
+                _, old = self._runs.popitem(last=False)
+                entry = self._graphs[id(old.graph)]
+                entry[0] -= 1
+                if entry[0] == 0:
+                    self.bytes -= entry[1]
+                    del self._graphs[id(old.graph)]
         return run
 
     def get(self, run_id: str) -> Run:

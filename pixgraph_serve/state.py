@@ -53,6 +53,9 @@ class Limits:
     #: largest request body (a posted graph, params, an uploaded image: a 50 MP photo's
     #: JPEG is 10-40 MB, its 8-bit PNG 60-150 MB) [bytes]
     max_body_bytes: int = 256 << 20
+    #: largest JSON body (an edit, a save, an undo: a few kilobytes; 24 MB of a
+    #: 2-million-point list held the event loop, every client, 7 s) [bytes]
+    max_json_bytes: int = 1 << 20
     #: largest image a graph may load or make, width x height [pixels]: 8192^2 (67 MP)
     #: takes the 12-50 MP photos people bring
     max_pixels: int = 8192 * 8192
@@ -65,6 +68,9 @@ class Limits:
     scaled_cache_bytes: int = 512 << 20
     #: graph states kept to undo (each a reference to an immutable graph: params, no pixels)
     undo_steps: int = 100
+    #: bytes the undo history may hold, estimated by ``history.graph_bytes`` (a step of an
+    #: 8,000-node graph is ~13 MB: fewer steps of such graphs), the newest step kept [bytes]
+    undo_bytes: int = 64 << 20
 
 
 class Deadlines:
@@ -150,7 +156,7 @@ class ServeState:
         #: the name the page proposes to save under (``info()["save_as"]``): the last file
         #: saved, or after ``/api/open`` the photo's name; None: the served file
         self.save_name: str | None = None
-        self.steps = History(self.limits.undo_steps)
+        self.steps = History(self.limits.undo_steps, self.limits.undo_bytes)
         try:
             self.graph = self._checked(_graph_errors(lambda: self.session.load(self.graph_path)))
         except BaseException:
@@ -378,7 +384,7 @@ class ServeState:
         _precheck_yaml(text)
         try:
             doc = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
-        except yaml.YAMLError:
+        except (yaml.YAMLError, ValueError):     # ValueError: an int over Python's 4300 digits
             doc = None  # the loader below reports it with its line
         if isinstance(doc, dict) and isinstance(doc.get("nodes"), dict):
             self._paths_first(self.root, [(nid, n.get("type"), n.get("params")) for nid, n in doc["nodes"].items()

@@ -73,7 +73,7 @@ def _probe_requests(url, token):
     yield "GET", "/api/graph", {}, None                                     # no token
     yield "GET", "/", {}, None
     yield "GET", "/?token=wrong", {}, None
-    yield "POST", "/api/run", {"Content-Type": "application/json", "Cookie": f"pixgraph_token={token}"}, "{}"
+    yield "POST", "/api/run", {"Content-Type": "application/json", "Cookie": f"pixgraph_token_{port}={token}"}, "{}"
 
 
 def test_the_probe_is_refused_and_nothing_changes(server):
@@ -116,7 +116,7 @@ def test_the_token(server):
         page = c.get(f"/?token={token}")
         assert page.status_code == 200 and f'<meta name="pixgraph-token" content="{token}">' in page.text
         cookie = page.headers["set-cookie"]
-        assert f"pixgraph_token={token}" in cookie and "HttpOnly" in cookie and "SameSite=strict" in cookie
+        assert f"pixgraph_token_{url.rsplit(':', 1)[1]}={token}" in cookie and "HttpOnly" in cookie and "SameSite=strict" in cookie
         assert page.headers["x-frame-options"] == "DENY" and page.headers["referrer-policy"] == "no-referrer"
         assert c.get("/static/app.js").status_code == 200                     # the page's code: no token
         # the cookie counts for GETs (download links), never for a POST

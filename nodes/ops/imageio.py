@@ -514,13 +514,14 @@ def _write_via_temp(path, suffix: str, fill) -> None:
     import stat
     import uuid
 
-    from pixgraph.paths import PathError, open_write_folder
+    from pixgraph.paths import PathError, open_write_folder, temp_stem
 
     try:
         folder, name = open_write_folder(path)
     except PathError as e:
         raise ImageFileError(e.message) from None
-    tmp = f".{os.path.splitext(name)[0]}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}{suffix}"
+    stem = temp_stem(os.path.splitext(name)[0], len(suffix.encode("utf-8", "surrogateescape")))
+    tmp = f".{stem}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}{suffix}"
     created = False
     try:
         fd = folder.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)

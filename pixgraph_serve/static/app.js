@@ -18,6 +18,17 @@ export const $ = (id) => document.getElementById(id);
 // The server's per-launch token, when it wrote one into the page, goes with every request.
 const TOKEN = document.querySelector("meta[name=pixgraph-token]")?.content;
 
+// The token leaves the address bar at once (browser history, screenshots, a Referer):
+// the page keeps it here, and a reload is let in by the cookie the page's first
+// answer set (docs/server.md, "Safety").
+{
+  const url = new URL(location.href);
+  if (url.searchParams.has("token")) {
+    url.searchParams.delete("token");
+    history.replaceState(history.state, "", url.pathname + url.search + url.hash);
+  }
+}
+
 // The one fetch of the page.
 export function request(path, init = {}) {
   return fetch(path, TOKEN ? {...init, headers: {...(init.headers || {}), "X-Pixgraph-Token": TOKEN}} : init);
@@ -31,9 +42,24 @@ export async function api(method, path, body) {
   return data;
 }
 
+// The name an upload is stored under: the server takes letters, digits and '._-', up
+// to 100 characters and an image extension. A name that loses characters on the way
+// (a photo named in another script: "写真.png" became "png", refused, and two such
+// names became one file) is "NAME-HASH", HASH of the whole name; spaces become "_".
+export function uploadName(name) {
+  const ext = (name.match(/\.(png|jpe?g|tiff?|exr)$/i) || [".png"])[0].toLowerCase();
+  const stem = name.slice(0, name.length - (/\.(png|jpe?g|tiff?|exr)$/i.test(name) ? ext.length : 0));
+  const plain = stem.replace(/ /g, "_");     // "my photo.png": my_photo.png, as before
+  if (/^[A-Za-z0-9][A-Za-z0-9_.-]{0,99}$/.test(plain)) return plain + ext;
+  let h = 0x811c9dc5;                        // FNV-1a of the name's UTF-16 code units
+  for (let i = 0; i < name.length; i++) h = Math.imul(h ^ name.charCodeAt(i), 16777619) >>> 0;
+  const kept = stem.replace(/[^A-Za-z0-9_.-]/g, "_").replace(/^[^A-Za-z0-9]+/, "").slice(0, 80);
+  return `${kept || "upload"}-${h.toString(16).padStart(8, "0")}${ext}`;
+}
+
 // Store a file from this computer in the server's upload folder; returns its path there.
 export async function upload(file) {
-  const name = file.name.replace(/[^A-Za-z0-9_.-]/g, "_").replace(/^[^A-Za-z0-9]+/, "") || "upload.png";
+  const name = uploadName(file.name);
   const r = await request(`/api/uploads/${encodeURIComponent(name)}`, {method: "PUT", body: file});
   const data = await r.json().catch(() => ({error: r.statusText}));
   if (!r.ok) throw Object.assign(new Error(`${file.name}: ${data.error}`), {status: r.status, data});
