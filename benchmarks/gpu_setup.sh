@@ -7,7 +7,8 @@
 #       --platform manylinux2014_x86_64 --platform manylinux_2_17_x86_64 -d .whl --no-deps $GPU_DEPS
 GPU_DEPS="pyopencl pytools platformdirs siphash24 typing_extensions OpenImageIO isal tqdm networkx jsonschema
   jsonschema-specifications referencing rpds-py attrs PyYAML Pillow starlette uvicorn h11 click anyio sniffio idna
-  httpx httpcore certifi setuptools wheel"
+  httpx httpcore certifi setuptools wheel
+  pytest pluggy iniconfig packaging pygments"   # pytest: gpu_before_after.sh runs tests/test_composite_device.py
 NVIDIA_OPENCL=${NVIDIA_OPENCL:-/usr/local/nvidia/lib64/libnvidia-opencl.so.1}   # where the lent machines have it
 if [ ! -f /etc/OpenCL/vendors/nvidia.icd ]; then
   test -f "$NVIDIA_OPENCL" || { echo "no $NVIDIA_OPENCL: set NVIDIA_OPENCL to NVIDIA's OpenCL library" >&2; exit 3; }
