@@ -259,7 +259,8 @@ async def get_output(request: Request):
     if fmt not in ("png", "exr") or not name:
         raise ServeError(404, "outputs are fetched as NAME.png or NAME.exr")
     scale = request.query_params.get("scale", "1")
-    if not (scale.isascii() and scale.isdigit()) or not 1 <= int(scale) <= 16:     # '²' isdigit, int() refuses it
+    # ASCII digits ('²' isdigit, int() refuses it), at most 2 (int() of 4301 raises)
+    if not (scale.isascii() and scale.isdigit()) or len(scale) > 2 or not 1 <= int(scale) <= 16:
         raise ServeError(400, f"scale must be an integer 1..16, got {scale!r}", field="scale")
     app, state = request.app.state, _serve(request)
     run_id = request.query_params.get("run")
