@@ -311,8 +311,10 @@ class DiskCache:
         return os.path.join(self.root, key[:2], key + DISK_SUFFIX)
 
     def __contains__(self, key: str) -> bool:
+        """True when ``get(key)`` will read a file: this user's (``_mine``), as ``get`` asks."""
         try:
-            return self.owned and stat.S_ISREG(os.lstat(self.path(key)).st_mode)
+            st = os.lstat(self.path(key))
+            return self.owned and stat.S_ISREG(st.st_mode) and _mine(st)
         except OSError:
             return False
 

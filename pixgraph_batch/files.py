@@ -185,7 +185,10 @@ def _tmp_owner(name: str, bases: set[str]) -> str | None:
         if not ("0" <= ch <= "9"):      # not isdigit: '²' is one, and int() refuses it
             break
         digits += ch
-    return digits or None
+    # a pid is below 2^31 (10 digits, TMP_TAIL): a larger one is no process's, and
+    # os.kill of it raised OverflowError, stopping the batch (int() of the digits of a
+    # file name, at most 255, is safe; the length is checked first all the same)
+    return digits if 0 < len(digits) <= 10 and int(digits) < 2 ** 31 else None
 
 
 def _pid_alive(pid: int) -> bool:

@@ -36,6 +36,7 @@ from starlette.requests import Request
 from starlette.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse, StreamingResponse
 from starlette.routing import Route
 
+from pixgraph import fileio
 from pixgraph.events import Cancelled, CancelToken
 from . import files, scene
 from .encode import encode_exr, encode_jpeg, encode_png
@@ -67,9 +68,9 @@ async def locked(request: Request, fn, *args):
         return await anyio.to_thread.run_sync(lambda: fn(*args))
 
 
-async def read_body(request: Request, limit: int | None = None) -> bytes:
+async def read_body(request: Request, limit: int | None = None, hint: str = "(a JSON body's limit)") -> bytes:
     """The body, at most ``limit`` bytes (default ``Limits.max_body_bytes``): 413 over it."""
-    hint = "(pixgraph serve --max-body BYTES raises it)" if limit is None else "(a JSON body's limit)"
+    hint = "(pixgraph serve --max-body BYTES raises it)" if limit is None else hint
     limit = _serve(request).limits.max_body_bytes if limit is None else limit
     declared = request.headers.get("content-length")
     if declared is not None and declared.isascii() and declared.isdigit() and int(declared) > limit:
@@ -201,7 +202,10 @@ async def graph_yaml(request: Request):
 async def post_graph(request: Request):
     if media_type(request.headers.get("content-type", "")) not in YAML_TYPES:
         raise ServeError(415, "a posted graph is sent as Content-Type: application/yaml")
-    raw = await read_body(request)
+    # no more than a graph file may hold: the loader refuses more, after reading,
+    # decoding and scanning it all (200 MB took seconds and held the GIL)
+    raw = await read_body(request, min(fileio.MAX_FILE_BYTES, _serve(request).limits.max_body_bytes),
+                          "(a graph file's limit)")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -241,7 +245,8 @@ async def post_run(request: Request):
 
     # a run a node refuses takes its edits back with it (edited_run)
     (graph, res), _ = await locked(request, run_counted, state, lambda: edited_run(state, work))
-    run = request.app.state.runs.add(graph, mode, res.outputs)
+    # on a thread: a new graph is measured (graph_bytes) holding the records' lock
+    run = await anyio.to_thread.run_sync(request.app.state.runs.add, graph, mode, res.outputs)
     described = {}
     for name, v in res.outputs.items():
         described[name] = {"shape": list(getattr(v, "shape", ())),
@@ -259,7 +264,8 @@ async def get_output(request: Request):
     if fmt not in ("png", "exr") or not name:
         raise ServeError(404, "outputs are fetched as NAME.png or NAME.exr")
     scale = request.query_params.get("scale", "1")
-    if not (scale.isascii() and scale.isdigit()) or not 1 <= int(scale) <= 16:     # '²' isdigit, int() refuses it
+    # ASCII digits ('²' isdigit, int() refuses it), at most 2 (int() of 4301 raises)
+    if not (scale.isascii() and scale.isdigit()) or len(scale) > 2 or not 1 <= int(scale) <= 16:
         raise ServeError(400, f"scale must be an integer 1..16, got {scale!r}", field="scale")
     app, state = request.app.state, _serve(request)
     run_id = request.query_params.get("run")

@@ -38,3 +38,15 @@ def test_records_another_user_wrote_are_not_read(tmp_path, monkeypatch):
     me = os.geteuid()
     monkeypatch.setattr(os, "geteuid", lambda: me + 1)
     assert s.disk.load_record(name) is None
+
+
+def test_a_plan_does_not_count_on_entries_another_user_wrote(tmp_path, monkeypatch):
+    """``pixgraph explain`` / ``Session.plan`` said 'disk' for an entry a run will not
+    read, and left the nodes upstream of it out of the plan."""
+    disk, ga, gb, ka, kb = _two_entries(tmp_path)
+    s = Session(registry=make_registry(), disk_cache=tmp_path / "disk")
+    assert [(st.node_id, st.status) for st in s.plan(gb).steps] == [("sc", "disk")]
+    me = os.geteuid()
+    monkeypatch.setattr(os, "geteuid", lambda: me + 1)
+    assert kb not in s.disk
+    assert sorted((st.node_id, st.status) for st in s.plan(gb).steps) == [("sc", "run"), ("src", "run")]

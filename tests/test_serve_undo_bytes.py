@@ -111,3 +111,32 @@ def test_runs_of_one_graph_count_its_bytes_once():
     for _ in range(256):
         runs.add(other, "final", ["final"])
     assert runs.bytes == graph_bytes(other) and runs._graphs.keys() == {id(other)}
+
+
+def test_a_runs_graph_is_measured_off_the_event_loop(tmp_path, monkeypatch):
+    """``Runs.add`` measures a new graph (``graph_bytes``, linear in its size) holding
+    the records' lock: POST /api/run called it on the event loop, which answers every
+    other client."""
+    import threading
+
+    from starlette.testclient import TestClient
+
+    from pixgraph_serve import runs as runs_module
+    from pixgraph_serve.app import create_app
+    from pixgraph_serve.state import ServeState
+    from serve_helpers import copy_scene
+
+    state = ServeState(copy_scene(str(tmp_path / "scene")), upload_dir=str(tmp_path / "up"))
+    threads = []
+    real = runs_module.graph_bytes
+
+    def measured(graph):
+        threads.append(threading.current_thread())
+        return real(graph)
+
+    monkeypatch.setattr(runs_module, "graph_bytes", measured)
+    with TestClient(create_app(state)) as client:
+        loop_thread = client.portal.call(threading.current_thread)
+        r = client.post("/api/run", json={"params": {"light.azimuth": 13}, "mode": "preview"})
+        assert r.status_code == 200, r.text
+    assert threads and all(t is not loop_thread for t in threads), threads
