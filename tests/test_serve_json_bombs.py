@@ -127,3 +127,30 @@ def test_5000_digit_integers_are_bad_input_in_files_manifests_and_sets(tmp_path,
         assert main(args) == 2, args[0]
         err = capsys.readouterr().err.strip()
         assert "\n" not in err and "4300 digits" in err, err
+
+
+HEX = "0x" + "f" * 5000   # 20,000 bits: YAML reads a hex (or sexagesimal) int whatever its size
+
+
+@pytest.mark.parametrize("value", [HEX, "1" + ":0" * 3000, "9" * 400])
+def test_integers_beyond_a_floats_range_are_bad_input_at_their_line(value):
+    """``int()``'s 4300-digit limit is for decimal text only: a hex or sexagesimal
+    integer of any size was read, and ``float()`` (OverflowError) or ``str()``
+    (ValueError) of it later stopped ``pixgraph run`` with exit 1 and made the
+    server's POST /api/graph a 500."""
+    from pixgraph import fileio
+    from pixgraph.errors import GraphError
+    from pixgraph.registry import Registry
+
+    for text in (f"pixgraph: 1\nnodes:\n  c: {{type: pixgraph.Constant, params: {{width: {value}}}}}\noutputs: {{}}\n",
+                 f"pixgraph: {value}\nnodes: {{}}\noutputs: {{}}\n"):
+        with pytest.raises(GraphError) as e:
+            fileio.loads(text, Registry.discover())
+        assert "beyond a float's range" in e.value.message and e.value.line == text[:text.index(value)].count("\n") + 1
+
+
+def test_a_posted_graph_with_a_hex_integer_is_400(url):
+    graph = httpx.get(url + "/api/graph.yaml", timeout=60).text
+    text = graph.replace("azimuth:", f"azimuth: {HEX}\n      _was:", 1)
+    r = httpx.post(url + "/api/graph", content=text, headers={"Content-Type": "application/yaml"}, timeout=60)
+    assert r.status_code == 400 and "float's range" in r.json()["error"] and r.json().get("line"), r.text
