@@ -154,3 +154,28 @@ def test_a_posted_graph_with_a_hex_integer_is_400(url):
     text = graph.replace("azimuth:", f"azimuth: {HEX}\n      _was:", 1)
     r = httpx.post(url + "/api/graph", content=text, headers={"Content-Type": "application/yaml"}, timeout=60)
     assert r.status_code == 400 and "float's range" in r.json()["error"] and r.json().get("line"), r.text
+
+
+def test_integers_beyond_a_floats_range_are_param_errors_in_sets_manifests_and_edits(tmp_path, capsys, url):
+    """Where no graph file's loader reads them (a --set value, a manifest cell, a JSON
+    edit), the param's check refuses them: exit 2, a failed row naming the param (as
+    1e400 is), 400; not exit 1 with 'Exceeds the limit (4300 digits)', nor a 500."""
+    from pixgraph.cli import main
+
+    graph = tmp_path / "g.yaml"
+    graph.write_text("pixgraph: 1\nnodes:\n  c: {type: pixgraph.Constant, params: {width: 8, height: 8}}\n"
+                     "outputs: {final: c.image}\n")
+    (tmp_path / "rows.csv").write_text(f"id,c.color\nr1,\"[{'9' * 400}, 0, 0, 1]\"\n")
+    for args in (["run", str(graph), "--set", f"c.width={HEX}", "-o", f"final={tmp_path}/x.png"],
+                 ["run", str(graph), "--set", f"c.color=[{HEX}, 0, 0, 1]", "-o", f"final={tmp_path}/x.png"],
+                 ["batch", str(graph), str(tmp_path / "rows.csv"), "--no-disk-cache", "-o", f"final={tmp_path}/o/{{row}}.png"]):
+        capsys.readouterr()
+        assert main(args) == (1 if args[0] == "batch" else 2), args[:3]
+        out = capsys.readouterr()
+        said = out.out if args[0] == "batch" else out.err
+        assert "param 'color'" in said or args[3].startswith("c.width"), said[:1000]
+        assert "beyond a float's range" in said and len(said) < 1000, said[:1000]
+    for body in ('{"params": {"bg_h.junction_points": [[' + "9" * 400 + ", 1]]}}",
+                 '{"params": {"light.azimuth": ' + "9" * 4000 + "}}"):
+        r = httpx.post(url + "/api/params", content=body, headers=JSON, timeout=60)
+        assert r.status_code == 400 and "beyond a float's range" in r.json()["error"], r.text[:500]
