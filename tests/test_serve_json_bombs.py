@@ -32,6 +32,8 @@ def url(tmp_path_factory):
     ('{"params": {"light.azimuth": -Infinity}}', "params.azimuth"),
     ('{"light_tip": [NaN, 1]}', "light_tip"),
     ('{"light_elevation": NaN}', "light_elevation"),
+    ('{"light_tip": [' + "9" * 400 + ', 1]}', "light_tip"),            # beyond a float: a 500 before
+    ('{"light_elevation": ' + "9" * 4000 + "}", "light_elevation"),
 ])
 def test_non_finite_numbers_are_refused(url, body, field):
     r = httpx.post(url + "/api/params", content=body, headers=JSON, timeout=60)
