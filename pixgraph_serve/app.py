@@ -241,7 +241,8 @@ async def post_run(request: Request):
 
     # a run a node refuses takes its edits back with it (edited_run)
     (graph, res), _ = await locked(request, run_counted, state, lambda: edited_run(state, work))
-    run = request.app.state.runs.add(graph, mode, res.outputs)
+    # off the event loop: a new graph's bytes are estimated (graph_bytes, linear in its size)
+    run = await anyio.to_thread.run_sync(request.app.state.runs.add, graph, mode, res.outputs)
     described = {}
     for name, v in res.outputs.items():
         described[name] = {"shape": list(getattr(v, "shape", ())),

@@ -111,3 +111,32 @@ def test_runs_of_one_graph_count_its_bytes_once():
     for _ in range(256):
         runs.add(other, "final", ["final"])
     assert runs.bytes == graph_bytes(other) and runs._graphs.keys() == {id(other)}
+
+
+def test_a_runs_bytes_are_estimated_off_the_event_loop(tmp_path, monkeypatch):
+    """``Runs.add`` estimates a new graph's bytes (linear in its size: tens of
+    milliseconds at thousands of nodes); POST /api/run called it on the event loop,
+    which answers every other client."""
+    import threading
+
+    from starlette.testclient import TestClient
+
+    from pixgraph_serve import runs as runs_module
+    from pixgraph_serve.app import create_app
+    from pixgraph_serve.state import ServeState
+    from serve_helpers import copy_scene
+
+    state = ServeState(copy_scene(str(tmp_path / "scene")), upload_dir=str(tmp_path / "up"))
+    threads = []
+
+    def estimate(graph):
+        threads.append(threading.current_thread())
+        return graph_bytes(graph)
+
+    monkeypatch.setattr(runs_module, "graph_bytes", estimate)
+    with TestClient(create_app(state)) as client:
+        loop_thread = client.portal.call(threading.current_thread)
+        for light in (10, 11):
+            r = client.post("/api/run", json={"params": {"light.azimuth": light}, "mode": "preview"})
+            assert r.status_code == 200, r.text
+    assert len(threads) == 2 and all(t is not loop_thread for t in threads), threads
