@@ -54,7 +54,8 @@ class Limits:
     #: JPEG is 10-40 MB, its 8-bit PNG 60-150 MB) [bytes]
     max_body_bytes: int = 256 << 20
     #: largest JSON body (an edit, a save, an undo: a few kilobytes; 24 MB of a
-    #: 2-million-point list held the event loop, every client, 7 s) [bytes]
+    #: 2-million-point list held the event loop, every client, 8.6 s at load 3.4:
+    #: benchmarks/serve_bytes_bench.py) [bytes]
     max_json_bytes: int = 1 << 20
     #: largest image a graph may load or make, width x height [pixels]: 8192^2 (67 MP)
     #: takes the 12-50 MP photos people bring

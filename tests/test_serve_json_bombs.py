@@ -4,7 +4,8 @@ nesting by the depth check; a large body (a JSON edit is a few kilobytes) is ref
 over ``Limits.max_json_bytes`` (1 MiB) before it is parsed, and every body is parsed
 on a worker thread, not on the event loop that answers every other client. Before,
 24 MB of a 2-million-point list was parsed and walked on the event loop: the page's
-requests waited 6 s (256 MB, the body limit: a minute and gigabytes). And numbers in
+requests waited 8.6 s (benchmarks/serve_bytes_bench.py; 256 MB, the body limit,
+about ten times that). And numbers in
 a query or header: '²' is a digit to ``str.isdigit`` but not to ``int()`` (500 before)."""
 import json
 import threading

@@ -51,7 +51,8 @@ def test_the_estimate_is_not_below_what_a_loaded_graph_holds():
 
 
 def test_undo_steps_of_big_graphs_are_bounded_in_bytes():
-    """20 edits of an 8,000-node graph: before, all 20 states were kept (~200 MB here);
+    """20 edits of an 8,000-node graph: before, all 20 states were kept (105 MiB with
+    the current graph, 25 MiB now: benchmarks/serve_bytes_bench.py);
     now what fits in 64 MiB, the newest ones."""
     def edits():
         h = History(100)
