@@ -29,6 +29,7 @@ import errno
 import json
 import os
 import secrets
+import sys
 from typing import Any, Callable
 
 import yaml
@@ -81,13 +82,19 @@ class LineLoader(yaml.SafeLoader):
         return node
 
     def construct_yaml_int(self, node):
-        """An integer; one over Python's limit of digits (4300: ``int()`` refuses it) is
-        bad YAML at its line, not a ValueError (a 500 from the server, a traceback)."""
+        """An integer; one over Python's limit of digits (4300: ``int()`` refuses it), or
+        beyond a float's range (a hex ``0xfff...`` or a sexagesimal ``1:0:0:...`` is read
+        whatever its size, and ``float()`` or ``str()`` of it raised later: a 500 from the
+        server, exit 1) is bad YAML at its line, not a ValueError or OverflowError."""
         try:
-            return super().construct_yaml_int(node)
+            value = super().construct_yaml_int(node)
         except ValueError as e:
             raise yaml.constructor.ConstructorError(None, None, f"integer not read: {e}".split(";")[0],
                                                     node.start_mark) from None
+        if abs(value) > sys.float_info.max:
+            raise yaml.constructor.ConstructorError(None, None, f"integer not read: {value.bit_length()} bits, "
+                                                    "beyond a float's range (about 1.8e308)", node.start_mark)
+        return value
 
     def construct_mapping(self, node, deep=False):
         if not isinstance(node, yaml.MappingNode):

@@ -45,6 +45,7 @@ import dataclasses
 import functools
 import math
 import pathlib
+import sys
 import typing
 from types import MappingProxyType
 import inspect
@@ -65,6 +66,23 @@ class ParamError(ValueError):
         super().__init__(f"param {param!r}: {message}")
         self.param = param
         self.message = message
+
+
+def _huge_int(value: Any) -> int:
+    """The bits of the first integer beyond a float's range in ``value`` (nested lists,
+    tuples and dicts), else 0: ``float()`` of one raises OverflowError, ``repr()`` of one
+    over 4300 digits ValueError (a ``--set``, a manifest cell or a JSON edit of
+    ``0xfff...`` stopped a run with exit 1, and was a 500 from the server)."""
+    stack = [value]
+    while stack:
+        v = stack.pop()
+        if isinstance(v, int) and not isinstance(v, bool) and abs(v) > sys.float_info.max:
+            return v.bit_length()
+        if isinstance(v, (list, tuple)):
+            stack.extend(v)
+        elif isinstance(v, dict):
+            stack.extend(v.values())
+    return 0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -100,6 +118,9 @@ class ParamSpec:
         k = self.kind
         if value is None and self.required:
             raise ParamError(self.name, "is required and was not set")
+        bits = _huge_int(value)
+        if bits:
+            raise ParamError(self.name, f"an integer of {bits} bits is beyond a float's range (about 1.8e308)")
         if k == "bool":
             if not isinstance(value, bool):
                 raise ParamError(self.name, f"expected true or false, got {value!r}")

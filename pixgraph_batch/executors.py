@@ -8,7 +8,9 @@
   ``LocalCluster`` speaks TLS with certificates made for it alone
   (``Security.temporary``): its scheduler listens on a port of 127.0.0.1, and over
   plain TCP any process of any user of the machine could connect and run code in
-  the batch's workers.
+  the batch's workers. Its HTTP servers (the scheduler's and each worker's, plain
+  HTTP on 127.0.0.1) serve no routes: their /info pages showed the workers' logs
+  and call stacks to anyone.
 
 Local workers die with their parent: on Linux the kernel kills them when the
 batch process dies (``PR_SET_PDEATHSIG``, kill -9 included), and everywhere a
@@ -264,6 +266,7 @@ def run_dask(config: WorkerConfig, gfile: str, groups: Sequence[Sequence[Item]],
              force: bool, record: Callable[[ItemResult], None]) -> int:
     """Run groups as Dask tasks (one task per group)."""
     try:
+        import dask
         from distributed import Client, LocalCluster, as_completed
     except ImportError:
         raise BatchError("the dask executor needs dask.distributed: pip install 'pixgraph[batch]'") from None
@@ -276,8 +279,11 @@ def run_dask(config: WorkerConfig, gfile: str, groups: Sequence[Sequence[Item]],
         # one thread per worker process: a worker runs one composite at a time on
         # its own device; spawn-started processes (the nanny's default)
         security = _temporary_security()
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, protocol="tls", security=security)
+        # their HTTP servers (plain HTTP on 127.0.0.1 whatever dashboard_address says)
+        # serve no routes: /info gave any local user the workers' logs and call stacks
+        with dask.config.set({"distributed.scheduler.http.routes": [], "distributed.worker.http.routes": []}):
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, protocol="tls", security=security)
         client = Client(cluster, security=security)
         config = dataclasses.replace(config, parent_pid=os.getpid())
     try:

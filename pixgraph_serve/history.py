@@ -5,9 +5,10 @@ wiring: never pixels; an edit builds a new graph and leaves the old one as it wa
 and the params a type switch stashed, so a step costs a few kilobytes whatever the
 size of the photo the graph reads: but a graph of thousands of nodes (a posted graph
 may hold 200,000 values) is megabytes, and edits share none of it (an 8,000-node
-graph, measured with tracemalloc: about 13 MB a state). So at most ``limit`` steps
-are kept, and at most ``max_bytes`` of them by ``graph_bytes`` (undo and redo
-together), the oldest dropped first; the newest step is kept whatever its size.
+graph loaded from YAML holds 13.3 MiB, by tracemalloc in
+``benchmarks/serve_bounds_bench.py``). So at most ``limit`` steps are kept, and at
+most ``max_bytes`` of them by ``graph_bytes`` (undo and redo together), the oldest
+dropped first; the newest step is kept whatever its size.
 
 One *user action* is one step: an edit carries the page's id of the action it belongs
 to (``action``) and of the page that sent it (``client``), and an edit of an action
@@ -57,8 +58,8 @@ Key = tuple
 
 
 #: estimated bytes of a graph's parts (``graph_bytes``), a little above what CPython
-#: 3.11 holds (tracemalloc: 1,000 Constant nodes of 3 params, 1.7 MB with their
-#: lines; ``tests/test_serve_undo_bytes.py`` checks the estimate is not below it)
+#: 3.11 holds (tracemalloc: 1,000 Constant nodes of 3 params, 1.6 MiB with their
+#: lines, ``serve_bounds_bench.py --nodes 1000``; ``tests/test_serve_undo_bytes.py`` checks the estimate is not below it)
 NODE_BYTES = 900        # a NodeInstance, its two mapping proxies and dicts, its entry
 ITEM_BYTES = 160        # a param or input entry, a ``lines`` entry (key string and int)
 VALUE_BYTES = 40        # a number, or a list or string's header
@@ -78,7 +79,8 @@ def value_bytes(v) -> int:
 def graph_bytes(graph: Graph) -> int:
     """Estimated bytes a graph holds (its nodes, params, inputs and source lines), for
     the byte bounds of the undo history and the run records [bytes]. Linear in the
-    graph's size: about 70 ms for 8,000 nodes on a loaded 2-core machine."""
+    graph's size: 49-131 ms for 8,000 nodes on 2 Xeon CPUs at load 2.5-3.4 (two
+    runs of ``benchmarks/serve_bounds_bench.py``)."""
     total = NODE_BYTES * (len(graph.nodes) + len(graph.outputs)) + ITEM_BYTES * len(graph.lines)
     for inst in graph.nodes.values():
         total += len(inst.id) + ITEM_BYTES * len(inst.inputs)

@@ -6,8 +6,9 @@ session for that graph's output again (the memory cache answers, or it is
 recomputed: the engine is deterministic) and so returns that run's image even
 when another client has edited the graph since. A record holds no pixels; the
 newest ``max_runs`` are kept, and at most ``max_bytes`` of graphs (each graph counted
-once however many runs share it, by ``history.graph_bytes``: a graph of 8,000 nodes is
-~13 MB, so 256 runs of edits of it were gigabytes); the newest is kept whatever its size.
+once however many runs share it, by ``history.graph_bytes``: a graph of 8,000 nodes
+holds 13 MiB loaded, ``benchmarks/serve_bounds_bench.py``, so 256 runs of edits of it
+were gigabytes); the newest is kept whatever its size.
 
 Encoded files are kept in a small cache bounded in bytes, keyed by run id, output,
 format and scale, and made once: requests for the same file wait for the first one
@@ -54,7 +55,7 @@ class Runs:
             self._runs[run.id] = run
             held = self._graphs.get(id(graph))      # the key lives while a run holds the graph
             if held is None:
-                held = self._graphs[id(graph)] = [0, graph_bytes(graph)]     # ~70 ms at 8,000 nodes
+                held = self._graphs[id(graph)] = [0, graph_bytes(graph)]     # 0.05-0.13 s at 8,000 nodes
                 self.bytes += held[1]
             held[0] += 1
             while len(self._runs) > 1 and (len(self._runs) > self.max_runs or self.bytes > self.max_bytes):

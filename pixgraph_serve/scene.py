@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import weakref
 from typing import Any, Mapping
 
@@ -379,8 +380,8 @@ def light_edits(state: ServeState, tip_uv=None, elevation=None, azimuth=None) ->
             raise ServeError(400, "cannot drag the shadow tip: the object's mask is empty", field="light_tip")
         edits = {p_place: h["tip_placement"], p_tip: list(tip), p_top: list(top)}
     for name, x in (("light_elevation", elevation), ("light_azimuth", azimuth)):
-        if x is not None and (isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x)):
-            raise ServeError(400, f"{name} must be a number of degrees, got {x!r}", field=name)
+        if x is not None and not _finite(x):
+            raise ServeError(400, f"{name} must be a number of degrees, got {_shown(x)}", field=name)
     if elevation is not None or azimuth is not None:
         v = _values(state, lid)
         if edits or v[h["placement"]] == h["tip_placement"]:
@@ -532,8 +533,22 @@ def angle_edits(state: ServeState, angles: dict, touched: bool = False) -> dict:
                          field=f"params.{h[name]}") from None
 
 
+def _finite(x) -> bool:
+    """A number a float holds: not a bool, NaN or an infinity, nor an integer beyond a
+    float's range (``math.isfinite`` of one raised OverflowError: a 500)."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and abs(x) <= sys.float_info.max
+
+
 def _pair(v, name) -> tuple[float, float]:
-    if (not isinstance(v, (list, tuple)) or len(v) != 2
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)):
-        raise ServeError(400, f"{name} must be [u, v] in pixels, got {v!r}", field=name)
+    if not isinstance(v, (list, tuple)) or len(v) != 2 or not all(_finite(x) for x in v):
+        raise ServeError(400, f"{name} must be [u, v] in pixels, got {_shown(v)}", field=name)
     return float(v[0]), float(v[1])
+
+
+def _shown(v) -> str:
+    """``repr(v)`` up to 100 characters (that of an integer over 4300 digits raises)."""
+    try:
+        text = repr(v)
+    except ValueError:
+        text = "a number too large to show"
+    return text if len(text) <= 100 else text[:100] + "..."

@@ -2,10 +2,14 @@
 listens on a port of 127.0.0.1, and over plain TCP any process of any user of the
 machine connected and ran code in the batch's workers (``client.run``). It speaks TLS
 now with certificates made for it alone (``Security.temporary``): a client without
-them is refused, at the TLS handshake. pixgraph_batch/executors.py."""
+them is refused, at the TLS handshake. Their HTTP servers (plain HTTP, whatever
+``dashboard_address`` says) serve no routes: their /info pages gave any local user
+the workers' logs and call stacks. pixgraph_batch/executors.py."""
 import os
 import socket
 import ssl
+import urllib.error
+import urllib.request
 
 import pytest
 
@@ -53,7 +57,29 @@ def test_another_process_cannot_run_code_in_the_local_clusters_workers(tmp_path,
             seen.append((args[0].scheduler_address, _intrude(args[0].scheduler_address)))
         return c
 
-    monkeypatch.setattr(distributed, "Client", client)
+    def http(c) -> list:
+        """What a process of another user reads from the cluster's plain-HTTP servers
+        (the scheduler's and each worker's): their logs and call stacks before."""
+        ports = _ports(c.cluster.scheduler.http_server)
+        ports += [w["services"]["dashboard"] for w in c.scheduler_info()["workers"].values()]
+        got = []
+        for port in ports:
+            for path in ("/info/main/workers.html", "/info/logs/x.html", "/json/identity.json", "/health"):
+                try:
+                    with urllib.request.urlopen(f"http://127.0.0.1:{port}{path}", timeout=15) as r:
+                        got.append(f"{port}{path}: {r.status} {r.read()[:80]!r}")
+                except urllib.error.HTTPError as e:
+                    got.append(f"{port}{path}: {e.code}")
+        return got
+
+    def client_http(*args, **kwargs):
+        c = client(*args, **kwargs)
+        if args and hasattr(args[0], "scheduler_address") and not pages:
+            pages.extend(http(c))
+        return c
+
+    pages: list = []
+    monkeypatch.setattr(distributed, "Client", client_http)
     (tmp_path / "g.yaml").write_text(GRAPH)
     (tmp_path / "rows.csv").write_text("id,c.width\n" + "".join(f"r{i},{8 + i}\n" for i in range(4)))
     assert main(["batch", str(tmp_path / "g.yaml"), str(tmp_path / "rows.csv"), "--dask-local", "1",
@@ -63,3 +89,9 @@ def test_another_process_cannot_run_code_in_the_local_clusters_workers(tmp_path,
     print(address, got)
     assert address.startswith("tls://127.0.0.1:"), address
     assert "ran:" not in got and "handshake done" not in got, got
+    assert len(pages) >= 8 and all(p.endswith(": 404") for p in pages), pages     # no route served
+    # (before: workers.html, identity.json and /health answered 200 to anyone)
+
+
+def _ports(server) -> list:
+    return [s.getsockname()[1] for s in server._sockets.values()]

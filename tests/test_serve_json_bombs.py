@@ -4,7 +4,8 @@ nesting by the depth check; a large body (a JSON edit is a few kilobytes) is ref
 over ``Limits.max_json_bytes`` (1 MiB) before it is parsed, and every body is parsed
 on a worker thread, not on the event loop that answers every other client. Before,
 24 MB of a 2-million-point list was parsed and walked on the event loop: the page's
-requests waited 6 s (256 MB, the body limit: a minute and gigabytes). And numbers in
+requests waited 8.6-17 s (benchmarks/serve_bounds_bench.py, two runs; 256 MB, the body limit,
+about ten times that). And numbers in
 a query or header: '²' is a digit to ``str.isdigit`` but not to ``int()`` (500 before)."""
 import json
 import threading
@@ -32,6 +33,8 @@ def url(tmp_path_factory):
     ('{"params": {"light.azimuth": -Infinity}}', "params.azimuth"),
     ('{"light_tip": [NaN, 1]}', "light_tip"),
     ('{"light_elevation": NaN}', "light_elevation"),
+    ('{"light_tip": [' + "9" * 400 + ', 1]}', "light_tip"),            # beyond a float: a 500 before
+    ('{"light_elevation": ' + "9" * 4000 + "}", "light_elevation"),
 ])
 def test_non_finite_numbers_are_refused(url, body, field):
     r = httpx.post(url + "/api/params", content=body, headers=JSON, timeout=60)
@@ -127,3 +130,55 @@ def test_5000_digit_integers_are_bad_input_in_files_manifests_and_sets(tmp_path,
         assert main(args) == 2, args[0]
         err = capsys.readouterr().err.strip()
         assert "\n" not in err and "4300 digits" in err, err
+
+
+HEX = "0x" + "f" * 5000   # 20,000 bits: YAML reads a hex (or sexagesimal) int whatever its size
+
+
+@pytest.mark.parametrize("value", [HEX, "1" + ":0" * 3000, "9" * 400])
+def test_integers_beyond_a_floats_range_are_bad_input_at_their_line(value):
+    """``int()``'s 4300-digit limit is for decimal text only: a hex or sexagesimal
+    integer of any size was read, and ``float()`` (OverflowError) or ``str()``
+    (ValueError) of it later stopped ``pixgraph run`` with exit 1 and made the
+    server's POST /api/graph a 500."""
+    from pixgraph import fileio
+    from pixgraph.errors import GraphError
+    from pixgraph.registry import Registry
+
+    for text in (f"pixgraph: 1\nnodes:\n  c: {{type: pixgraph.Constant, params: {{width: {value}}}}}\noutputs: {{}}\n",
+                 f"pixgraph: {value}\nnodes: {{}}\noutputs: {{}}\n"):
+        with pytest.raises(GraphError) as e:
+            fileio.loads(text, Registry.discover())
+        assert "beyond a float's range" in e.value.message and e.value.line == text[:text.index(value)].count("\n") + 1
+
+
+def test_a_posted_graph_with_a_hex_integer_is_400(url):
+    graph = httpx.get(url + "/api/graph.yaml", timeout=60).text
+    text = graph.replace("azimuth:", f"azimuth: {HEX}\n      _was:", 1)
+    r = httpx.post(url + "/api/graph", content=text, headers={"Content-Type": "application/yaml"}, timeout=60)
+    assert r.status_code == 400 and "float's range" in r.json()["error"] and r.json().get("line"), r.text
+
+
+def test_integers_beyond_a_floats_range_are_param_errors_in_sets_manifests_and_edits(tmp_path, capsys, url):
+    """Where no graph file's loader reads them (a --set value, a manifest cell, a JSON
+    edit), the param's check refuses them: exit 2, a failed row naming the param (as
+    1e400 is), 400; not exit 1 with 'Exceeds the limit (4300 digits)', nor a 500."""
+    from pixgraph.cli import main
+
+    graph = tmp_path / "g.yaml"
+    graph.write_text("pixgraph: 1\nnodes:\n  c: {type: pixgraph.Constant, params: {width: 8, height: 8}}\n"
+                     "outputs: {final: c.image}\n")
+    (tmp_path / "rows.csv").write_text(f"id,c.color\nr1,\"[{'9' * 400}, 0, 0, 1]\"\n")
+    for args in (["run", str(graph), "--set", f"c.width={HEX}", "-o", f"final={tmp_path}/x.png"],
+                 ["run", str(graph), "--set", f"c.color=[{HEX}, 0, 0, 1]", "-o", f"final={tmp_path}/x.png"],
+                 ["batch", str(graph), str(tmp_path / "rows.csv"), "--no-disk-cache", "-o", f"final={tmp_path}/o/{{row}}.png"]):
+        capsys.readouterr()
+        assert main(args) == (1 if args[0] == "batch" else 2), args[:3]
+        out = capsys.readouterr()
+        said = out.out if args[0] == "batch" else out.err
+        assert "param 'color'" in said or args[3].startswith("c.width"), said[:1000]
+        assert "beyond a float's range" in said and len(said) < 1000, said[:1000]
+    for body in ('{"params": {"bg_h.junction_points": [[' + "9" * 400 + ", 1]]}}",
+                 '{"params": {"light.azimuth": ' + "9" * 4000 + "}}"):
+        r = httpx.post(url + "/api/params", content=body, headers=JSON, timeout=60)
+        assert r.status_code == 400 and "beyond a float's range" in r.json()["error"], r.text[:500]
