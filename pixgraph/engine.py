@@ -45,7 +45,7 @@ def _env_int(name: str, default: int) -> int:
     raw = os.environ.get(name, "")
     try:
         return int(float(raw)) if raw.strip() else default
-    except ValueError:
+    except (ValueError, OverflowError):      # OverflowError: inf, 1e400
         raise GraphError(f"{name} must be a number, got {raw[:40]!r}") from None
 
 

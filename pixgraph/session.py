@@ -34,7 +34,7 @@ def env_bytes(name: str, default: int) -> int:
         return default
     try:
         value = int(float(raw))
-    except ValueError:
+    except (ValueError, OverflowError):      # OverflowError: inf, 1e400
         raise ValueError(f"{name} must be a number of bytes, got {raw!r}") from None
     if value < 0:
         raise ValueError(f"{name} must be >= 0, got {raw!r}")

@@ -43,7 +43,7 @@ def max_pixels() -> int:
     raw = os.environ.get("PIXGRAPH_MAX_PIXELS", "")
     try:
         return int(float(raw)) if raw.strip() else DEFAULT_MAX_PIXELS
-    except ValueError:
+    except (ValueError, OverflowError):      # OverflowError: inf, 1e400
         raise ImageFileError(f"PIXGRAPH_MAX_PIXELS must be a number, got {raw[:40]!r}") from None
 
 
