@@ -40,6 +40,9 @@ from pixgraph_lab.height.edit_plans import OTHER, PLANS, plan_method, plan_param
 GAMMAS = (0.5, 0.6, 0.7, 0.8, 0.9, 1.1, 1.25, 1.5, 1.75, 2.0)
 WEIGHTS = (0.25, 0.5, 0.75)
 SCALES = (0.7, 0.8, 0.9, 1.1, 1.2, 1.3)
+#: ``--fine``: the same families on finer grids near the plan as it is (g = w = 0, s = 1)
+FINE = {"profile": (0.92, 0.94, 0.96, 0.98, 1.02, 1.04, 1.06, 1.08, 1.15), "blend": (0.05, 0.1, 0.15, 0.2),
+        "scale": (0.94, 0.96, 0.98, 1.02, 1.04, 1.06)}
 
 #: user B's best plan per case (docs/height-record.md, "Measured: a user who watches the shadow")
 B_PLAN = {
@@ -108,7 +111,49 @@ def rmse_bound(fix, sc: dict, h: np.ndarray) -> float:
     return float(np.sqrt(np.mean((got[keep] - truth[keep]) ** 2)))
 
 
-def probe_case(fix, sc: dict, idx: int, method: str, full: bool) -> dict:
+#: ``--joint``: the reshapes whose plan is watched again with the reshape on (user B's drags re-chosen)
+JOINT = {"profile": (0.8, 0.9, 1.1, 1.25), "blend": (0.25, 0.5)}
+
+
+def joint_case(fix, sc: dict, idx: int, method: str) -> dict:
+    """User B's plan (B_PLAN) done again with each JOINT reshape applied to the edited map
+    while B watches: the drags' candidates (``plan_params``'s, from the unreshaped map) are
+    the same, B keeps the one whose reshaped map's shadow comes closest."""
+    t0 = time.time()
+    before = fix.measure(sc["graph"], {}, method)["rmse"]
+    name = B_PLAN[(idx, method)]
+    params, after = b_plan(fix, sc, method, name)
+    plan = PLANS[name]
+    meth = plan_method(plan, method)
+    ses = fix._session()
+    g = ses.load(sc["graph"])
+    mask = sc["mask"]
+
+    def edited(p, m=meth):
+        q = {f"edit.{k}": v for k, v in p.items()}
+        q["fg_h.method"] = m
+        return np.asarray(ses.run(g, outputs=["edit.height"], params=q)["edit.height"], dtype=np.float32)
+    fam = {"profile": {}, "blend": {}}
+    for f, values in JOINT.items():
+        for v in values:
+            def reshape(p, f=f, v=v):
+                h = edited(p)
+                return profile(h, mask, v) if f == "profile" else (1 - v) * h + v * edited(p, OTHER[meth])
+
+            def watch(cands, reshape=reshape):
+                return int(np.argmin([rmse_bound(fix, sc, reshape(c)) for c in cands]))
+            p = plan_params(plan, sc["known_h"], mask, edited, watch=watch, targets={})
+            fam[f][v] = (rmse_bound(fix, sc, reshape(p)), p)
+    return {"idx": idx, "object": sc["object"].removeprefix("named:"), "method": method, "plan": name,
+            "params": params, "before": before, "after": after, "joint": True,
+            "families": {k: {str(p): v[0] for p, v in d.items()} for k, d in fam.items()},
+            "joint_params": {k: {str(p): v[1] for p, v in d.items()} for k, d in fam.items()},
+            "seconds": time.time() - t0, "load": os.getloadavg()[0]}
+
+
+def probe_case(fix, sc: dict, idx: int, method: str, full: bool, grids: dict | None = None) -> dict:
+    """One case's numbers (``grids``: each family's parameters, default GAMMAS, WEIGHTS, SCALES)."""
+    grids = grids or {"profile": GAMMAS, "blend": WEIGHTS, "scale": SCALES}
     t0 = time.time()
     before = fix.measure(sc["graph"], {}, method)["rmse"]
     if full:
@@ -129,12 +174,12 @@ def probe_case(fix, sc: dict, idx: int, method: str, full: bool) -> dict:
     mask = sc["mask"]
     check = rmse_bound(fix, sc, h)          # the bound map's shadow is the plan's own
     fam = {"profile": {}, "blend": {}, "scale": {}}
-    for gm in GAMMAS:
+    for gm in grids["profile"]:
         fam["profile"][gm] = rmse_bound(fix, sc, profile(h, mask, gm))
     h_other = edited(OTHER[meth])
-    for w in WEIGHTS:
+    for w in grids["blend"]:
         fam["blend"][w] = rmse_bound(fix, sc, (1 - w) * h + w * h_other)
-    for s in SCALES:
+    for s in grids["scale"]:
         fam["scale"][s] = rmse_bound(fix, sc, s * h)
     return {"idx": idx, "object": sc["object"].removeprefix("named:"), "method": method, "plan": name,
             "params": params, "before": before, "after": after, "bound_check": check,
@@ -148,14 +193,16 @@ def removed(before: float, x: float) -> float:
 
 
 def table(rows: list) -> str:
-    out = ["| case | plan (user B) | RMSE before | user B after (removed) | profile: best g, RMSE (removed) "
-           "| blend: best w, RMSE (removed) | scale: best s, RMSE (removed) |", "|---|---|---|---|---|---|---|"]
-    counts = {"B": [], "profile": [], "blend": [], "scale": []}
+    fams = [f for f in ("profile", "blend", "scale") if all(f in r["families"] for r in rows)]
+    sym = {"profile": "g", "blend": "w", "scale": "s"}
+    out = ["| case | plan (user B) | RMSE before | user B after (removed) | "
+           + " | ".join(f"{f}: best {sym[f]}, RMSE (removed)" for f in fams) + " |", "|---" * (4 + len(fams)) + "|"]
+    counts = {"B": [], **{f: [] for f in fams}}
     for r in rows:
         b, a = r["before"], r["after"]
         cells = []
         counts["B"].append(removed(b, a))
-        for f in ("profile", "blend", "scale"):
+        for f in fams:
             p, v = min(r["families"][f].items(), key=lambda kv: kv[1])
             best = min(v, a)                 # the oracle may keep the plan as it is
             counts[f].append(removed(b, best))
@@ -176,12 +223,23 @@ def main(argv=None) -> int:
     ap.add_argument("--shadows", default="data/hreal/wall_named64")
     ap.add_argument("--cases", default=None, help="idx:method,... (default: FIRST, then the other 12)")
     ap.add_argument("--full", action="store_true", help="user B's best plan by choose_plan over all PLANS (slow)")
-    ap.add_argument("--out", default="runs/reshape_probe.jsonl", help="one JSON line per case (appended)")
+    ap.add_argument("--out", default="runs/reshape_probe.jsonl", help="one JSON line per case (appended); with --table, files to merge")
+    ap.add_argument("--joint", action="store_true", help="JOINT's reshapes with user B's drags watched again")
+    ap.add_argument("--fine", action="store_true", help="the families on FINE's grids instead")
     ap.add_argument("--table", action="store_true", help="only print the table of --out's cases")
     a = ap.parse_args(argv)
-    if a.table:
-        with open(a.out) as f:
-            print(table([json.loads(x) for x in f if x.strip()]))
+    if a.table:     # --out may name several files (comma-separated): each case's families merged
+        rows = {}
+        for path in a.out.split(","):
+            with open(path) as f:
+                for r in (json.loads(x) for x in f if x.strip()):
+                    key = (r["idx"], r["method"])
+                    if key in rows:
+                        for k, d in r["families"].items():
+                            rows[key]["families"][k].update(d)
+                    else:
+                        rows[key] = r
+        print(table(list(rows.values())))
         return 0
     fix = _fix()
     cases = ([(int(c.split(":")[0]), c.split(":")[1]) for c in a.cases.split(",")] if a.cases
@@ -194,13 +252,14 @@ def main(argv=None) -> int:
     for idx, method in cases:
         with tempfile.TemporaryDirectory(prefix="pixgraph-reshape-") as d:
             sc = fix.build_scene(os.path.join(a.shadows, f"{idx:05d}.npz"), d)
-            r = probe_case(fix, sc, idx, method, a.full)
+            r = (joint_case(fix, sc, idx, method) if a.joint
+                 else probe_case(fix, sc, idx, method, a.full, FINE if a.fine else None))
         rows.append(r)
         with open(a.out, "a") as f:
             f.write(json.dumps(r) + "\n")
         fams = "; ".join(f"{k} " + ", ".join(f"{p}:{v:.4f}" for p, v in d.items()) for k, d in r["families"].items())
         print(f"{idx} {r['object']} {method}: plan {r['plan']} {r['params']}; before {r['before']:.4f} after "
-              f"{r['after']:.4f} (bound {r['bound_check']:.4f}); {fams}; {r['seconds']:.0f} s, load "
+              f"{r['after']:.4f} (bound {r.get('bound_check', float('nan')):.4f}); {fams}; {r['seconds']:.0f} s, load "
               f"{r['load']:.2f}", flush=True)
     print(table(rows))
     print(f"load average at the end {os.getloadavg()[0]:.2f}")
