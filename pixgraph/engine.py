@@ -28,6 +28,7 @@ from .errors import NodeError, NodeInputError, out_of_memory  # noqa: F401 (re-e
 from .graph import Graph, GraphError, Ref, upstream
 from .hashing import FileHasher, KeyParts, array_key, explain_change, sha256_text
 from .node import InputError, Namespace, NodeSpec
+from .options import env_int
 from .paths import PathError, PathPolicy
 from .plan import NodeContext, Plan, RunResult, Step, files_upstream  # noqa: F401 (re-exported)
 from .registry import Registry
@@ -42,11 +43,10 @@ _log = logging.getLogger("pixgraph.engine")
 
 
 def _env_int(name: str, default: int) -> int:
-    raw = os.environ.get(name, "")
     try:
-        return int(float(raw)) if raw.strip() else default
-    except (ValueError, OverflowError):      # OverflowError: inf, 1e400
-        raise GraphError(f"{name} must be a number, got {raw[:40]!r}") from None
+        return env_int(name, default)
+    except ValueError as e:
+        raise GraphError(str(e)) from None
 
 
 class Engine:

@@ -1,7 +1,9 @@
 """Command-line option parsers that the CLI and the shells share: ``--set
-NODE.PARAM=VALUE`` and ``-o NAME=PATH`` (one parser each)."""
+NODE.PARAM=VALUE`` and ``-o NAME=PATH`` (one parser each), and the one reader of
+numbers set in the environment (``env_int``)."""
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import yaml
@@ -34,3 +36,16 @@ def parse_output_options(options, value: str = "PATH") -> dict[str, str]:
             raise UsageError(f"-o {item}: expected NAME={value}")
         outputs[name] = text
     return outputs
+
+
+def env_int(name: str, default: int, what: str = "a number") -> int:
+    """The integer in the environment variable ``name`` (``1e9`` allowed, truncated;
+    unset or blank: ``default``); ValueError naming the variable for anything else,
+    ``inf`` and ``1e400`` included (``int(float())`` of those raises OverflowError)."""
+    raw = os.environ.get(name, "")
+    if not raw.strip():
+        return default
+    try:
+        return int(float(raw))
+    except (ValueError, OverflowError):
+        raise ValueError(f"{name} must be {what}, got {raw[:40]!r}") from None

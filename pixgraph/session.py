@@ -20,6 +20,7 @@ from .cache import DiskCache, MemoryCache
 from .engine import Engine, Plan, RunResult
 from .events import CancelToken
 from .graph import Graph, GraphBuilder, GraphError, Ref, split_param
+from .options import env_int
 from .paths import PathError, PathPolicy, bad_characters, quote
 from .registry import Registry
 
@@ -29,15 +30,9 @@ DEFAULT_DISK_CACHE_BYTES = 20 << 30    # PIXGRAPH_DISK_CACHE_BYTES
 
 
 def env_bytes(name: str, default: int) -> int:
-    raw = os.environ.get(name)
-    if raw is None or raw == "":
-        return default
-    try:
-        value = int(float(raw))
-    except (ValueError, OverflowError):      # OverflowError: inf, 1e400
-        raise ValueError(f"{name} must be a number of bytes, got {raw!r}") from None
+    value = env_int(name, default, "a number of bytes")
     if value < 0:
-        raise ValueError(f"{name} must be >= 0, got {raw!r}")
+        raise ValueError(f"{name} must be >= 0, got {os.environ[name][:40]!r}")
     return value
 
 

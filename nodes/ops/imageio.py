@@ -21,6 +21,7 @@ import pathlib
 import numpy as np
 
 from pixgraph.node import InputError
+from pixgraph.options import env_int
 
 from .bands import for_bands
 from .png import write_png
@@ -40,11 +41,10 @@ class ImageFileError(InputError, OSError):
 
 def max_pixels() -> int:
     """The pixel limit for image reads (``PIXGRAPH_MAX_PIXELS``, default 64 Mpx)."""
-    raw = os.environ.get("PIXGRAPH_MAX_PIXELS", "")
     try:
-        return int(float(raw)) if raw.strip() else DEFAULT_MAX_PIXELS
-    except (ValueError, OverflowError):      # OverflowError: inf, 1e400
-        raise ImageFileError(f"PIXGRAPH_MAX_PIXELS must be a number, got {raw[:40]!r}") from None
+        return env_int("PIXGRAPH_MAX_PIXELS", DEFAULT_MAX_PIXELS)
+    except ValueError as e:
+        raise ImageFileError(str(e)) from None
 
 
 def srgb_to_linear(x: np.ndarray) -> np.ndarray:
