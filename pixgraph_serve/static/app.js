@@ -47,8 +47,9 @@ export async function api(method, path, body) {
 // (a photo named in another script: "写真.png" became "png", refused, and two such
 // names became one file) is "NAME-HASH", HASH of the whole name; spaces become "_".
 export function uploadName(name) {
-  const ext = (name.match(/\.(png|jpe?g|tiff?|exr)$/i) || [".png"])[0].toLowerCase();
-  const stem = name.slice(0, name.length - (/\.(png|jpe?g|tiff?|exr)$/i.test(name) ? ext.length : 0));
+  const image = name.match(/\.(png|jpe?g|tiff?|exr)$/i);
+  const ext = image ? image[0].toLowerCase() : ".png";
+  const stem = image ? name.slice(0, -image[0].length) : name;
   const plain = stem.replace(/ /g, "_");     // "my photo.png": my_photo.png, as before
   if (/^[A-Za-z0-9][A-Za-z0-9_.-]{0,99}$/.test(plain)) return plain + ext;
   let h = 0x811c9dc5;                        // FNV-1a of the name's UTF-16 code units
