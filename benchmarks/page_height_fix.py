@@ -190,20 +190,21 @@ def measure(graph: str, params: dict, method: str) -> dict:
     return {"rmse": float(np.sqrt(np.mean((got[keep] - truth[keep]) ** 2))), "iou": iou(got, truth, keep)}
 
 
+def edited_map(graph: str, params: dict, method: str) -> np.ndarray:
+    """The ``PixelHeightEdit`` node's output [px] with the edit's ``params`` on the
+    ``method`` height (the session's memory cache answers a repeat)."""
+    ses = _session()
+    q = {f"edit.{k}": v for k, v in params.items()}
+    q["fg_h.method"] = method
+    return ses.run(ses.load(graph), outputs=["edit.height"], params=q)["edit.height"]
+
+
 def choose_plan(sc: dict, method: str, user: str = "A") -> tuple[str, dict, dict]:
     """The plan (PLANS) whose shadow is closest to the true heights' (the user sees the
     shadow): its name, params and numbers; and the numbers of every plan. ``user``: A drags
     each handle to the true height, B to the height whose shadow is closest (``edit_plans``'
     ``watch``); every plan's entry is (params, numbers, the drags' handle heights)."""
-    ses = _session()
-    g = ses.load(sc["graph"])
     m = sc["mask"]
-
-    def edited(p, meth):
-        q = {f"edit.{k}": v for k, v in p.items()}
-        q["fg_h.method"] = meth
-        return ses.run(g, outputs=["edit.height"], params=q)["edit.height"]
-
     every = {"none": ({}, measure(sc["graph"], {}, method), {})}
     for name, plan in PLANS.items():
         meth = plan_method(plan, method)
@@ -211,7 +212,7 @@ def choose_plan(sc: dict, method: str, user: str = "A") -> tuple[str, dict, dict
         def watch(cands, meth=meth):
             return int(np.argmin([measure(sc["graph"], c, meth)["rmse"] for c in cands]))
         targets = {}
-        p = plan_params(plan, sc["known_h"], m, lambda q: edited(q, meth), watch=watch if user == "B" else None,
+        p = plan_params(plan, sc["known_h"], m, lambda q: edited_map(sc["graph"], q, meth), watch=watch if user == "B" else None,
                         targets=targets)
         every[name] = (p, measure(sc["graph"], p, meth), targets)
     best = min(every, key=lambda k: every[k][1]["rmse"])

@@ -85,15 +85,11 @@ def _fix():
 
 def b_plan(fix, sc: dict, method: str, name: str) -> tuple[dict, float]:
     """User B's params for plan ``name`` (``choose_plan``'s loop body for that plan) and its RMSE."""
-    ses = fix._session()
-    g = ses.load(sc["graph"])
     plan = PLANS[name]
     meth = plan_method(plan, method)
 
     def edited(p):
-        q = {f"edit.{k}": v for k, v in p.items()}
-        q["fg_h.method"] = meth
-        return ses.run(g, outputs=["edit.height"], params=q)["edit.height"]
+        return fix.edited_map(sc["graph"], p, meth)
 
     def watch(cands):
         return int(np.argmin([fix.measure(sc["graph"], c, meth)["rmse"] for c in cands]))
@@ -125,14 +121,10 @@ def joint_case(fix, sc: dict, idx: int, method: str) -> dict:
     params, after = b_plan(fix, sc, method, name)
     plan = PLANS[name]
     meth = plan_method(plan, method)
-    ses = fix._session()
-    g = ses.load(sc["graph"])
     mask = sc["mask"]
 
     def edited(p, m=meth):
-        q = {f"edit.{k}": v for k, v in p.items()}
-        q["fg_h.method"] = m
-        return np.asarray(ses.run(g, outputs=["edit.height"], params=q)["edit.height"], dtype=np.float32)
+        return np.asarray(fix.edited_map(sc["graph"], p, m), dtype=np.float32)
     fam = {"profile": {}, "blend": {}}
     for f, values in JOINT.items():
         for v in values:
@@ -163,13 +155,9 @@ def probe_case(fix, sc: dict, idx: int, method: str, full: bool, grids: dict | N
         name = B_PLAN[(idx, method)]
         params, after = b_plan(fix, sc, method, name)
     meth = plan_method(PLANS.get(name, []), method)
-    ses = fix._session()
-    g = ses.load(sc["graph"])
 
     def edited(m):
-        q = {f"edit.{k}": v for k, v in params.items()}
-        q["fg_h.method"] = m
-        return np.asarray(ses.run(g, outputs=["edit.height"], params=q)["edit.height"], dtype=np.float32)
+        return np.asarray(fix.edited_map(sc["graph"], params, m), dtype=np.float32)
     h = edited(meth)
     mask = sc["mask"]
     check = rmse_bound(fix, sc, h)          # the bound map's shadow is the plan's own
